@@ -1,0 +1,63 @@
+//! Brute force: every ray against every triangle. O(rays × triangles); the oracle that
+//! every other caster is tested against, and the leaf stage's reference.
+
+use super::{CastStats, RayCaster, Triangles, any_hit_ids, intersect_ids, timed, triangles_bytes};
+use crate::geometry::{Hit, Ray, RayShear};
+use crate::scene::Scene;
+use rayon::prelude::*;
+
+pub struct BruteForce {
+    tris: Triangles,
+}
+
+impl BruteForce {
+    pub fn new(scene: &Scene) -> Self {
+        BruteForce {
+            tris: scene.triangle_vertices(),
+        }
+    }
+
+    pub fn from_triangles(tris: Triangles) -> Self {
+        BruteForce { tris }
+    }
+}
+
+impl RayCaster for BruteForce {
+    fn name(&self) -> &'static str {
+        "brute"
+    }
+
+    fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
+        assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
+        let n = self.tris.len() as u32;
+        timed(rays.len(), 0, || {
+            rays.par_iter()
+                .zip(hits.par_iter_mut())
+                .with_min_len(16)
+                .for_each(|(ray, hit)| {
+                    *hit = Hit::MISS;
+                    if ray.is_valid() {
+                        intersect_ids(&self.tris, 0..n, ray, &RayShear::new(ray.dir), hit);
+                    }
+                })
+        })
+    }
+
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
+        assert_eq!(rays.len(), out.len(), "one result slot per ray");
+        let n = self.tris.len() as u32;
+        timed(rays.len(), 0, || {
+            rays.par_iter()
+                .zip(out.par_iter_mut())
+                .with_min_len(16)
+                .for_each(|(ray, o)| {
+                    *o = ray.is_valid()
+                        && any_hit_ids(&self.tris, 0..n, ray, &RayShear::new(ray.dir));
+                })
+        })
+    }
+
+    fn memory_bytes(&self) -> usize {
+        triangles_bytes(&self.tris)
+    }
+}

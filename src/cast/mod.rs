@@ -1,0 +1,139 @@
+//! Batch ray casting: one trait for every caster.
+//!
+//! A caster is built once per scene and answers batches: [`RayCaster::closest`] fills
+//! one [`Hit`] per ray, [`RayCaster::occluded`] one `bool` per ray (any hit with
+//! `t_min < t < t_max`). Each call returns [`CastStats`]. Rays that are not finite or
+//! have a zero direction never hit anything.
+//!
+//! Casters here: [`BruteForce`] (the test oracle) and [`BvhCaster`] (obvhs' compressed
+//! wide BVH). Serial DACRT and PDACRT implement the same trait.
+
+mod brute;
+mod bvh;
+
+pub use brute::BruteForce;
+pub use bvh::BvhCaster;
+
+use crate::geometry::{Hit, Ray, RayShear, intersect_triangle};
+use crate::scene::Scene;
+use glam::Vec3;
+use std::time::Instant;
+
+/// What one batch call did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CastStats {
+    /// Rays in the batch.
+    pub rays: usize,
+    /// Wall time of the call, seconds.
+    pub seconds: f64,
+    /// Peak bytes the caster allocated for this call beyond its own structure
+    /// (id lists, queues); 0 for casters that work in per-thread stack space.
+    pub peak_working_bytes: usize,
+}
+
+impl CastStats {
+    /// Rays per second.
+    pub fn rays_per_second(&self) -> f64 {
+        if self.seconds > 0.0 {
+            self.rays as f64 / self.seconds
+        } else {
+            0.0
+        }
+    }
+
+    /// Sums two calls (peak memory is the larger of the two).
+    pub fn merge(self, o: CastStats) -> CastStats {
+        CastStats {
+            rays: self.rays + o.rays,
+            seconds: self.seconds + o.seconds,
+            peak_working_bytes: self.peak_working_bytes.max(o.peak_working_bytes),
+        }
+    }
+}
+
+/// Every ray caster: BVH, brute force, serial DACRT, PDACRT.
+pub trait RayCaster: Send + Sync {
+    /// Short name for tables and the command line (`"bvh"`, `"brute"`, …).
+    fn name(&self) -> &'static str;
+    /// Closest hit of every ray; `hits.len()` must equal `rays.len()`.
+    fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats;
+    /// Whether anything lies on each ray within `(t_min, t_max)`; `out.len() == rays.len()`.
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats;
+    /// Bytes of the caster's persistent structure (BVH nodes, indices, its triangle copy).
+    fn memory_bytes(&self) -> usize;
+    /// Seconds spent building the structure (0 for casters with none).
+    fn build_seconds(&self) -> f64 {
+        0.0
+    }
+}
+
+/// Which caster to build; parsed from the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum CasterKind {
+    /// obvhs compressed wide BVH (CWBVH), built in parallel.
+    Bvh,
+    /// Every ray against every triangle: the test oracle.
+    Brute,
+}
+
+impl CasterKind {
+    pub fn build(self, scene: &Scene) -> Box<dyn RayCaster> {
+        match self {
+            CasterKind::Bvh => Box::new(BvhCaster::new(scene)),
+            CasterKind::Brute => Box::new(BruteForce::new(scene)),
+        }
+    }
+}
+
+/// Triangle corners in scene order, as the casters store them.
+pub type Triangles = Vec<[Vec3; 3]>;
+
+/// Bytes of a triangle array.
+pub(crate) fn triangles_bytes(tris: &Triangles) -> usize {
+    tris.len() * std::mem::size_of::<[Vec3; 3]>()
+}
+
+/// Runs `f` timing it, and fills in the ray count.
+pub(crate) fn timed(rays: usize, peak_working_bytes: usize, f: impl FnOnce()) -> CastStats {
+    let start = Instant::now();
+    f();
+    CastStats {
+        rays,
+        seconds: start.elapsed().as_secs_f64(),
+        peak_working_bytes,
+    }
+}
+
+/// Tests one ray against a list of triangle ids, shrinking `best` to the closest hit.
+/// Shared by every caster's leaf stage so all of them decide hits identically.
+#[inline]
+pub fn intersect_ids(
+    tris: &[[Vec3; 3]],
+    ids: impl IntoIterator<Item = u32>,
+    ray: &Ray,
+    shear: &RayShear,
+    best: &mut Hit,
+) {
+    for id in ids {
+        let [a, b, c] = tris[id as usize];
+        if let Some((t, u, v)) =
+            intersect_triangle(ray.origin, shear, a, b, c, ray.t_min, best.t.min(ray.t_max))
+        {
+            *best = Hit { t, prim: id, u, v };
+        }
+    }
+}
+
+/// True when any of the listed triangles lies on the ray within its interval.
+#[inline]
+pub fn any_hit_ids(
+    tris: &[[Vec3; 3]],
+    ids: impl IntoIterator<Item = u32>,
+    ray: &Ray,
+    shear: &RayShear,
+) -> bool {
+    ids.into_iter().any(|id| {
+        let [a, b, c] = tris[id as usize];
+        intersect_triangle(ray.origin, shear, a, b, c, ray.t_min, ray.t_max).is_some()
+    })
+}

@@ -1,0 +1,193 @@
+//! The film: f32 RGB sums with a pass count, a guard that keeps NaN and Inf out, and
+//! image output. Files are written to a temporary name beside the target and renamed
+//! into place, so a failed or interrupted run never leaves a truncated image.
+//!
+//! PNG tone map: `exposure · x`, clamped to `[0, 1]`, then the sRGB transfer curve,
+//! rounded to 8 bits. EXR: linear f32 RGB (ZIP compression), no tone map.
+
+use crate::error::{Error, Result};
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+
+#[derive(Clone, Debug)]
+pub struct Film {
+    pub width: u32,
+    pub height: u32,
+    /// Per pixel: sum of the radiance estimates of all passes.
+    pub sum: Vec<Vec3>,
+    /// Number of passes (samples per pixel) accumulated.
+    pub passes: u32,
+    /// Estimates rejected because they were NaN, infinite or negative.
+    pub rejected: u64,
+}
+
+/// Largest image accepted: 16384 pixels a side and 2^26 pixels (64 Mpx) in all.
+pub const MAX_SIDE: u32 = 16_384;
+pub const MAX_PIXELS: u64 = 1 << 26;
+
+/// Checks an image size before anything is allocated.
+pub fn check_size(width: u32, height: u32) -> Result<()> {
+    let bad = |why| Err(Error::BadImageSize { width, height, why });
+    if width == 0 || height == 0 {
+        return bad("width and height must be at least 1");
+    }
+    if width > MAX_SIDE || height > MAX_SIDE {
+        return bad("a side is longer than 16384 pixels");
+    }
+    if width as u64 * height as u64 > MAX_PIXELS {
+        return bad("more than 2^26 (67 million) pixels");
+    }
+    Ok(())
+}
+
+impl Film {
+    pub fn new(width: u32, height: u32) -> Result<Film> {
+        check_size(width, height)?;
+        let n = (width * height) as usize;
+        Ok(Film {
+            width,
+            height,
+            sum: vec![Vec3::ZERO; n],
+            passes: 0,
+            rejected: 0,
+        })
+    }
+
+    pub fn pixel_count(&self) -> usize {
+        self.sum.len()
+    }
+
+    /// Adds one pass: one estimate per pixel, in pixel order. Non-finite or negative
+    /// estimates are replaced by zero and counted in `rejected`.
+    pub fn add_pass(&mut self, estimates: &[Vec3]) {
+        assert_eq!(estimates.len(), self.sum.len(), "one estimate per pixel");
+        for (s, &e) in self.sum.iter_mut().zip(estimates) {
+            if e.is_finite() && e.min_element() >= 0.0 {
+                *s += e;
+            } else {
+                self.rejected += 1;
+            }
+        }
+        self.passes += 1;
+    }
+
+    /// The mean estimate per pixel.
+    pub fn mean(&self) -> Vec<Vec3> {
+        let inv = if self.passes > 0 {
+            1.0 / self.passes as f32
+        } else {
+            0.0
+        };
+        self.sum.iter().map(|&s| s * inv).collect()
+    }
+
+    /// Mean of all pixels' means (per channel).
+    pub fn image_mean(&self) -> Vec3 {
+        let m = self.mean();
+        let acc: glam::DVec3 = m.iter().map(|v| v.as_dvec3()).sum();
+        (acc / m.len().max(1) as f64).as_vec3()
+    }
+
+    /// Writes `path` as PNG or EXR, chosen by its extension.
+    pub fn write(&self, path: &Path, exposure: f32) -> Result<()> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("png") => self.write_png(path, exposure),
+            Some("exr") => self.write_exr(path),
+            _ => Err(Error::Output {
+                path: path.into(),
+                msg: "unknown image type: use .png or .exr".into(),
+            }),
+        }
+    }
+
+    pub fn write_png(&self, path: &Path, exposure: f32) -> Result<()> {
+        let bytes: Vec<u8> = self
+            .mean()
+            .iter()
+            .flat_map(|c| (*c * exposure).to_array().map(encode_srgb8))
+            .collect();
+        atomic_write(path, |tmp| {
+            image::save_buffer_with_format(
+                tmp,
+                &bytes,
+                self.width,
+                self.height,
+                image::ColorType::Rgb8,
+                image::ImageFormat::Png,
+            )
+            .map_err(|e| e.to_string())
+        })
+    }
+
+    pub fn write_exr(&self, path: &Path) -> Result<()> {
+        use exr::prelude::*;
+        let mean = self.mean();
+        let (w, h) = (self.width as usize, self.height as usize);
+        atomic_write(path, |tmp| {
+            let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
+                let c = mean[p.y() * w + p.x()];
+                (c.x, c.y, c.z)
+            });
+            let layer = Layer::new(
+                (w, h),
+                LayerAttributes::named("rgb"),
+                Encoding::SMALL_LOSSLESS,
+                channels,
+            );
+            Image::from_layer(layer)
+                .write()
+                .to_file(tmp)
+                .map_err(|e| e.to_string())
+        })
+    }
+}
+
+/// sRGB transfer curve, clamped, to 8 bits.
+pub fn encode_srgb8(linear: f32) -> u8 {
+    let x = if linear.is_nan() {
+        0.0
+    } else {
+        linear.clamp(0.0, 1.0)
+    };
+    let s = if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    };
+    (s * 255.0 + 0.5) as u8
+}
+
+/// Writes through `write` to a temporary file beside `path`, then renames it into place.
+/// On failure the temporary file is removed and `path` is untouched.
+fn atomic_write(
+    path: &Path,
+    write: impl FnOnce(&Path) -> std::result::Result<(), String>,
+) -> Result<()> {
+    let name = path.file_name().ok_or_else(|| Error::Output {
+        path: path.into(),
+        msg: "not a file name".into(),
+    })?;
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    // Keep the extension last: the encoders pick their format from it.
+    let tmp: PathBuf = path.with_file_name(format!(
+        ".{}.{}.tmp.{ext}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let result = write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| e.to_string()));
+    if let Err(msg) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(Error::Output {
+            path: path.into(),
+            msg,
+        });
+    }
+    Ok(())
+}

@@ -1,0 +1,370 @@
+//! Rays, hits, boxes and the robust primitives every caster shares.
+//!
+//! * [`intersect_triangle`]: the watertight ray/triangle test of Woop, Benthin and Wald
+//!   (JCGT 2013). Edge functions are evaluated in a ray-aligned shear space and fall back
+//!   to `f64` when one of them is exactly zero, so a ray that passes through a shared edge
+//!   or vertex of a closed mesh always hits at least one of the triangles.
+//! * [`Aabb::intersect`]: a slab test that accepts zero direction components (infinite
+//!   reciprocals) without producing NaN, and widens its far distance by a few ulps so
+//!   it never rejects a box that a watertight triangle test would hit (Ize 2013).
+//! * [`offset_ray_origin`]: moves a surface point off its surface along the geometric
+//!   normal by an amount that scales with the magnitude of the coordinates (Wächter and
+//!   Binder, Ray Tracing Gems ch. 6), so secondary rays do not re-hit their own triangle.
+
+use glam::Vec3;
+
+/// A ray with a parametric interval `[t_min, t_max)`. `dir` need not be normalised;
+/// distances are in units of `dir`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    pub t_min: f32,
+    pub t_max: f32,
+}
+
+impl Ray {
+    /// A ray from `origin` along `dir`, unbounded.
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Ray {
+            origin,
+            dir,
+            t_min: 0.0,
+            t_max: f32::INFINITY,
+        }
+    }
+
+    /// A ray limited to `t < t_max` (shadow rays toward a light).
+    pub fn segment(origin: Vec3, dir: Vec3, t_max: f32) -> Self {
+        Ray {
+            origin,
+            dir,
+            t_min: 0.0,
+            t_max,
+        }
+    }
+
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+
+    /// True when every component is finite and the direction is not zero.
+    pub fn is_valid(&self) -> bool {
+        self.origin.is_finite()
+            && self.dir.is_finite()
+            && self.dir != Vec3::ZERO
+            && !self.t_min.is_nan()
+            && !self.t_max.is_nan()
+    }
+}
+
+/// The closest hit of a ray: distance, triangle id and barycentrics of vertices 1 and 2.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    /// Triangle index into the scene, or [`Hit::NONE`] for a miss.
+    pub prim: u32,
+    pub u: f32,
+    pub v: f32,
+}
+
+impl Hit {
+    pub const NONE: u32 = u32::MAX;
+    pub const MISS: Hit = Hit {
+        t: f32::INFINITY,
+        prim: Hit::NONE,
+        u: 0.0,
+        v: 0.0,
+    };
+
+    pub fn is_hit(&self) -> bool {
+        self.prim != Hit::NONE
+    }
+}
+
+impl Default for Hit {
+    fn default() -> Self {
+        Hit::MISS
+    }
+}
+
+/// An axis-aligned box. The empty box has `min > max`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+/// 1 + 2·γ(3) with γ(n) = nε/(1−nε): the widening that makes the slab test conservative.
+const SLAB_WIDEN: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    pub fn from_points(points: &[Vec3]) -> Aabb {
+        points.iter().fold(Aabb::EMPTY, |b, &p| b.grow(p))
+    }
+
+    pub fn grow(self, p: Vec3) -> Aabb {
+        Aabb {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
+    }
+
+    pub fn union(self, o: Aabb) -> Aabb {
+        Aabb {
+            min: self.min.min(o.min),
+            max: self.max.max(o.max),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.min.cmpgt(self.max).any()
+    }
+
+    pub fn extent(&self) -> Vec3 {
+        (self.max - self.min).max(Vec3::ZERO)
+    }
+
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+
+    /// The axis (0, 1, 2) of greatest extent.
+    pub fn longest_axis(&self) -> usize {
+        let e = self.extent();
+        if e.x >= e.y && e.x >= e.z {
+            0
+        } else if e.y >= e.z {
+            1
+        } else {
+            2
+        }
+    }
+
+    /// Slab test against a ray given with its reciprocal direction. Returns the
+    /// parametric entry and exit distances clipped to `[t_min, t_max]`, or `None`.
+    ///
+    /// A zero direction component gives an infinite reciprocal; a NaN from `0 · ∞`
+    /// (origin exactly on a slab plane) is ignored by `f32::min`/`max`, which return
+    /// the other operand, so such a ray is treated as inside that slab.
+    #[inline]
+    pub fn intersect(
+        &self,
+        origin: Vec3,
+        inv_dir: Vec3,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<(f32, f32)> {
+        let t0 = (self.min - origin) * inv_dir;
+        let t1 = (self.max - origin) * inv_dir;
+        let mut near = t_min;
+        let mut far = t_max;
+        for a in 0..3 {
+            let (lo, hi) = if t0[a] <= t1[a] {
+                (t0[a], t1[a])
+            } else {
+                (t1[a], t0[a])
+            };
+            near = near.max(lo);
+            far = far.min(hi * SLAB_WIDEN);
+        }
+        (near <= far).then_some((near, far))
+    }
+}
+
+/// Reciprocal of a direction; zero components become signed infinities.
+#[inline]
+pub fn inv_dir(dir: Vec3) -> Vec3 {
+    Vec3::ONE / dir
+}
+
+/// Per-ray constants of the watertight test: the permutation that makes the
+/// dominant direction axis `z`, and the shear that maps the ray onto `+z`.
+#[derive(Clone, Copy, Debug)]
+pub struct RayShear {
+    kx: usize,
+    ky: usize,
+    kz: usize,
+    sx: f32,
+    sy: f32,
+    sz: f32,
+}
+
+impl RayShear {
+    #[inline]
+    pub fn new(dir: Vec3) -> RayShear {
+        let a = dir.abs();
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the winding of the sheared triangle when the dominant axis points backwards.
+        if dir[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        RayShear {
+            kx,
+            ky,
+            kz,
+            sx: dir[kx] / dir[kz],
+            sy: dir[ky] / dir[kz],
+            sz: 1.0 / dir[kz],
+        }
+    }
+}
+
+/// Watertight ray/triangle intersection (two-sided). Returns `(t, u, v)` with `u`, `v`
+/// the barycentric weights of `p1` and `p2`, for `t_min < t < t_max`.
+#[inline]
+pub fn intersect_triangle(
+    origin: Vec3,
+    shear: &RayShear,
+    p0: Vec3,
+    p1: Vec3,
+    p2: Vec3,
+    t_min: f32,
+    t_max: f32,
+) -> Option<(f32, f32, f32)> {
+    let RayShear {
+        kx,
+        ky,
+        kz,
+        sx,
+        sy,
+        sz,
+    } = *shear;
+    let a = p0 - origin;
+    let b = p1 - origin;
+    let c = p2 - origin;
+    let ax = a[kx] - sx * a[kz];
+    let ay = a[ky] - sy * a[kz];
+    let bx = b[kx] - sx * b[kz];
+    let by = b[ky] - sy * b[kz];
+    let cx = c[kx] - sx * c[kz];
+    let cy = c[ky] - sy * c[kz];
+
+    // Edge functions; each is the signed area opposite one vertex.
+    let mut e0 = cx * by - cy * bx;
+    let mut e1 = ax * cy - ay * cx;
+    let mut e2 = bx * ay - by * ax;
+    if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
+        // Exactly on an edge in single precision: decide in double precision so that
+        // neighbouring triangles agree on which side the ray passes.
+        let (ax, ay, bx, by, cx, cy) = (
+            ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
+        );
+        e0 = (cx * by - cy * bx) as f32;
+        e1 = (ax * cy - ay * cx) as f32;
+        e2 = (bx * ay - by * ax) as f32;
+    }
+    if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+        return None;
+    }
+    let det = e0 + e1 + e2;
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let az = sz * a[kz];
+    let bz = sz * b[kz];
+    let cz = sz * c[kz];
+    let t_scaled = e0 * az + e1 * bz + e2 * cz;
+    let inv_det = 1.0 / det;
+    let t = t_scaled * inv_det;
+    if !(t > t_min && t < t_max) {
+        return None;
+    }
+    Some((t, e1 * inv_det, e2 * inv_det))
+}
+
+/// Geometric normal (not normalised) of a triangle, following its winding.
+#[inline]
+pub fn triangle_normal(p0: Vec3, p1: Vec3, p2: Vec3) -> Vec3 {
+    (p1 - p0).cross(p2 - p0)
+}
+
+/// Offsets a surface point along the unit geometric normal `n` (flipped to the side
+/// the new ray leaves from) so that a ray starting there does not hit its own surface.
+/// Far from the origin the step is a fixed number of ulps of each coordinate; near
+/// the origin, where ulps are tiny, it is a small fixed distance.
+#[inline]
+pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
+    const NEAR_ORIGIN: f32 = 1.0 / 32.0;
+    const FLOAT_STEP: f32 = 1.0 / 65536.0;
+    const ULP_STEP: f32 = 256.0;
+    let mut out = p;
+    for a in 0..3 {
+        let ulps = (ULP_STEP * n[a]) as i32;
+        let bits = p[a].to_bits() as i32;
+        let stepped = f32::from_bits(if p[a] < 0.0 { bits - ulps } else { bits + ulps } as u32);
+        out[a] = if p[a].abs() < NEAR_ORIGIN {
+            p[a] + FLOAT_STEP * n[a]
+        } else {
+            stepped
+        };
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn triangle_hit_and_barycentrics() {
+        let (p0, p1, p2) = (
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        );
+        let o = Vec3::new(0.25, 0.5, 1.0);
+        let d = Vec3::new(0.0, 0.0, -1.0);
+        let (t, u, v) =
+            intersect_triangle(o, &RayShear::new(d), p0, p1, p2, 0.0, f32::INFINITY).unwrap();
+        assert!((t - 1.0).abs() < 1e-6);
+        assert!((u - 0.25).abs() < 1e-6 && (v - 0.5).abs() < 1e-6);
+        // Behind the origin and beyond t_max are misses.
+        assert!(
+            intersect_triangle(o, &RayShear::new(-d), p0, p1, p2, 0.0, f32::INFINITY).is_none()
+        );
+        assert!(intersect_triangle(o, &RayShear::new(d), p0, p1, p2, 0.0, 0.5).is_none());
+    }
+
+    #[test]
+    fn slab_accepts_zero_direction_components() {
+        let b = Aabb {
+            min: Vec3::ZERO,
+            max: Vec3::ONE,
+        };
+        // Axis-aligned ray inside the x and y slabs, origin exactly on the min x plane.
+        let o = Vec3::new(0.0, 0.5, -1.0);
+        let d = Vec3::new(0.0, 0.0, 1.0);
+        let (n, f) = b.intersect(o, inv_dir(d), 0.0, f32::INFINITY).unwrap();
+        assert!((n - 1.0).abs() < 1e-6 && (f - 2.0).abs() < 1e-5);
+        // Outside the y slab with a zero y component: a miss.
+        let o = Vec3::new(0.5, 1.5, -1.0);
+        assert!(b.intersect(o, inv_dir(d), 0.0, f32::INFINITY).is_none());
+    }
+
+    #[test]
+    fn offset_leaves_the_surface_on_the_normal_side() {
+        for &p in &[
+            Vec3::new(1000.0, -2000.0, 3.0),
+            Vec3::new(0.001, 0.0, -0.01),
+            Vec3::new(-5.0, 7.0, 1e-6),
+        ] {
+            let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+            let q = offset_ray_origin(p, n);
+            assert!((q - p).dot(n) > 0.0, "{p} -> {q}");
+        }
+    }
+}

@@ -1,0 +1,168 @@
+//! Light sampling: emissive triangles (one-sided, emitting from the winding's front
+//! face) and point lights, chosen in proportion to their power, then a uniform point
+//! on the chosen triangle.
+
+use crate::geometry::triangle_normal;
+use crate::sampling::uniform_triangle;
+use crate::scene::Scene;
+use glam::{Vec2, Vec3};
+use std::f32::consts::PI;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Light {
+    /// An emissive triangle of the scene.
+    Area {
+        tri: u32,
+        area: f32,
+        normal: Vec3,
+        radiance: Vec3,
+    },
+    Point {
+        position: Vec3,
+        intensity: Vec3,
+    },
+}
+
+/// A point sampled on a light.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    pub position: Vec3,
+    /// Unit normal of the emitting surface (zero for point lights).
+    pub normal: Vec3,
+    /// Radiance leaving an area light's front face, or a point light's intensity.
+    pub emitted: Vec3,
+    /// Probability of the choice times the area density (1/area); for point lights
+    /// the selection probability alone.
+    pub pdf: f32,
+    pub is_delta: bool,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct Lights {
+    pub lights: Vec<Light>,
+    /// Cumulative selection probabilities, `cdf[i]` = P(choice <= i).
+    cdf: Vec<f32>,
+    /// Per scene triangle: index into `lights`, or `u32::MAX`.
+    light_of_tri: Vec<u32>,
+}
+
+fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+impl Lights {
+    pub fn new(scene: &Scene) -> Lights {
+        let mut lights = Vec::new();
+        let mut light_of_tri = vec![u32::MAX; scene.triangle_count()];
+        for tri in 0..scene.triangle_count() as u32 {
+            let radiance = scene.emission_of(tri);
+            if radiance.max_element() <= 0.0 {
+                continue;
+            }
+            let [a, b, c] = scene.vertices(tri);
+            let n = triangle_normal(a, b, c);
+            let area = 0.5 * n.length();
+            if area > 0.0 && area.is_finite() {
+                light_of_tri[tri as usize] = lights.len() as u32;
+                lights.push(Light::Area {
+                    tri,
+                    area,
+                    normal: n.normalize(),
+                    radiance,
+                });
+            }
+        }
+        lights.extend(scene.point_lights.iter().map(|p| Light::Point {
+            position: p.position,
+            intensity: p.intensity,
+        }));
+        let power: Vec<f32> = lights
+            .iter()
+            .map(|l| match *l {
+                Light::Area { area, radiance, .. } => PI * area * luminance(radiance).max(1e-12),
+                Light::Point { intensity, .. } => 4.0 * PI * luminance(intensity).max(1e-12),
+            })
+            .collect();
+        let total: f64 = power.iter().map(|&p| p as f64).sum();
+        let mut acc = 0.0f64;
+        let mut cdf: Vec<f32> = power
+            .iter()
+            .map(|&p| {
+                acc += p as f64;
+                (acc / total) as f32
+            })
+            .collect();
+        if let Some(last) = cdf.last_mut() {
+            *last = 1.0;
+        }
+        Lights {
+            lights,
+            cdf,
+            light_of_tri,
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.lights.is_empty()
+    }
+
+    fn select_pdf(&self, i: usize) -> f32 {
+        self.cdf[i] - if i == 0 { 0.0 } else { self.cdf[i - 1] }
+    }
+
+    /// Picks a light with `u_select` and a point on it with `u`.
+    pub fn sample(&self, scene: &Scene, u_select: f32, u: Vec2) -> Option<LightSample> {
+        if self.lights.is_empty() {
+            return None;
+        }
+        let i = self
+            .cdf
+            .partition_point(|&c| c <= u_select)
+            .min(self.lights.len() - 1);
+        let p_sel = self.select_pdf(i);
+        if p_sel <= 0.0 {
+            return None;
+        }
+        Some(match self.lights[i] {
+            Light::Area {
+                tri,
+                area,
+                normal,
+                radiance,
+            } => {
+                let [a, b, c] = scene.vertices(tri);
+                let (b1, b2) = uniform_triangle(u);
+                let position = a * (1.0 - b1 - b2) + b * b1 + c * b2;
+                LightSample {
+                    position,
+                    normal,
+                    emitted: radiance,
+                    pdf: p_sel / area,
+                    is_delta: false,
+                }
+            }
+            Light::Point {
+                position,
+                intensity,
+            } => LightSample {
+                position,
+                normal: Vec3::ZERO,
+                emitted: intensity,
+                pdf: p_sel,
+                is_delta: true,
+            },
+        })
+    }
+
+    /// Area density (selection × 1/area) with which [`Lights::sample`] picks a point on
+    /// scene triangle `tri`; 0 for non-emitters.
+    pub fn pdf_area(&self, tri: u32) -> f32 {
+        match self.light_of_tri.get(tri as usize) {
+            Some(&i) if i != u32::MAX => match self.lights[i as usize] {
+                Light::Area { area, .. } => self.select_pdf(i as usize) / area,
+                Light::Point { .. } => 0.0,
+            },
+            _ => 0.0,
+        }
+    }
+}

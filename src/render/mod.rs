@@ -1,0 +1,156 @@
+//! Progressive rendering: passes of one sample per pixel accumulate on a [`Film`]
+//! until a sample count or a time budget is reached.
+//!
+//! Path length convention (as pbrt's): `max_depth` is the largest number of scattering
+//! events on a path. 0 shows only emitters seen directly; 1 is direct lighting.
+//! Russian roulette starts after 3 bounces.
+
+mod path;
+
+pub use path::PathTracer;
+
+use crate::cast::RayCaster;
+use crate::error::{Error, Result};
+use crate::film::Film;
+use crate::lights::Lights;
+use crate::scene::Scene;
+use std::time::{Duration, Instant};
+
+/// Light-transport algorithms selectable from the command line and the library.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum IntegratorKind {
+    /// Unidirectional path tracing with next-event estimation and MIS.
+    Path,
+}
+
+impl IntegratorKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            IntegratorKind::Path => "path",
+        }
+    }
+}
+
+impl std::str::FromStr for IntegratorKind {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        <Self as clap::ValueEnum>::from_str(s, true)
+            .map_err(|_| Error::BadSetting(format!("unknown integrator '{s}' (known: path)")))
+    }
+}
+
+/// How long to render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    /// This many samples per pixel.
+    Samples(u32),
+    /// Passes until this much wall time has gone (at least one pass).
+    Seconds(f64),
+}
+
+#[derive(Clone, Debug)]
+pub struct RenderOptions {
+    pub width: u32,
+    pub height: u32,
+    pub budget: Budget,
+    pub max_depth: u32,
+    pub seed: u64,
+    pub integrator: IntegratorKind,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            width: 512,
+            height: 512,
+            budget: Budget::Samples(64),
+            max_depth: 8,
+            seed: 0,
+            integrator: IntegratorKind::Path,
+        }
+    }
+}
+
+/// What a render did.
+#[derive(Clone, Debug, Default)]
+pub struct RenderStats {
+    pub passes: u32,
+    pub seconds: f64,
+    /// Rays cast (closest and shadow).
+    pub rays: u64,
+    /// Seconds spent inside the caster.
+    pub cast_seconds: f64,
+}
+
+impl RenderStats {
+    pub fn rays_per_second(&self) -> f64 {
+        if self.seconds > 0.0 {
+            self.rays as f64 / self.seconds
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Everything one pass needs.
+pub struct Context<'a> {
+    pub scene: &'a Scene,
+    pub lights: &'a Lights,
+    pub caster: &'a dyn RayCaster,
+    pub opts: &'a RenderOptions,
+}
+
+/// Renders `scene` with `caster`. `on_pass(pass_index, film)` is called after each pass
+/// (progress bars, checkpoints); return `false` from it to stop early.
+pub fn render(
+    scene: &Scene,
+    caster: &dyn RayCaster,
+    opts: &RenderOptions,
+    mut on_pass: impl FnMut(u32, &Film) -> bool,
+) -> Result<(Film, RenderStats)> {
+    scene.check_renderable()?;
+    if let Budget::Seconds(s) = opts.budget {
+        if !(s > 0.0 && s.is_finite()) {
+            return Err(Error::BadSetting(format!(
+                "time budget {s} s must be positive"
+            )));
+        }
+    }
+    if opts.max_depth > 1024 {
+        return Err(Error::BadSetting(format!(
+            "max depth {} is absurd (at most 1024)",
+            opts.max_depth
+        )));
+    }
+    let mut film = Film::new(opts.width, opts.height)?;
+    let lights = Lights::new(scene);
+    let ctx = Context {
+        scene,
+        lights: &lights,
+        caster,
+        opts,
+    };
+    let mut stats = RenderStats::default();
+    let start = Instant::now();
+    let mut integrator = match opts.integrator {
+        IntegratorKind::Path => PathTracer::new(&ctx),
+    };
+    loop {
+        let done = match opts.budget {
+            Budget::Samples(n) => stats.passes >= n,
+            Budget::Seconds(s) => stats.passes > 0 && start.elapsed() >= Duration::from_secs_f64(s),
+        };
+        if done {
+            break;
+        }
+        let pass = integrator.render_pass(&ctx, stats.passes, &mut film);
+        stats.rays += pass.rays as u64;
+        stats.cast_seconds += pass.seconds;
+        stats.passes += 1;
+        if !on_pass(stats.passes, &film) {
+            break;
+        }
+    }
+    stats.seconds = start.elapsed().as_secs_f64();
+    Ok((film, stats))
+}

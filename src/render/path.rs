@@ -1,0 +1,232 @@
+//! Path tracing with next-event estimation and multiple importance sampling (power
+//! heuristic) between light sampling and BSDF sampling, run as a wavefront: every
+//! bounce casts the whole batch of live paths through the caster, shades them in
+//! parallel, casts the batch of shadow rays, and drops finished paths.
+
+use super::Context;
+use crate::bsdf::TransportMode;
+use crate::cast::CastStats;
+use crate::film::Film;
+use crate::geometry::{Hit, Ray, offset_ray_origin};
+use crate::sampling::{Frame, Rng, power_heuristic};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+
+#[derive(Clone, Copy, Debug)]
+struct PathState {
+    pixel: u32,
+    rng: Rng,
+    ray: Ray,
+    throughput: Vec3,
+    radiance: Vec3,
+    /// Solid-angle pdf of the BSDF sample that made `ray` (for MIS on emitter hits).
+    prev_pdf: f32,
+    prev_delta: bool,
+    alive: bool,
+    shadow: Option<(Ray, Vec3)>,
+}
+
+/// The path tracer's reusable buffers.
+pub struct PathTracer {
+    paths: Vec<PathState>,
+    rays: Vec<Ray>,
+    hits: Vec<Hit>,
+    shadow_rays: Vec<Ray>,
+    shadow_owner: Vec<u32>,
+    blocked: Vec<bool>,
+    estimates: Vec<Vec3>,
+}
+
+impl PathTracer {
+    pub fn new(ctx: &Context) -> Self {
+        let n = (ctx.opts.width * ctx.opts.height) as usize;
+        PathTracer {
+            paths: Vec::with_capacity(n),
+            rays: Vec::new(),
+            hits: Vec::new(),
+            shadow_rays: Vec::new(),
+            shadow_owner: Vec::new(),
+            blocked: Vec::new(),
+            estimates: vec![Vec3::ZERO; n],
+        }
+    }
+
+    /// One sample per pixel, added to `film`. Returns the caster statistics of the pass.
+    pub fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
+        let (w, h) = (ctx.opts.width, ctx.opts.height);
+        let cam = &ctx.scene.camera;
+        let seed = ctx.opts.seed;
+        (0..w * h)
+            .into_par_iter()
+            .map(|pixel| {
+                let mut rng = Rng::for_sample(seed, pixel as u64, pass as u64);
+                let film_pos = Vec2::new((pixel % w) as f32, (pixel / w) as f32) + rng.uniform2();
+                let ray = cam.generate_ray(film_pos, w, h, rng.uniform2());
+                PathState {
+                    pixel,
+                    rng,
+                    ray,
+                    throughput: Vec3::ONE,
+                    radiance: Vec3::ZERO,
+                    prev_pdf: 0.0,
+                    prev_delta: true,
+                    alive: true,
+                    shadow: None,
+                }
+            })
+            .collect_into_vec(&mut self.paths);
+        self.estimates.fill(Vec3::ZERO);
+        let mut stats = CastStats::default();
+
+        for depth in 0..=ctx.opts.max_depth {
+            if self.paths.is_empty() {
+                break;
+            }
+            self.paths
+                .par_iter()
+                .map(|p| p.ray)
+                .collect_into_vec(&mut self.rays);
+            self.hits.resize(self.rays.len(), Hit::MISS);
+            stats = stats.merge(ctx.caster.closest(&self.rays, &mut self.hits));
+
+            self.paths
+                .par_iter_mut()
+                .zip(&self.hits)
+                .for_each(|(p, hit)| shade(ctx, depth, p, hit));
+
+            // Shadow rays of this bounce, as one batch.
+            self.shadow_rays.clear();
+            self.shadow_owner.clear();
+            for (i, p) in self.paths.iter().enumerate() {
+                if let Some((r, _)) = p.shadow {
+                    self.shadow_rays.push(r);
+                    self.shadow_owner.push(i as u32);
+                }
+            }
+            self.blocked.resize(self.shadow_rays.len(), false);
+            stats = stats.merge(ctx.caster.occluded(&self.shadow_rays, &mut self.blocked));
+            for (&i, &blocked) in self.shadow_owner.iter().zip(&self.blocked) {
+                let p = &mut self.paths[i as usize];
+                if !blocked {
+                    p.radiance += p.shadow.map_or(Vec3::ZERO, |s| s.1);
+                }
+                p.shadow = None;
+            }
+
+            for p in self.paths.iter().filter(|p| !p.alive) {
+                self.estimates[p.pixel as usize] = p.radiance;
+            }
+            self.paths.retain(|p| p.alive);
+        }
+        for p in &self.paths {
+            self.estimates[p.pixel as usize] = p.radiance;
+        }
+        film.add_pass(&self.estimates);
+        stats
+    }
+}
+
+/// One bounce of one path: emission, light sample, BSDF sample.
+fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) {
+    p.shadow = None;
+    if !hit.is_hit() {
+        p.alive = false;
+        return;
+    }
+    let scene = ctx.scene;
+    let [a, b, c] = scene.vertices(hit.prim);
+    let pos = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+    let ng = (b - a).cross(c - a).normalize_or_zero();
+    let wo = -p.ray.dir.normalize();
+    if ng == Vec3::ZERO {
+        p.alive = false;
+        return;
+    }
+
+    let le = scene.emission_of(hit.prim);
+    let cos_emit = ng.dot(wo);
+    if le.max_element() > 0.0 && cos_emit > 0.0 {
+        let weight = if depth == 0 || p.prev_delta {
+            1.0
+        } else {
+            let dist = hit.t * p.ray.dir.length();
+            let pdf_light = ctx.lights.pdf_area(hit.prim) * dist * dist / cos_emit;
+            power_heuristic(p.prev_pdf, pdf_light)
+        };
+        p.radiance += p.throughput * le * weight;
+    }
+    if depth >= ctx.opts.max_depth {
+        p.alive = false;
+        return;
+    }
+
+    let material = scene.material(hit.prim);
+    let frame = Frame::from_normal(ng);
+    let wo_local = frame.to_local(wo);
+    let mode = TransportMode::Radiance;
+
+    // Next-event estimation.
+    if !material.is_delta() {
+        if let Some(ls) = ctx.lights.sample(scene, p.rng.uniform(), p.rng.uniform2()) {
+            let to_light = ls.position - pos;
+            let dist2 = to_light.length_squared();
+            let wi = to_light / dist2.sqrt();
+            let wi_local = frame.to_local(wi);
+            let f = material.f(wo_local, wi_local, mode);
+            let cos_surf = wi_local.z.abs();
+            let contribution = if f == Vec3::ZERO || dist2 == 0.0 {
+                Vec3::ZERO
+            } else if ls.is_delta {
+                f * cos_surf * ls.emitted / (dist2 * ls.pdf)
+            } else {
+                let cos_light = ls.normal.dot(-wi);
+                if cos_light <= 0.0 {
+                    Vec3::ZERO
+                } else {
+                    let pdf_light = ls.pdf * dist2 / cos_light;
+                    let weight = power_heuristic(pdf_light, material.pdf(wo_local, wi_local));
+                    f * cos_surf * ls.emitted * weight / pdf_light
+                }
+            };
+            let contribution = p.throughput * contribution;
+            if contribution.max_element() > 0.0 && contribution.is_finite() {
+                let origin = offset_ray_origin(pos, if wi.dot(ng) > 0.0 { ng } else { -ng });
+                let target = if ls.is_delta {
+                    ls.position
+                } else {
+                    offset_ray_origin(ls.position, ls.normal)
+                };
+                p.shadow = Some((
+                    Ray::segment(origin, target - origin, 1.0 - 1e-4),
+                    contribution,
+                ));
+            }
+        }
+    }
+
+    // Continue the path.
+    let Some(s) = material.sample_f(wo_local, p.rng.uniform(), p.rng.uniform2(), mode) else {
+        p.alive = false;
+        return;
+    };
+    let wi = frame.to_world(s.wi);
+    p.throughput *= s.weight;
+    p.prev_pdf = s.pdf;
+    p.prev_delta = s.delta;
+    if depth >= 3 {
+        let q = p.throughput.max_element().min(0.95);
+        if p.rng.uniform() >= q {
+            p.alive = false;
+            return;
+        }
+        p.throughput /= q;
+    }
+    if !p.throughput.is_finite() || p.throughput.max_element() <= 0.0 {
+        p.alive = false;
+        return;
+    }
+    p.ray = Ray::new(
+        offset_ray_origin(pos, if wi.dot(ng) > 0.0 { ng } else { -ng }),
+        wi,
+    );
+}

@@ -1,0 +1,145 @@
+//! Deterministic random numbers and the warps that turn them into directions.
+//!
+//! Random numbers are a hash of (seed, stream, index): a path's stream is derived from
+//! its pixel and sample index, never from a thread or a queue position, so an image
+//! depends only on the seed, whatever the thread count or scheduling.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::{FRAC_1_PI, PI};
+
+/// 64-bit finaliser (splitmix64 / Stafford variant 13): a bijective, well-mixed hash.
+#[inline]
+pub fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// A counter-based stream of uniform numbers. Cheap to create, `Copy`, and the same
+/// key always yields the same sequence.
+#[derive(Clone, Copy, Debug)]
+pub struct Rng {
+    key: u64,
+    counter: u64,
+}
+
+impl Rng {
+    /// The stream for one (pixel, sample) pair under `seed`.
+    pub fn for_sample(seed: u64, pixel: u64, sample: u64) -> Rng {
+        let key = mix64(
+            mix64(seed ^ 0x5157_4d3c_8a2b_9e11).wrapping_add(pixel)
+                ^ mix64(sample.wrapping_add(0x9e37_79b9)),
+        );
+        Rng { key, counter: 0 }
+    }
+
+    /// An independent stream derived from this one's key (e.g. per bounce or per purpose).
+    pub fn derive(&self, tag: u64) -> Rng {
+        Rng {
+            key: mix64(self.key ^ mix64(tag.wrapping_add(0xd1b5_4a32_d192_ed03))),
+            counter: 0,
+        }
+    }
+
+    #[inline]
+    pub fn next_u64(&mut self) -> u64 {
+        self.counter += 1;
+        mix64(
+            self.key
+                .wrapping_add(self.counter.wrapping_mul(0x9e37_79b9_7f4a_7c15)),
+        )
+    }
+
+    /// Uniform in `[0, 1)`, with 24 bits of precision.
+    #[inline]
+    pub fn uniform(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+    }
+
+    #[inline]
+    pub fn uniform2(&mut self) -> Vec2 {
+        Vec2::new(self.uniform(), self.uniform())
+    }
+}
+
+/// An orthonormal basis around a unit normal (Duff et al. 2017).
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    pub s: Vec3,
+    pub t: Vec3,
+    pub n: Vec3,
+}
+
+impl Frame {
+    pub fn from_normal(n: Vec3) -> Frame {
+        let sign = 1.0f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        let s = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+        let t = Vec3::new(b, sign + n.y * n.y * a, -n.y);
+        Frame { s, t, n }
+    }
+    #[inline]
+    pub fn to_local(&self, v: Vec3) -> Vec3 {
+        Vec3::new(v.dot(self.s), v.dot(self.t), v.dot(self.n))
+    }
+    #[inline]
+    pub fn to_world(&self, v: Vec3) -> Vec3 {
+        self.s * v.x + self.t * v.y + self.n * v.z
+    }
+}
+
+/// Cosine-weighted direction on the +z hemisphere; pdf = cos θ / π.
+pub fn cosine_hemisphere(u: Vec2) -> Vec3 {
+    let d = concentric_disk(u);
+    Vec3::new(d.x, d.y, (1.0 - d.length_squared()).max(0.0).sqrt())
+}
+
+pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
+    cos_theta.max(0.0) * FRAC_1_PI
+}
+
+/// Uniform point on a triangle, as barycentric weights of corners 1 and 2 (Heitz 2019's
+/// low-distortion split would do too; this is the classic square-root warp).
+pub fn uniform_triangle(u: Vec2) -> (f32, f32) {
+    let su = u.x.sqrt();
+    (su * (1.0 - u.y), su * u.y)
+}
+
+/// Uniform direction on the unit sphere; pdf = 1 / 4π.
+pub fn uniform_sphere(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Power heuristic (β = 2) for two strategies with `nf` and `ng` samples.
+#[inline]
+pub fn power_heuristic(pf: f32, pg: f32) -> f32 {
+    let (f, g) = (pf * pf, pg * pg);
+    if f == 0.0 && g == 0.0 {
+        0.0
+    } else if f.is_infinite() {
+        1.0
+    } else {
+        f / (f + g)
+    }
+}
+
+/// Shirley–Chiu concentric map from the unit square to the unit disk.
+pub fn concentric_disk(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o == Vec2::ZERO {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
+    } else {
+        (
+            o.y,
+            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
+        )
+    };
+    Vec2::new(theta.cos(), theta.sin()) * r
+}

@@ -1,0 +1,98 @@
+//! Pinhole and thin-lens camera. `aperture_radius = 0` (the default) is a pinhole.
+
+use crate::geometry::Ray;
+use crate::sampling::concentric_disk;
+use glam::{Vec2, Vec3};
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    pub position: Vec3,
+    /// Unit viewing direction.
+    pub forward: Vec3,
+    /// Unit vector toward the image's right edge.
+    pub right: Vec3,
+    /// Unit vector toward the image's top edge.
+    pub up: Vec3,
+    /// Vertical field of view, degrees.
+    pub vfov_deg: f32,
+    /// Radius of the lens aperture in scene units; 0 for a pinhole.
+    pub aperture_radius: f32,
+    /// Distance to the plane in focus (only used when `aperture_radius > 0`).
+    pub focus_distance: f32,
+}
+
+impl Default for Camera {
+    fn default() -> Self {
+        Camera::look_at(Vec3::new(0.0, 0.0, 1.0), Vec3::ZERO, Vec3::Y, 40.0)
+    }
+}
+
+impl Camera {
+    /// A pinhole camera at `eye` looking at `target`. If `up` is parallel to the view
+    /// direction another up vector is chosen.
+    pub fn look_at(eye: Vec3, target: Vec3, up: Vec3, vfov_deg: f32) -> Camera {
+        let forward = (target - eye).normalize_or(Vec3::NEG_Z);
+        let mut right = forward.cross(up);
+        if right.length_squared() < 1e-12 {
+            right = forward.any_orthonormal_vector();
+        }
+        let right = right.normalize();
+        let up = right.cross(forward);
+        Camera {
+            position: eye,
+            forward,
+            right,
+            up,
+            vfov_deg,
+            aperture_radius: 0.0,
+            focus_distance: (target - eye).length().max(1e-6),
+        }
+    }
+
+    pub fn with_lens(mut self, aperture_radius: f32, focus_distance: f32) -> Camera {
+        self.aperture_radius = aperture_radius;
+        self.focus_distance = focus_distance;
+        self
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        let finite =
+            self.position.is_finite() && self.forward.is_finite() && self.right.is_finite();
+        if !finite {
+            return Err("camera position or direction is not finite".into());
+        }
+        if !(self.vfov_deg > 0.0 && self.vfov_deg < 180.0) {
+            return Err(format!(
+                "camera fov {} must lie in (0, 180) degrees",
+                self.vfov_deg
+            ));
+        }
+        if !(self.aperture_radius >= 0.0 && self.aperture_radius.is_finite()) {
+            return Err("camera aperture radius must be finite and >= 0".into());
+        }
+        if self.aperture_radius > 0.0
+            && !(self.focus_distance > 0.0 && self.focus_distance.is_finite())
+        {
+            return Err("camera focus distance must be finite and > 0".into());
+        }
+        Ok(())
+    }
+
+    /// The primary ray through film position `film` (pixels, y down) of a
+    /// `width × height` image, with `lens` a uniform sample of `[0,1)²`.
+    pub fn generate_ray(&self, film: Vec2, width: u32, height: u32, lens: Vec2) -> Ray {
+        let tan_half = (self.vfov_deg.to_radians() * 0.5).tan();
+        let aspect = width as f32 / height as f32;
+        let sx = (2.0 * film.x / width as f32 - 1.0) * tan_half * aspect;
+        let sy = (1.0 - 2.0 * film.y / height as f32) * tan_half;
+        let dir = (self.forward + self.right * sx + self.up * sy).normalize();
+        if self.aperture_radius <= 0.0 {
+            return Ray::new(self.position, dir);
+        }
+        // Thin lens: aim at the point on the focus plane that the pinhole ray reaches.
+        let focus = self.position + dir * (self.focus_distance / dir.dot(self.forward));
+        let d = concentric_disk(lens) * self.aperture_radius;
+        let origin = self.position + self.right * d.x + self.up * d.y;
+        Ray::new(origin, (focus - origin).normalize())
+    }
+}

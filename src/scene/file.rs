@@ -1,0 +1,282 @@
+//! Scene files (TOML): meshes, materials, point lights, camera and render settings.
+//! `assets/scenes/cornell-obj.toml` is a commented example; `docs/scene-format.md`
+//! describes every key. Unknown keys are errors, so a typo never passes silently.
+
+use super::{Camera, Material, ObjOptions, PointLight, Scene, cornell_box, load_obj, models_dir};
+use crate::error::{Error, Location, Result};
+use glam::Vec3;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// Render settings a scene file may carry; command-line flags override them.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RenderSettings {
+    pub width: Option<u32>,
+    pub height: Option<u32>,
+    pub spp: Option<u32>,
+    pub seconds: Option<f64>,
+    pub max_depth: Option<u32>,
+    pub integrator: Option<String>,
+    pub seed: Option<u64>,
+}
+
+/// A loaded scene and the settings its file asked for.
+#[derive(Clone, Debug)]
+pub struct SceneDesc {
+    pub scene: Scene,
+    pub settings: RenderSettings,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileCamera {
+    position: [f32; 3],
+    look_at: [f32; 3],
+    #[serde(default = "default_up")]
+    up: [f32; 3],
+    #[serde(default = "default_fov")]
+    fov: f32,
+    #[serde(default)]
+    aperture_radius: f32,
+    focus_distance: Option<f32>,
+}
+
+fn default_up() -> [f32; 3] {
+    [0.0, 1.0, 0.0]
+}
+fn default_fov() -> f32 {
+    40.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileMesh {
+    file: PathBuf,
+    #[serde(default)]
+    scale: f32,
+    #[serde(default)]
+    translate: [f32; 3],
+    material: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, tag = "type", rename_all = "lowercase")]
+enum FileMaterialKind {
+    Diffuse {
+        albedo: [f32; 3],
+    },
+    Glossy {
+        diffuse: [f32; 3],
+        specular: [f32; 3],
+        roughness: f32,
+    },
+    Mirror {
+        reflectance: Option<[f32; 3]>,
+    },
+    Glass {
+        ior: Option<f32>,
+        tint: Option<[f32; 3]>,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileMaterial {
+    name: String,
+    #[serde(default)]
+    emission: [f32; 3],
+    #[serde(flatten)]
+    kind: FileMaterialKind,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FilePointLight {
+    position: [f32; 3],
+    intensity: [f32; 3],
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileScene {
+    /// `"cornell"` starts from the built-in Cornell box.
+    base: Option<String>,
+    camera: Option<FileCamera>,
+    #[serde(default)]
+    render: RenderSettings,
+    #[serde(default)]
+    mesh: Vec<FileMesh>,
+    #[serde(default)]
+    material: Vec<FileMaterial>,
+    #[serde(default)]
+    point_light: Vec<FilePointLight>,
+}
+
+impl FileMaterial {
+    fn to_material(&self) -> Material {
+        let v = Vec3::from_array;
+        match &self.kind {
+            FileMaterialKind::Diffuse { albedo } => Material::Diffuse { albedo: v(*albedo) },
+            FileMaterialKind::Glossy {
+                diffuse,
+                specular,
+                roughness,
+            } => Material::Glossy {
+                diffuse: v(*diffuse),
+                specular: v(*specular),
+                roughness: *roughness,
+            },
+            FileMaterialKind::Mirror { reflectance } => Material::Mirror {
+                reflectance: reflectance.map_or(Vec3::ONE, v),
+            },
+            FileMaterialKind::Glass { ior, tint } => Material::Glass {
+                ior: ior.unwrap_or(1.5),
+                tint: tint.map_or(Vec3::ONE, v),
+            },
+        }
+    }
+}
+
+/// Loads a scene from a `.toml` scene file, an `.obj`/`.obj.gz` file, or the name
+/// `cornell` (the built-in box).
+pub fn load_scene(path: impl AsRef<Path>) -> Result<SceneDesc> {
+    let path = path.as_ref();
+    if path.as_os_str() == "cornell" {
+        return Ok(SceneDesc {
+            scene: cornell_box(),
+            settings: RenderSettings::default(),
+        });
+    }
+    let name = path.to_string_lossy().to_ascii_lowercase();
+    if name.ends_with(".obj") || name.ends_with(".obj.gz") {
+        let scene = load_obj(path, &ObjOptions::default())?;
+        return Ok(SceneDesc {
+            scene,
+            settings: RenderSettings::default(),
+        });
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    parse_scene_file(path, &text)
+}
+
+fn line_of(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())]
+        .bytes()
+        .filter(|&b| b == b'\n')
+        .count()
+        + 1
+}
+
+/// Parses scene-file text; `path` locates meshes and names the file in errors.
+pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
+    let file: FileScene = toml::from_str(text).map_err(|e| Error::SceneFile {
+        at: Location::new(path, e.span().map_or(0, |s| line_of(text, s.start))),
+        msg: e.message().to_string(),
+    })?;
+    let err = |msg: String| Error::SceneFile {
+        at: Location::file(path),
+        msg,
+    };
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+
+    let mut scene = match file.base.as_deref() {
+        None => Scene::empty(path),
+        Some("cornell") => Scene {
+            source: path.to_path_buf(),
+            ..cornell_box()
+        },
+        Some(other) => {
+            return Err(err(format!(
+                "unknown base scene '{other}' (known: cornell)"
+            )));
+        }
+    };
+    let named: Vec<(String, Material, Vec3)> = file
+        .material
+        .iter()
+        .map(|m| {
+            (
+                m.name.clone(),
+                m.to_material(),
+                Vec3::from_array(m.emission),
+            )
+        })
+        .collect();
+
+    for mesh in &file.mesh {
+        let local = dir.join(&mesh.file);
+        let found = if local.is_file() {
+            local
+        } else {
+            models_dir().join(&mesh.file)
+        };
+        if !found.is_file() {
+            return Err(Error::io(
+                &mesh.file,
+                std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    format!(
+                        "mesh named by {} not found next to it or in {} (set WARPRAY_MODELS)",
+                        path.display(),
+                        models_dir().display()
+                    ),
+                ),
+            ));
+        }
+        let opts = ObjOptions {
+            scale: mesh.scale,
+            translate: Vec3::from_array(mesh.translate),
+        };
+        let mut part = load_obj(&found, &opts)?;
+        if let Some(mname) = &mesh.material {
+            let (_, m, e) = named.iter().find(|(n, ..)| n == mname).ok_or_else(|| {
+                err(format!(
+                    "mesh {} names material '{mname}', which no [[material]] defines",
+                    mesh.file.display()
+                ))
+            })?;
+            part.materials = vec![*m];
+            part.material_names = vec![mname.clone()];
+            part.emission = vec![*e];
+            part.material_of.iter_mut().for_each(|id| *id = 0);
+        }
+        scene.append(part);
+    }
+    // A [[material]] whose name matches a loaded material replaces it.
+    for (name, m, e) in &named {
+        for i in 0..scene.materials.len() {
+            if &scene.material_names[i] == name {
+                scene.materials[i] = *m;
+                scene.emission[i] = *e;
+            }
+        }
+    }
+    scene
+        .point_lights
+        .extend(file.point_light.iter().map(|l| PointLight {
+            position: Vec3::from_array(l.position),
+            intensity: Vec3::from_array(l.intensity),
+        }));
+    if scene.triangles.is_empty() {
+        return Err(Error::EmptyMesh {
+            at: Location::file(path),
+        });
+    }
+    match &file.camera {
+        Some(c) => {
+            let eye = Vec3::from_array(c.position);
+            let target = Vec3::from_array(c.look_at);
+            let cam = Camera::look_at(eye, target, Vec3::from_array(c.up), c.fov);
+            let focus = c.focus_distance.unwrap_or((target - eye).length());
+            scene.camera = cam.with_lens(c.aperture_radius, focus);
+        }
+        None if file.base.is_none() => scene.frame_camera(),
+        None => {}
+    }
+    scene.validate()?;
+    Ok(SceneDesc {
+        scene,
+        settings: file.render,
+    })
+}

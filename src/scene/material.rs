@@ -1,0 +1,144 @@
+//! The material table and how Wavefront MTL entries map onto it.
+//!
+//! | MTL                                  | warpray material                               |
+//! |--------------------------------------|------------------------------------------------|
+//! | `illum 5`                            | [`Material::Mirror`], reflectance `Ks` (1 if absent) |
+//! | `illum 7`, or `d < 1` (dissolve)     | [`Material::Glass`], index `Ni` (1.5 if absent), tint `Tf` (white if absent) |
+//! | `Ks` non-zero (any other `illum`)    | [`Material::Glossy`]: Lambertian `Kd` plus a GGX lobe of reflectance `Ks`, roughness α = √(2/(Ns+2)) |
+//! | otherwise                            | [`Material::Diffuse`] with albedo `Kd` (0.8 grey if absent) |
+//! | `Ke` (any of the above)              | emitted radiance from the front face           |
+//!
+//! The Ns → α conversion equates the Blinn–Phong exponent with a microfacet
+//! distribution of the same width (Walter et al. 2007, eq. 35 with α_b² = 2/(Ns+2)).
+//! Where `Kd + Ks` exceeds 1 in a channel both are scaled down so the surface never
+//! reflects more than it receives. `Ka`, textures and `Ni` of opaque materials are ignored.
+
+use glam::Vec3;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Material {
+    /// Lambertian reflector.
+    Diffuse { albedo: Vec3 },
+    /// Lambertian base plus a GGX specular lobe (no Fresnel: `specular` is the lobe's
+    /// reflectance at all angles, as in the MTL model it comes from).
+    Glossy {
+        diffuse: Vec3,
+        specular: Vec3,
+        roughness: f32,
+    },
+    /// Perfect specular reflector.
+    Mirror { reflectance: Vec3 },
+    /// Smooth dielectric interface with Fresnel reflection and refraction.
+    Glass { ior: f32, tint: Vec3 },
+}
+
+impl Material {
+    pub const DEFAULT: Material = Material::Diffuse {
+        albedo: Vec3::splat(0.8),
+    };
+
+    /// True when the material scatters only into discrete directions (no light
+    /// sampling is possible at such a vertex).
+    pub fn is_delta(&self) -> bool {
+        matches!(self, Material::Mirror { .. } | Material::Glass { .. })
+    }
+
+    /// Short kind name, for statistics and the inspector's material queues.
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            Material::Diffuse { .. } => "diffuse",
+            Material::Glossy { .. } => "glossy",
+            Material::Mirror { .. } => "mirror",
+            Material::Glass { .. } => "glass",
+        }
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        let colour_ok = |c: Vec3| c.is_finite() && c.min_element() >= 0.0 && c.max_element() <= 1.0;
+        match *self {
+            Material::Diffuse { albedo } if !colour_ok(albedo) => {
+                Err("albedo must lie in [0, 1]".into())
+            }
+            Material::Glossy {
+                diffuse,
+                specular,
+                roughness,
+            } => {
+                if !colour_ok(diffuse) || !colour_ok(specular) || !colour_ok(diffuse + specular) {
+                    Err("diffuse, specular and their sum must lie in [0, 1]".into())
+                } else if !(roughness > 0.0 && roughness <= 1.0) {
+                    Err(format!("roughness {roughness} must lie in (0, 1]"))
+                } else {
+                    Ok(())
+                }
+            }
+            Material::Mirror { reflectance } if !colour_ok(reflectance) => {
+                Err("reflectance must lie in [0, 1]".into())
+            }
+            Material::Glass { ior, tint } => {
+                if !(ior.is_finite() && ior > 0.0) {
+                    Err(format!("index of refraction {ior} must be positive"))
+                } else if !colour_ok(tint) {
+                    Err("glass tint must lie in [0, 1]".into())
+                } else {
+                    Ok(())
+                }
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// Maps one MTL entry (see the module table). Returns the material and its emission.
+    pub fn from_mtl(m: &tobj::Material) -> (Material, Vec3) {
+        let v = |c: Option<[f32; 3]>| c.map(Vec3::from_array);
+        let kd = v(m.diffuse)
+            .unwrap_or(Vec3::splat(0.8))
+            .clamp(Vec3::ZERO, Vec3::ONE);
+        let ks = v(m.specular)
+            .unwrap_or(Vec3::ZERO)
+            .clamp(Vec3::ZERO, Vec3::ONE);
+        let ke = v(m.emissive)
+            .or_else(|| parse_vec3(m.unknown_param.get("Ke")))
+            .unwrap_or(Vec3::ZERO);
+        let illum = m.illumination_model.unwrap_or(2);
+        let dissolve = m.dissolve.unwrap_or(1.0);
+        let tf = parse_vec3(m.unknown_param.get("Tf"))
+            .unwrap_or(Vec3::ONE)
+            .clamp(Vec3::ZERO, Vec3::ONE);
+        let material = if illum == 5 {
+            Material::Mirror {
+                reflectance: if ks.max_element() > 0.0 {
+                    ks
+                } else {
+                    Vec3::ONE
+                },
+            }
+        } else if illum == 7 || dissolve < 1.0 {
+            Material::Glass {
+                ior: m.optical_density.filter(|n| *n > 0.0).unwrap_or(1.5),
+                tint: tf,
+            }
+        } else if ks.max_element() > 0.0 {
+            let ns = m.shininess.unwrap_or(10.0).max(0.0);
+            let roughness = (2.0 / (ns + 2.0)).sqrt().clamp(1e-3, 1.0);
+            // Keep kd + ks <= 1 per channel.
+            let scale = 1.0 / (kd + ks).max_element().max(1.0);
+            Material::Glossy {
+                diffuse: kd * scale,
+                specular: ks * scale,
+                roughness,
+            }
+        } else {
+            Material::Diffuse { albedo: kd }
+        };
+        (material, ke.max(Vec3::ZERO))
+    }
+}
+
+fn parse_vec3(s: Option<&String>) -> Option<Vec3> {
+    let mut it = s?.split_whitespace().map(|w| w.parse::<f32>());
+    let x = it.next()?.ok()?;
+    let y = it.next().and_then(|r| r.ok()).unwrap_or(x);
+    let z = it.next().and_then(|r| r.ok()).unwrap_or(x);
+    Some(Vec3::new(x, y, z))
+}

@@ -1,0 +1,255 @@
+//! Wavefront OBJ + MTL loading through tobj, plain or gzip-compressed (`.obj.gz`).
+//!
+//! tobj reports what went wrong but not where. When it fails, or when the loaded data
+//! fails validation, a second pass over the file finds the first offending line so the
+//! error names `file:line`. That pass only runs on the error path.
+
+use super::{Material, Scene};
+use crate::error::{Error, Location, Result};
+use glam::Vec3;
+use std::cell::{Cell, RefCell};
+use std::fs::File;
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+
+/// Options for [`load_obj`].
+#[derive(Clone, Debug, Default)]
+pub struct ObjOptions {
+    /// Uniform scale applied to positions (1 when zero or unset).
+    pub scale: f32,
+    /// Translation applied after scaling.
+    pub translate: Vec3,
+}
+
+fn open_text(path: &Path) -> Result<Box<dyn BufRead>> {
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let gz = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
+    Ok(if gz {
+        Box::new(BufReader::with_capacity(
+            1 << 16,
+            flate2::read::MultiGzDecoder::new(file),
+        ))
+    } else {
+        Box::new(BufReader::with_capacity(1 << 16, file))
+    })
+}
+
+/// A reader that counts the lines handed out, so a parse error can name its line.
+/// The count lives in a `Cell` so the MTL callback can read it while tobj holds the reader.
+struct LineCounter<'a, R> {
+    inner: R,
+    newlines: &'a Cell<usize>,
+}
+
+impl<R: BufRead> Read for LineCounter<'_, R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.newlines
+            .set(self.newlines.get() + buf[..n].iter().filter(|&&b| b == b'\n').count());
+        Ok(n)
+    }
+}
+
+impl<R: BufRead> BufRead for LineCounter<'_, R> {
+    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+        self.inner.fill_buf()
+    }
+    fn consume(&mut self, amt: usize) {
+        if let Ok(buf) = self.inner.fill_buf() {
+            let n = amt.min(buf.len());
+            self.newlines
+                .set(self.newlines.get() + buf[..n].iter().filter(|&&b| b == b'\n').count());
+        }
+        self.inner.consume(amt)
+    }
+}
+
+/// Loads an OBJ file (and the MTL files it names) as a scene. The camera is framed
+/// on the geometry; emitters are not required here (see [`Scene::check_renderable`]).
+pub fn load_obj(path: impl AsRef<Path>, opts: &ObjOptions) -> Result<Scene> {
+    let path = path.as_ref();
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let lines_read = Cell::new(0usize);
+    let mut reader = LineCounter {
+        inner: open_text(path)?,
+        newlines: &lines_read,
+    };
+    // The MTL loader is called from inside tobj; remember the first failure and the
+    // line that named the library.
+    let mtl_error: RefCell<Option<Error>> = RefCell::new(None);
+    let load_opts = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let result = tobj::load_obj_buf(&mut reader, &load_opts, |mtl_path: &Path| {
+        load_mtl(&dir, mtl_path, path, lines_read.get(), &mtl_error)
+    });
+    if let Some(e) = mtl_error.into_inner() {
+        return Err(e);
+    }
+    let (models, materials) = match result {
+        Ok(r) => r,
+        Err(e) => {
+            return Err(diagnose(path, Some(e), lines_read.get().max(1)));
+        }
+    };
+    let materials = materials.unwrap_or_default();
+
+    let mut scene = Scene::empty(path);
+    for m in &materials {
+        let (mat, ke) = Material::from_mtl(m);
+        scene.materials.push(mat);
+        scene.material_names.push(m.name.clone());
+        scene.emission.push(ke);
+    }
+    let default_material = scene.materials.len() as u32;
+    scene.materials.push(Material::DEFAULT);
+    scene.material_names.push("default".into());
+    scene.emission.push(Vec3::ZERO);
+
+    let scale = if opts.scale == 0.0 { 1.0 } else { opts.scale };
+    for model in &models {
+        let mesh = &model.mesh;
+        let base = scene.positions.len() as u32;
+        scene.positions.extend(
+            mesh.positions
+                .chunks_exact(3)
+                .map(|p| Vec3::new(p[0], p[1], p[2]) * scale + opts.translate),
+        );
+        let mat = mesh
+            .material_id
+            .map(|m| m as u32)
+            .filter(|&m| m < default_material)
+            .unwrap_or(default_material);
+        for t in mesh.indices.chunks_exact(3) {
+            scene
+                .triangles
+                .push([t[0] + base, t[1] + base, t[2] + base]);
+            scene.material_of.push(mat);
+        }
+    }
+    if scene.triangles.is_empty() {
+        return Err(Error::EmptyMesh {
+            at: Location::file(path),
+        });
+    }
+    if scene.positions.iter().any(|p| !p.is_finite()) {
+        return Err(diagnose(path, None, 0));
+    }
+    scene.frame_camera();
+    scene.validate()?;
+    Ok(scene)
+}
+
+fn load_mtl(
+    dir: &Path,
+    mtl_path: &Path,
+    obj: &Path,
+    line: usize,
+    err: &RefCell<Option<Error>>,
+) -> tobj::MTLLoadResult {
+    let full: PathBuf = dir.join(mtl_path);
+    let fail = |e: Error| {
+        err.borrow_mut().get_or_insert(e);
+        Err(tobj::LoadError::OpenFileFailed)
+    };
+    // tobj calls us after it has read the `mtllib` line, so `line` counts it.
+    let at = Location::new(obj, line.max(1));
+    let file = match File::open(&full) {
+        Ok(f) => f,
+        Err(_) => {
+            return fail(Error::MissingMtl {
+                at,
+                mtl: mtl_path.display().to_string(),
+                looked: full,
+            });
+        }
+    };
+    let mtl_lines = Cell::new(0usize);
+    let mut reader = LineCounter {
+        inner: BufReader::new(file),
+        newlines: &mtl_lines,
+    };
+    match tobj::load_mtl_buf(&mut reader) {
+        Ok(r) => Ok(r),
+        Err(e) => fail(Error::MalformedMtl {
+            at: Location::new(&full, mtl_lines.get().max(1)),
+            msg: e.to_string(),
+        }),
+    }
+}
+
+/// Finds the first line of the OBJ that is malformed, out of range or not finite.
+/// `fallback` is tobj's error when the scan finds nothing more precise.
+fn diagnose(path: &Path, fallback: Option<tobj::LoadError>, fallback_line: usize) -> Error {
+    let Ok(reader) = open_text(path) else {
+        return Error::MalformedObj {
+            at: Location::file(path),
+            msg: "cannot re-read file".into(),
+        };
+    };
+    let mut n_v = 0usize;
+    for (i, line) in reader.lines().enumerate() {
+        let at = Location::new(path, i + 1);
+        let Ok(line) = line else {
+            return Error::MalformedObj {
+                at,
+                msg: "unreadable line (not UTF-8, or a corrupt gzip stream)".into(),
+            };
+        };
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                n_v += 1;
+                let coords: Vec<_> = words.take(3).map(str::parse::<f32>).collect();
+                if coords.len() < 3 || coords.iter().any(|c| c.is_err()) {
+                    return Error::MalformedObj {
+                        at,
+                        msg: format!("vertex needs three numbers: '{line}'"),
+                    };
+                }
+                if coords.iter().any(|c| !c.as_ref().unwrap().is_finite()) {
+                    return Error::NonFinite {
+                        at,
+                        what: format!("vertex {n_v}"),
+                    };
+                }
+            }
+            Some("f") => {
+                let refs: Vec<&str> = words.collect();
+                if refs.len() < 3 {
+                    return Error::MalformedObj {
+                        at,
+                        msg: format!("face needs at least three vertices: '{line}'"),
+                    };
+                }
+                for r in refs {
+                    let Ok(idx) = r.split('/').next().unwrap_or("").parse::<i64>() else {
+                        return Error::MalformedObj {
+                            at,
+                            msg: format!("bad face vertex '{r}'"),
+                        };
+                    };
+                    let resolved = if idx < 0 { n_v as i64 + idx + 1 } else { idx };
+                    if resolved < 1 || resolved > n_v as i64 {
+                        return Error::IndexOutOfRange {
+                            at,
+                            msg: format!("vertex {idx} named, {n_v} defined so far"),
+                        };
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    let msg = fallback.map_or("unknown problem".to_string(), |e| e.to_string());
+    Error::MalformedObj {
+        at: Location::new(path, fallback_line),
+        msg,
+    }
+}
