@@ -36,14 +36,7 @@ fn luminance(c: Vec3) -> f32 {
 /// Flips both directions so that `wo` lies on `+z` (two-sided opaque surfaces).
 #[inline]
 fn upper(wo: Vec3, wi: Vec3) -> (Vec3, Vec3) {
-    if wo.z < 0.0 {
-        (
-            wo * Vec3::new(1.0, 1.0, -1.0),
-            wi * Vec3::new(1.0, 1.0, -1.0),
-        )
-    } else {
-        (wo, wi)
-    }
+    if wo.z < 0.0 { (wo * Vec3::new(1.0, 1.0, -1.0), wi * Vec3::new(1.0, 1.0, -1.0)) } else { (wo, wi) }
 }
 
 #[inline]
@@ -108,11 +101,7 @@ impl Ggx {
         let a = self.alpha;
         let vh = Vec3::new(a * wo.x, a * wo.y, wo.z).normalize();
         let len2 = vh.x * vh.x + vh.y * vh.y;
-        let t1 = if len2 > 0.0 {
-            Vec3::new(-vh.y, vh.x, 0.0) / len2.sqrt()
-        } else {
-            Vec3::X
-        };
+        let t1 = if len2 > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) / len2.sqrt() } else { Vec3::X };
         let t2 = vh.cross(t1);
         let r = u.x.sqrt();
         let phi = 2.0 * PI * u.y;
@@ -139,11 +128,7 @@ impl Material {
         }
         match *self {
             Material::Diffuse { albedo } => albedo * FRAC_1_PI,
-            Material::Glossy {
-                diffuse,
-                specular,
-                roughness,
-            } => {
+            Material::Glossy { diffuse, specular, roughness } => {
                 let ggx = Ggx { alpha: roughness };
                 let wm = (wo + wi).normalize();
                 diffuse * FRAC_1_PI + specular * (ggx.d(wm) * ggx.g2(wo, wi) / (4.0 * wo.z * wi.z))
@@ -160,11 +145,7 @@ impl Material {
         }
         match *self {
             Material::Diffuse { .. } => wi.z * FRAC_1_PI,
-            Material::Glossy {
-                diffuse,
-                specular,
-                roughness,
-            } => {
+            Material::Glossy { diffuse, specular, roughness } => {
                 let ws = Self::specular_weight(diffuse, specular);
                 let ggx = Ggx { alpha: roughness };
                 let wm = (wo + wi).normalize();
@@ -175,13 +156,7 @@ impl Material {
     }
 
     /// Samples an incident direction for `wo`. `u_lobe` picks a lobe, `u` the direction.
-    pub fn sample_f(
-        &self,
-        wo: Vec3,
-        u_lobe: f32,
-        u: Vec2,
-        mode: TransportMode,
-    ) -> Option<BsdfSample> {
+    pub fn sample_f(&self, wo: Vec3, u_lobe: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
         if wo.z == 0.0 {
             return None;
         }
@@ -191,11 +166,9 @@ impl Material {
             Material::Diffuse { .. } | Material::Glossy { .. } => {
                 let wo_up = to_side(wo);
                 let wi_up = match *self {
-                    Material::Glossy {
-                        diffuse,
-                        specular,
-                        roughness,
-                    } if u_lobe < Self::specular_weight(diffuse, specular) => {
+                    Material::Glossy { diffuse, specular, roughness }
+                        if u_lobe < Self::specular_weight(diffuse, specular) =>
+                    {
                         let wm = Ggx { alpha: roughness }.sample_visible(wo_up, u);
                         wo_up.reflect(wm) * -1.0
                     }
@@ -210,23 +183,11 @@ impl Material {
                 if pdf <= 0.0 {
                     return None;
                 }
-                Some(BsdfSample {
-                    wi,
-                    f,
-                    pdf,
-                    weight: f * wi_up.z / pdf,
-                    delta: false,
-                })
+                Some(BsdfSample { wi, f, pdf, weight: f * wi_up.z / pdf, delta: false })
             }
             Material::Mirror { reflectance } => {
                 let wi = reflect_z(wo);
-                Some(BsdfSample {
-                    wi,
-                    f: reflectance / wi.z.abs(),
-                    pdf: 1.0,
-                    weight: reflectance,
-                    delta: true,
-                })
+                Some(BsdfSample { wi, f: reflectance / wi.z.abs(), pdf: 1.0, weight: reflectance, delta: true })
             }
             Material::Glass { ior, tint } => {
                 let entering = wo.z > 0.0;
@@ -247,19 +208,9 @@ impl Material {
                 let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
                 let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
                 let wi = Vec3::new(-wo.x / eta, -wo.y / eta, -side * cos_t);
-                let scale = if mode == TransportMode::Radiance {
-                    1.0 / (eta * eta)
-                } else {
-                    1.0
-                };
+                let scale = if mode == TransportMode::Radiance { 1.0 / (eta * eta) } else { 1.0 };
                 let ft = tint * ((1.0 - fr) * scale / cos_t.max(1e-12));
-                Some(BsdfSample {
-                    wi,
-                    f: ft,
-                    pdf: 1.0 - fr,
-                    weight: tint * scale,
-                    delta: true,
-                })
+                Some(BsdfSample { wi, f: ft, pdf: 1.0 - fr, weight: tint * scale, delta: true })
             }
         }
     }

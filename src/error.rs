@@ -12,16 +12,10 @@ pub struct Location {
 
 impl Location {
     pub fn new(path: impl Into<PathBuf>, line: usize) -> Self {
-        Location {
-            path: path.into(),
-            line,
-        }
+        Location { path: path.into(), line }
     }
     pub fn file(path: impl Into<PathBuf>) -> Self {
-        Location {
-            path: path.into(),
-            line: 0,
-        }
+        Location { path: path.into(), line: 0 }
     }
 }
 
@@ -46,11 +40,7 @@ pub enum Error {
     #[error("{at}: malformed OBJ: {msg}")]
     MalformedObj { at: Location, msg: String },
     #[error("{at}: material library '{mtl}' not found (looked for {looked})")]
-    MissingMtl {
-        at: Location,
-        mtl: String,
-        looked: PathBuf,
-    },
+    MissingMtl { at: Location, mtl: String, looked: PathBuf },
     #[error("{at}: malformed MTL: {msg}")]
     MalformedMtl { at: Location, msg: String },
     #[error("{at}: face index out of range: {msg}")]
@@ -59,18 +49,12 @@ pub enum Error {
     NonFinite { at: Location, what: String },
     #[error("{at}: the scene has no triangles")]
     EmptyMesh { at: Location },
-    #[error(
-        "{at}: the scene has no emitters (no Ke materials, no point lights); add a light in a scene file"
-    )]
+    #[error("{at}: the scene has no emitters (no Ke materials, no point lights); add a light in a scene file")]
     NoEmitters { at: Location },
     #[error("{at}: {msg}")]
     SceneFile { at: Location, msg: String },
     #[error("image size {width}x{height} is not allowed: {why}")]
-    BadImageSize {
-        width: u32,
-        height: u32,
-        why: &'static str,
-    },
+    BadImageSize { width: u32, height: u32, why: &'static str },
     #[error("{0}")]
     BadSetting(String),
     #[error("{path}: cannot write image: {msg}")]
@@ -79,10 +63,7 @@ pub enum Error {
 
 impl Error {
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        Error::Io {
-            path: path.into(),
-            source,
-        }
+        Error::Io { path: path.into(), source }
     }
 }
 

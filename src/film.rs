@@ -44,13 +44,7 @@ impl Film {
     pub fn new(width: u32, height: u32) -> Result<Film> {
         check_size(width, height)?;
         let n = (width * height) as usize;
-        Ok(Film {
-            width,
-            height,
-            sum: vec![Vec3::ZERO; n],
-            passes: 0,
-            rejected: 0,
-        })
+        Ok(Film { width, height, sum: vec![Vec3::ZERO; n], passes: 0, rejected: 0 })
     }
 
     pub fn pixel_count(&self) -> usize {
@@ -73,11 +67,7 @@ impl Film {
 
     /// The mean estimate per pixel.
     pub fn mean(&self) -> Vec<Vec3> {
-        let inv = if self.passes > 0 {
-            1.0 / self.passes as f32
-        } else {
-            0.0
-        };
+        let inv = if self.passes > 0 { 1.0 / self.passes as f32 } else { 0.0 };
         self.sum.iter().map(|&s| s * inv).collect()
     }
 
@@ -90,26 +80,16 @@ impl Film {
 
     /// Writes `path` as PNG or EXR, chosen by its extension.
     pub fn write(&self, path: &Path, exposure: f32) -> Result<()> {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase);
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         match ext.as_deref() {
             Some("png") => self.write_png(path, exposure),
             Some("exr") => self.write_exr(path),
-            _ => Err(Error::Output {
-                path: path.into(),
-                msg: "unknown image type: use .png or .exr".into(),
-            }),
+            _ => Err(Error::Output { path: path.into(), msg: "unknown image type: use .png or .exr".into() }),
         }
     }
 
     pub fn write_png(&self, path: &Path, exposure: f32) -> Result<()> {
-        let bytes: Vec<u8> = self
-            .mean()
-            .iter()
-            .flat_map(|c| (*c * exposure).to_array().map(encode_srgb8))
-            .collect();
+        let bytes: Vec<u8> = self.mean().iter().flat_map(|c| (*c * exposure).to_array().map(encode_srgb8)).collect();
         atomic_write(path, |tmp| {
             image::save_buffer_with_format(
                 tmp,
@@ -132,62 +112,30 @@ impl Film {
                 let c = mean[p.y() * w + p.x()];
                 (c.x, c.y, c.z)
             });
-            let layer = Layer::new(
-                (w, h),
-                LayerAttributes::named("rgb"),
-                Encoding::SMALL_LOSSLESS,
-                channels,
-            );
-            Image::from_layer(layer)
-                .write()
-                .to_file(tmp)
-                .map_err(|e| e.to_string())
+            let layer = Layer::new((w, h), LayerAttributes::named("rgb"), Encoding::SMALL_LOSSLESS, channels);
+            Image::from_layer(layer).write().to_file(tmp).map_err(|e| e.to_string())
         })
     }
 }
 
 /// sRGB transfer curve, clamped, to 8 bits.
 pub fn encode_srgb8(linear: f32) -> u8 {
-    let x = if linear.is_nan() {
-        0.0
-    } else {
-        linear.clamp(0.0, 1.0)
-    };
-    let s = if x <= 0.003_130_8 {
-        12.92 * x
-    } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
-    };
+    let x = if linear.is_nan() { 0.0 } else { linear.clamp(0.0, 1.0) };
+    let s = if x <= 0.003_130_8 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 };
     (s * 255.0 + 0.5) as u8
 }
 
 /// Writes through `write` to a temporary file beside `path`, then renames it into place.
 /// On failure the temporary file is removed and `path` is untouched.
-fn atomic_write(
-    path: &Path,
-    write: impl FnOnce(&Path) -> std::result::Result<(), String>,
-) -> Result<()> {
-    let name = path.file_name().ok_or_else(|| Error::Output {
-        path: path.into(),
-        msg: "not a file name".into(),
-    })?;
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().into_owned())
-        .unwrap_or_default();
+fn atomic_write(path: &Path, write: impl FnOnce(&Path) -> std::result::Result<(), String>) -> Result<()> {
+    let name = path.file_name().ok_or_else(|| Error::Output { path: path.into(), msg: "not a file name".into() })?;
+    let ext = path.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
     // Keep the extension last: the encoders pick their format from it.
-    let tmp: PathBuf = path.with_file_name(format!(
-        ".{}.{}.tmp.{ext}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
+    let tmp: PathBuf = path.with_file_name(format!(".{}.{}.tmp.{ext}", name.to_string_lossy(), std::process::id()));
     let result = write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| e.to_string()));
     if let Err(msg) = result {
         let _ = std::fs::remove_file(&tmp);
-        return Err(Error::Output {
-            path: path.into(),
-            msg,
-        });
+        return Err(Error::Output { path: path.into(), msg });
     }
     Ok(())
 }

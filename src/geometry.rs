@@ -26,22 +26,12 @@ pub struct Ray {
 impl Ray {
     /// A ray from `origin` along `dir`, unbounded.
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
-        Ray {
-            origin,
-            dir,
-            t_min: 0.0,
-            t_max: f32::INFINITY,
-        }
+        Ray { origin, dir, t_min: 0.0, t_max: f32::INFINITY }
     }
 
     /// A ray limited to `t < t_max` (shadow rays toward a light).
     pub fn segment(origin: Vec3, dir: Vec3, t_max: f32) -> Self {
-        Ray {
-            origin,
-            dir,
-            t_min: 0.0,
-            t_max,
-        }
+        Ray { origin, dir, t_min: 0.0, t_max }
     }
 
     pub fn at(&self, t: f32) -> Vec3 {
@@ -70,12 +60,7 @@ pub struct Hit {
 
 impl Hit {
     pub const NONE: u32 = u32::MAX;
-    pub const MISS: Hit = Hit {
-        t: f32::INFINITY,
-        prim: Hit::NONE,
-        u: 0.0,
-        v: 0.0,
-    };
+    pub const MISS: Hit = Hit { t: f32::INFINITY, prim: Hit::NONE, u: 0.0, v: 0.0 };
 
     pub fn is_hit(&self) -> bool {
         self.prim != Hit::NONE
@@ -99,27 +84,18 @@ pub struct Aabb {
 const SLAB_WIDEN: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
 impl Aabb {
-    pub const EMPTY: Aabb = Aabb {
-        min: Vec3::splat(f32::INFINITY),
-        max: Vec3::splat(f32::NEG_INFINITY),
-    };
+    pub const EMPTY: Aabb = Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
 
     pub fn from_points(points: &[Vec3]) -> Aabb {
         points.iter().fold(Aabb::EMPTY, |b, &p| b.grow(p))
     }
 
     pub fn grow(self, p: Vec3) -> Aabb {
-        Aabb {
-            min: self.min.min(p),
-            max: self.max.max(p),
-        }
+        Aabb { min: self.min.min(p), max: self.max.max(p) }
     }
 
     pub fn union(self, o: Aabb) -> Aabb {
-        Aabb {
-            min: self.min.min(o.min),
-            max: self.max.max(o.max),
-        }
+        Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -153,23 +129,13 @@ impl Aabb {
     /// (origin exactly on a slab plane) is ignored by `f32::min`/`max`, which return
     /// the other operand, so such a ray is treated as inside that slab.
     #[inline]
-    pub fn intersect(
-        &self,
-        origin: Vec3,
-        inv_dir: Vec3,
-        t_min: f32,
-        t_max: f32,
-    ) -> Option<(f32, f32)> {
+    pub fn intersect(&self, origin: Vec3, inv_dir: Vec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
         let t0 = (self.min - origin) * inv_dir;
         let t1 = (self.max - origin) * inv_dir;
         let mut near = t_min;
         let mut far = t_max;
         for a in 0..3 {
-            let (lo, hi) = if t0[a] <= t1[a] {
-                (t0[a], t1[a])
-            } else {
-                (t1[a], t0[a])
-            };
+            let (lo, hi) = if t0[a] <= t1[a] { (t0[a], t1[a]) } else { (t1[a], t0[a]) };
             near = near.max(lo);
             far = far.min(hi * SLAB_WIDEN);
         }
@@ -183,13 +149,11 @@ pub fn inv_dir(dir: Vec3) -> Vec3 {
     Vec3::ONE / dir
 }
 
-/// Per-ray constants of the watertight test: the permutation that makes the
-/// dominant direction axis `z`, and the shear that maps the ray onto `+z`.
+/// Per-ray constants of the watertight test: the permutation that makes the dominant
+/// direction axis `z`, and the shear that maps the ray onto `+z`.
 #[derive(Clone, Copy, Debug)]
 pub struct RayShear {
-    kx: usize,
-    ky: usize,
-    kz: usize,
+    k: [usize; 3],
     sx: f32,
     sy: f32,
     sz: f32,
@@ -212,14 +176,16 @@ impl RayShear {
         if dir[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
-        RayShear {
-            kx,
-            ky,
-            kz,
-            sx: dir[kx] / dir[kz],
-            sy: dir[ky] / dir[kz],
-            sz: 1.0 / dir[kz],
-        }
+        let d = dir.to_array();
+        RayShear { k: [kx, ky, kz], sx: d[kx] / d[kz], sy: d[ky] / d[kz], sz: 1.0 / d[kz] }
+    }
+
+    /// A vertex relative to the ray origin, permuted: `(x, y, z)` in ray-aligned axes.
+    #[inline(always)]
+    fn permute(&self, v: Vec3) -> (f32, f32, f32) {
+        let a = v.to_array();
+        // Indices are 0..3 by construction; `% 3` lets the compiler drop bounds checks.
+        (a[self.k[0] % 3], a[self.k[1] % 3], a[self.k[2] % 3])
     }
 }
 
@@ -235,49 +201,35 @@ pub fn intersect_triangle(
     t_min: f32,
     t_max: f32,
 ) -> Option<(f32, f32, f32)> {
-    let RayShear {
-        kx,
-        ky,
-        kz,
-        sx,
-        sy,
-        sz,
-    } = *shear;
-    let a = p0 - origin;
-    let b = p1 - origin;
-    let c = p2 - origin;
-    let ax = a[kx] - sx * a[kz];
-    let ay = a[ky] - sy * a[kz];
-    let bx = b[kx] - sx * b[kz];
-    let by = b[ky] - sy * b[kz];
-    let cx = c[kx] - sx * c[kz];
-    let cy = c[ky] - sy * c[kz];
+    let (sx, sy, sz) = (shear.sx, shear.sy, shear.sz);
+    let (ax0, ay0, az0) = shear.permute(p0 - origin);
+    let (bx0, by0, bz0) = shear.permute(p1 - origin);
+    let (cx0, cy0, cz0) = shear.permute(p2 - origin);
+    let (ax, ay) = (ax0 - sx * az0, ay0 - sy * az0);
+    let (bx, by) = (bx0 - sx * bz0, by0 - sy * bz0);
+    let (cx, cy) = (cx0 - sx * cz0, cy0 - sy * cz0);
 
     // Edge functions; each is the signed area opposite one vertex.
     let mut e0 = cx * by - cy * bx;
     let mut e1 = ax * cy - ay * cx;
     let mut e2 = bx * ay - by * ax;
-    if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
+    // Non-short-circuit `|`/`&`: one well-predicted branch instead of several random ones.
+    if (e0 == 0.0) | (e1 == 0.0) | (e2 == 0.0) {
         // Exactly on an edge in single precision: decide in double precision so that
         // neighbouring triangles agree on which side the ray passes.
-        let (ax, ay, bx, by, cx, cy) = (
-            ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
-        );
+        let (ax, ay, bx, by, cx, cy) = (ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64);
         e0 = (cx * by - cy * bx) as f32;
         e1 = (ax * cy - ay * cx) as f32;
         e2 = (bx * ay - by * ax) as f32;
     }
-    if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+    if ((e0 < 0.0) | (e1 < 0.0) | (e2 < 0.0)) & ((e0 > 0.0) | (e1 > 0.0) | (e2 > 0.0)) {
         return None;
     }
     let det = e0 + e1 + e2;
     if det == 0.0 || !det.is_finite() {
         return None;
     }
-    let az = sz * a[kz];
-    let bz = sz * b[kz];
-    let cz = sz * c[kz];
-    let t_scaled = e0 * az + e1 * bz + e2 * cz;
+    let t_scaled = e0 * (sz * az0) + e1 * (sz * bz0) + e2 * (sz * cz0);
     let inv_det = 1.0 / det;
     let t = t_scaled * inv_det;
     if !(t > t_min && t < t_max) {
@@ -306,11 +258,7 @@ pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
         let ulps = (ULP_STEP * n[a]) as i32;
         let bits = p[a].to_bits() as i32;
         let stepped = f32::from_bits(if p[a] < 0.0 { bits - ulps } else { bits + ulps } as u32);
-        out[a] = if p[a].abs() < NEAR_ORIGIN {
-            p[a] + FLOAT_STEP * n[a]
-        } else {
-            stepped
-        };
+        out[a] = if p[a].abs() < NEAR_ORIGIN { p[a] + FLOAT_STEP * n[a] } else { stepped };
     }
     out
 }
@@ -321,30 +269,20 @@ mod tests {
 
     #[test]
     fn triangle_hit_and_barycentrics() {
-        let (p0, p1, p2) = (
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 0.0, 0.0),
-            Vec3::new(0.0, 1.0, 0.0),
-        );
+        let (p0, p1, p2) = (Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0));
         let o = Vec3::new(0.25, 0.5, 1.0);
         let d = Vec3::new(0.0, 0.0, -1.0);
-        let (t, u, v) =
-            intersect_triangle(o, &RayShear::new(d), p0, p1, p2, 0.0, f32::INFINITY).unwrap();
+        let (t, u, v) = intersect_triangle(o, &RayShear::new(d), p0, p1, p2, 0.0, f32::INFINITY).unwrap();
         assert!((t - 1.0).abs() < 1e-6);
         assert!((u - 0.25).abs() < 1e-6 && (v - 0.5).abs() < 1e-6);
         // Behind the origin and beyond t_max are misses.
-        assert!(
-            intersect_triangle(o, &RayShear::new(-d), p0, p1, p2, 0.0, f32::INFINITY).is_none()
-        );
+        assert!(intersect_triangle(o, &RayShear::new(-d), p0, p1, p2, 0.0, f32::INFINITY).is_none());
         assert!(intersect_triangle(o, &RayShear::new(d), p0, p1, p2, 0.0, 0.5).is_none());
     }
 
     #[test]
     fn slab_accepts_zero_direction_components() {
-        let b = Aabb {
-            min: Vec3::ZERO,
-            max: Vec3::ONE,
-        };
+        let b = Aabb { min: Vec3::ZERO, max: Vec3::ONE };
         // Axis-aligned ray inside the x and y slabs, origin exactly on the min x plane.
         let o = Vec3::new(0.0, 0.5, -1.0);
         let d = Vec3::new(0.0, 0.0, 1.0);
@@ -357,11 +295,7 @@ mod tests {
 
     #[test]
     fn offset_leaves_the_surface_on_the_normal_side() {
-        for &p in &[
-            Vec3::new(1000.0, -2000.0, 3.0),
-            Vec3::new(0.001, 0.0, -0.01),
-            Vec3::new(-5.0, 7.0, 1e-6),
-        ] {
+        for &p in &[Vec3::new(1000.0, -2000.0, 3.0), Vec3::new(0.001, 0.0, -0.01), Vec3::new(-5.0, 7.0, 1e-6)] {
             let n = Vec3::new(0.3, -0.5, 0.8).normalize();
             let q = offset_ray_origin(p, n);
             assert!((q - p).dot(n) > 0.0, "{p} -> {q}");

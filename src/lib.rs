@@ -44,8 +44,6 @@ pub mod prelude {
     pub use crate::film::Film;
     pub use crate::geometry::{Aabb, Hit, Ray};
     pub use crate::render::{Budget, IntegratorKind, RenderOptions, RenderStats, render};
-    pub use crate::scene::{
-        Camera, Material, PointLight, Scene, SceneDesc, cornell_box, load_obj, load_scene,
-    };
+    pub use crate::scene::{Camera, Material, PointLight, Scene, SceneDesc, cornell_box, load_obj, load_scene};
     pub use glam::{Vec2, Vec3};
 }

@@ -64,18 +64,10 @@ impl Lights {
             let area = 0.5 * n.length();
             if area > 0.0 && area.is_finite() {
                 light_of_tri[tri as usize] = lights.len() as u32;
-                lights.push(Light::Area {
-                    tri,
-                    area,
-                    normal: n.normalize(),
-                    radiance,
-                });
+                lights.push(Light::Area { tri, area, normal: n.normalize(), radiance });
             }
         }
-        lights.extend(scene.point_lights.iter().map(|p| Light::Point {
-            position: p.position,
-            intensity: p.intensity,
-        }));
+        lights.extend(scene.point_lights.iter().map(|p| Light::Point { position: p.position, intensity: p.intensity }));
         let power: Vec<f32> = lights
             .iter()
             .map(|l| match *l {
@@ -95,11 +87,7 @@ impl Lights {
         if let Some(last) = cdf.last_mut() {
             *last = 1.0;
         }
-        Lights {
-            lights,
-            cdf,
-            light_of_tri,
-        }
+        Lights { lights, cdf, light_of_tri }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -115,42 +103,21 @@ impl Lights {
         if self.lights.is_empty() {
             return None;
         }
-        let i = self
-            .cdf
-            .partition_point(|&c| c <= u_select)
-            .min(self.lights.len() - 1);
+        let i = self.cdf.partition_point(|&c| c <= u_select).min(self.lights.len() - 1);
         let p_sel = self.select_pdf(i);
         if p_sel <= 0.0 {
             return None;
         }
         Some(match self.lights[i] {
-            Light::Area {
-                tri,
-                area,
-                normal,
-                radiance,
-            } => {
+            Light::Area { tri, area, normal, radiance } => {
                 let [a, b, c] = scene.vertices(tri);
                 let (b1, b2) = uniform_triangle(u);
                 let position = a * (1.0 - b1 - b2) + b * b1 + c * b2;
-                LightSample {
-                    position,
-                    normal,
-                    emitted: radiance,
-                    pdf: p_sel / area,
-                    is_delta: false,
-                }
+                LightSample { position, normal, emitted: radiance, pdf: p_sel / area, is_delta: false }
             }
-            Light::Point {
-                position,
-                intensity,
-            } => LightSample {
-                position,
-                normal: Vec3::ZERO,
-                emitted: intensity,
-                pdf: p_sel,
-                is_delta: true,
-            },
+            Light::Point { position, intensity } => {
+                LightSample { position, normal: Vec3::ZERO, emitted: intensity, pdf: p_sel, is_delta: true }
+            }
         })
     }
 

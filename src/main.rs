@@ -12,11 +12,7 @@ use warpray::render::{Budget, IntegratorKind, RenderOptions, render};
 use warpray::scene::{SceneDesc, find_model, load_scene};
 
 #[derive(Parser)]
-#[command(
-    name = "warpray",
-    version,
-    about = "GPU ray-tracing algorithms on CPUs, measured as a GPU would be"
-)]
+#[command(name = "warpray", version, about = "GPU ray-tracing algorithms on CPUs, measured as a GPU would be")]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
@@ -70,14 +66,9 @@ struct RenderArgs {
 }
 
 fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or("expected WIDTHxHEIGHT, e.g. 640x480")?;
+    let (w, h) = s.split_once(['x', 'X']).ok_or("expected WIDTHxHEIGHT, e.g. 640x480")?;
     let w = w.trim().parse::<u32>().map_err(|e| format!("width: {e}"))?;
-    let h = h
-        .trim()
-        .parse::<u32>()
-        .map_err(|e| format!("height: {e}"))?;
+    let h = h.trim().parse::<u32>().map_err(|e| format!("height: {e}"))?;
     Ok((w, h))
 }
 
@@ -95,9 +86,7 @@ fn resolve_scene(arg: &Path) -> Result<SceneDesc> {
 fn run_render(args: RenderArgs) -> Result<()> {
     let desc = resolve_scene(&args.scene)?;
     let s = &desc.settings;
-    let (width, height) = args
-        .size
-        .unwrap_or((s.width.unwrap_or(512), s.height.unwrap_or(512)));
+    let (width, height) = args.size.unwrap_or((s.width.unwrap_or(512), s.height.unwrap_or(512)));
     let integrator = match (args.integrator, &s.integrator) {
         (Some(i), _) => i,
         (None, Some(name)) => name.parse()?,
@@ -122,18 +111,10 @@ fn run_render(args: RenderArgs) -> Result<()> {
         integrator,
     };
     for out in &args.output {
-        match out
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase)
-            .as_deref()
-        {
+        match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
             Some("png") | Some("exr") => {}
             _ => {
-                return Err(Error::Output {
-                    path: out.clone(),
-                    msg: "use a .png or .exr file name".into(),
-                });
+                return Err(Error::Output { path: out.clone(), msg: "use a .png or .exr file name".into() });
             }
         }
     }
@@ -147,9 +128,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         }
         pool = pool.num_threads(n);
     }
-    let pool = pool
-        .build()
-        .map_err(|e| Error::BadSetting(format!("thread pool: {e}")))?;
+    let pool = pool.build().map_err(|e| Error::BadSetting(format!("thread pool: {e}")))?;
     let threads = pool.current_num_threads();
 
     pool.install(|| {
@@ -193,19 +172,11 @@ fn run_render(args: RenderArgs) -> Result<()> {
 
 fn progress_bar(budget: Budget) -> ProgressBar {
     let (len, style) = match budget {
-        Budget::Samples(n) => (
-            n as u64,
-            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp, eta {eta}",
-        ),
-        Budget::Seconds(s) => (
-            (s * 1000.0) as u64,
-            "{spinner} [{elapsed_precise}] {bar:40} {msg}",
-        ),
+        Budget::Samples(n) => (n as u64, "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp, eta {eta}"),
+        Budget::Seconds(s) => ((s * 1000.0) as u64, "{spinner} [{elapsed_precise}] {bar:40} {msg}"),
     };
     let bar = ProgressBar::new(len);
-    bar.set_style(
-        ProgressStyle::with_template(style).unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    bar.set_style(ProgressStyle::with_template(style).unwrap_or_else(|_| ProgressStyle::default_bar()));
     bar.enable_steady_tick(Duration::from_millis(200));
     bar
 }
@@ -214,9 +185,7 @@ fn main() -> ExitCode {
     let command = match Cli::parse().command {
         Some(c) => c,
         // No subcommand: `warpray` alone renders the built-in scene with the defaults.
-        None => Cli::parse_from(["warpray", "render"])
-            .command
-            .expect("render parses"),
+        None => Cli::parse_from(["warpray", "render"]).command.expect("render parses"),
     };
     let result = match command {
         Command::Render(args) => run_render(args),

@@ -26,28 +26,20 @@ pub struct Rng {
 impl Rng {
     /// The stream for one (pixel, sample) pair under `seed`.
     pub fn for_sample(seed: u64, pixel: u64, sample: u64) -> Rng {
-        let key = mix64(
-            mix64(seed ^ 0x5157_4d3c_8a2b_9e11).wrapping_add(pixel)
-                ^ mix64(sample.wrapping_add(0x9e37_79b9)),
-        );
+        let key =
+            mix64(mix64(seed ^ 0x5157_4d3c_8a2b_9e11).wrapping_add(pixel) ^ mix64(sample.wrapping_add(0x9e37_79b9)));
         Rng { key, counter: 0 }
     }
 
     /// An independent stream derived from this one's key (e.g. per bounce or per purpose).
     pub fn derive(&self, tag: u64) -> Rng {
-        Rng {
-            key: mix64(self.key ^ mix64(tag.wrapping_add(0xd1b5_4a32_d192_ed03))),
-            counter: 0,
-        }
+        Rng { key: mix64(self.key ^ mix64(tag.wrapping_add(0xd1b5_4a32_d192_ed03))), counter: 0 }
     }
 
     #[inline]
     pub fn next_u64(&mut self) -> u64 {
         self.counter += 1;
-        mix64(
-            self.key
-                .wrapping_add(self.counter.wrapping_mul(0x9e37_79b9_7f4a_7c15)),
-        )
+        mix64(self.key.wrapping_add(self.counter.wrapping_mul(0x9e37_79b9_7f4a_7c15)))
     }
 
     /// Uniform in `[0, 1)`, with 24 bits of precision.
@@ -136,10 +128,7 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     let (r, theta) = if o.x.abs() > o.y.abs() {
         (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
     } else {
-        (
-            o.y,
-            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
-        )
+        (o.y, std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y))
     };
     Vec2::new(theta.cos(), theta.sin()) * r
 }

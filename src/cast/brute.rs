@@ -12,9 +12,7 @@ pub struct BruteForce {
 
 impl BruteForce {
     pub fn new(scene: &Scene) -> Self {
-        BruteForce {
-            tris: scene.triangle_vertices(),
-        }
+        BruteForce { tris: scene.triangle_vertices() }
     }
 
     pub fn from_triangles(tris: Triangles) -> Self {
@@ -31,15 +29,12 @@ impl RayCaster for BruteForce {
         assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
         let n = self.tris.len() as u32;
         timed(rays.len(), 0, || {
-            rays.par_iter()
-                .zip(hits.par_iter_mut())
-                .with_min_len(16)
-                .for_each(|(ray, hit)| {
-                    *hit = Hit::MISS;
-                    if ray.is_valid() {
-                        intersect_ids(&self.tris, 0..n, ray, &RayShear::new(ray.dir), hit);
-                    }
-                })
+            rays.par_iter().zip(hits.par_iter_mut()).with_min_len(16).for_each(|(ray, hit)| {
+                *hit = Hit::MISS;
+                if ray.is_valid() {
+                    intersect_ids(&self.tris, 0..n, ray, &RayShear::new(ray.dir), hit);
+                }
+            })
         })
     }
 
@@ -47,13 +42,9 @@ impl RayCaster for BruteForce {
         assert_eq!(rays.len(), out.len(), "one result slot per ray");
         let n = self.tris.len() as u32;
         timed(rays.len(), 0, || {
-            rays.par_iter()
-                .zip(out.par_iter_mut())
-                .with_min_len(16)
-                .for_each(|(ray, o)| {
-                    *o = ray.is_valid()
-                        && any_hit_ids(&self.tris, 0..n, ray, &RayShear::new(ray.dir));
-                })
+            rays.par_iter().zip(out.par_iter_mut()).with_min_len(16).for_each(|(ray, o)| {
+                *o = ray.is_valid() && any_hit_ids(&self.tris, 0..n, ray, &RayShear::new(ray.dir));
+            })
         })
     }
 

@@ -34,11 +34,7 @@ pub struct CastStats {
 impl CastStats {
     /// Rays per second.
     pub fn rays_per_second(&self) -> f64 {
-        if self.seconds > 0.0 {
-            self.rays as f64 / self.seconds
-        } else {
-            0.0
-        }
+        if self.seconds > 0.0 { self.rays as f64 / self.seconds } else { 0.0 }
     }
 
     /// Sums two calls (peak memory is the larger of the two).
@@ -97,11 +93,7 @@ pub(crate) fn triangles_bytes(tris: &Triangles) -> usize {
 pub(crate) fn timed(rays: usize, peak_working_bytes: usize, f: impl FnOnce()) -> CastStats {
     let start = Instant::now();
     f();
-    CastStats {
-        rays,
-        seconds: start.elapsed().as_secs_f64(),
-        peak_working_bytes,
-    }
+    CastStats { rays, seconds: start.elapsed().as_secs_f64(), peak_working_bytes }
 }
 
 /// Tests one ray against a list of triangle ids, shrinking `best` to the closest hit.
@@ -116,9 +108,7 @@ pub fn intersect_ids(
 ) {
     for id in ids {
         let [a, b, c] = tris[id as usize];
-        if let Some((t, u, v)) =
-            intersect_triangle(ray.origin, shear, a, b, c, ray.t_min, best.t.min(ray.t_max))
-        {
+        if let Some((t, u, v)) = intersect_triangle(ray.origin, shear, a, b, c, ray.t_min, best.t.min(ray.t_max)) {
             *best = Hit { t, prim: id, u, v };
         }
     }
@@ -126,12 +116,7 @@ pub fn intersect_ids(
 
 /// True when any of the listed triangles lies on the ray within its interval.
 #[inline]
-pub fn any_hit_ids(
-    tris: &[[Vec3; 3]],
-    ids: impl IntoIterator<Item = u32>,
-    ray: &Ray,
-    shear: &RayShear,
-) -> bool {
+pub fn any_hit_ids(tris: &[[Vec3; 3]], ids: impl IntoIterator<Item = u32>, ray: &Ray, shear: &RayShear) -> bool {
     ids.into_iter().any(|id| {
         let [a, b, c] = tris[id as usize];
         intersect_triangle(ray.origin, shear, a, b, c, ray.t_min, ray.t_max).is_some()

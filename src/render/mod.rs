@@ -84,11 +84,7 @@ pub struct RenderStats {
 
 impl RenderStats {
     pub fn rays_per_second(&self) -> f64 {
-        if self.seconds > 0.0 {
-            self.rays as f64 / self.seconds
-        } else {
-            0.0
-        }
+        if self.seconds > 0.0 { self.rays as f64 / self.seconds } else { 0.0 }
     }
 }
 
@@ -111,25 +107,15 @@ pub fn render(
     scene.check_renderable()?;
     if let Budget::Seconds(s) = opts.budget {
         if !(s > 0.0 && s.is_finite()) {
-            return Err(Error::BadSetting(format!(
-                "time budget {s} s must be positive"
-            )));
+            return Err(Error::BadSetting(format!("time budget {s} s must be positive")));
         }
     }
     if opts.max_depth > 1024 {
-        return Err(Error::BadSetting(format!(
-            "max depth {} is absurd (at most 1024)",
-            opts.max_depth
-        )));
+        return Err(Error::BadSetting(format!("max depth {} is absurd (at most 1024)", opts.max_depth)));
     }
     let mut film = Film::new(opts.width, opts.height)?;
     let lights = Lights::new(scene);
-    let ctx = Context {
-        scene,
-        lights: &lights,
-        caster,
-        opts,
-    };
+    let ctx = Context { scene, lights: &lights, caster, opts };
     let mut stats = RenderStats::default();
     let start = Instant::now();
     let mut integrator = match opts.integrator {

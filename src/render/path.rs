@@ -82,17 +82,11 @@ impl PathTracer {
             if self.paths.is_empty() {
                 break;
             }
-            self.paths
-                .par_iter()
-                .map(|p| p.ray)
-                .collect_into_vec(&mut self.rays);
+            self.paths.par_iter().map(|p| p.ray).collect_into_vec(&mut self.rays);
             self.hits.resize(self.rays.len(), Hit::MISS);
             stats = stats.merge(ctx.caster.closest(&self.rays, &mut self.hits));
 
-            self.paths
-                .par_iter_mut()
-                .zip(&self.hits)
-                .for_each(|(p, hit)| shade(ctx, depth, p, hit));
+            self.paths.par_iter_mut().zip(&self.hits).for_each(|(p, hit)| shade(ctx, depth, p, hit));
 
             // Shadow rays of this bounce, as one batch.
             self.shadow_rays.clear();
@@ -191,15 +185,8 @@ fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) {
             let contribution = p.throughput * contribution;
             if contribution.max_element() > 0.0 && contribution.is_finite() {
                 let origin = offset_ray_origin(pos, if wi.dot(ng) > 0.0 { ng } else { -ng });
-                let target = if ls.is_delta {
-                    ls.position
-                } else {
-                    offset_ray_origin(ls.position, ls.normal)
-                };
-                p.shadow = Some((
-                    Ray::segment(origin, target - origin, 1.0 - 1e-4),
-                    contribution,
-                ));
+                let target = if ls.is_delta { ls.position } else { offset_ray_origin(ls.position, ls.normal) };
+                p.shadow = Some((Ray::segment(origin, target - origin, 1.0 - 1e-4), contribution));
             }
         }
     }
@@ -225,8 +212,5 @@ fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) {
         p.alive = false;
         return;
     }
-    p.ray = Ray::new(
-        offset_ray_origin(pos, if wi.dot(ng) > 0.0 { ng } else { -ng }),
-        wi,
-    );
+    p.ray = Ray::new(offset_ray_origin(pos, if wi.dot(ng) > 0.0 { ng } else { -ng }), wi);
 }

@@ -56,23 +56,17 @@ impl Camera {
     }
 
     pub fn validate(&self) -> Result<(), String> {
-        let finite =
-            self.position.is_finite() && self.forward.is_finite() && self.right.is_finite();
+        let finite = self.position.is_finite() && self.forward.is_finite() && self.right.is_finite();
         if !finite {
             return Err("camera position or direction is not finite".into());
         }
         if !(self.vfov_deg > 0.0 && self.vfov_deg < 180.0) {
-            return Err(format!(
-                "camera fov {} must lie in (0, 180) degrees",
-                self.vfov_deg
-            ));
+            return Err(format!("camera fov {} must lie in (0, 180) degrees", self.vfov_deg));
         }
         if !(self.aperture_radius >= 0.0 && self.aperture_radius.is_finite()) {
             return Err("camera aperture radius must be finite and >= 0".into());
         }
-        if self.aperture_radius > 0.0
-            && !(self.focus_distance > 0.0 && self.focus_distance.is_finite())
-        {
+        if self.aperture_radius > 0.0 && !(self.focus_distance > 0.0 && self.focus_distance.is_finite()) {
             return Err("camera focus distance must be finite and > 0".into());
         }
         Ok(())

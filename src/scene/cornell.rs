@@ -27,11 +27,7 @@ impl Builder {
         let flip = (b - a).cross(c - a).dot(facing) < 0.0;
         let base = self.scene.positions.len() as u32;
         self.scene.positions.extend_from_slice(&corners);
-        let (t0, t1) = if flip {
-            ([0, 2, 1], [0, 3, 2])
-        } else {
-            ([0, 1, 2], [0, 2, 3])
-        };
+        let (t0, t1) = if flip { ([0, 2, 1], [0, 3, 2]) } else { ([0, 1, 2], [0, 2, 3]) };
         for t in [t0, t1] {
             self.scene.triangles.push(t.map(|i| base + i));
             self.scene.material_of.push(material);
@@ -45,51 +41,11 @@ impl Builder {
         let centre = Vec3::new(x, half.y, z);
         let corner = |sx: f32, sy: f32, sz: f32| centre + rot * (half * Vec3::new(sx, sy, sz));
         let faces: [([Vec3; 4], Vec3); 5] = [
-            (
-                [
-                    corner(-1., 1., -1.),
-                    corner(1., 1., -1.),
-                    corner(1., 1., 1.),
-                    corner(-1., 1., 1.),
-                ],
-                Vec3::Y,
-            ),
-            (
-                [
-                    corner(-1., -1., 1.),
-                    corner(1., -1., 1.),
-                    corner(1., 1., 1.),
-                    corner(-1., 1., 1.),
-                ],
-                rot * Vec3::Z,
-            ),
-            (
-                [
-                    corner(-1., -1., -1.),
-                    corner(1., -1., -1.),
-                    corner(1., 1., -1.),
-                    corner(-1., 1., -1.),
-                ],
-                rot * -Vec3::Z,
-            ),
-            (
-                [
-                    corner(1., -1., -1.),
-                    corner(1., -1., 1.),
-                    corner(1., 1., 1.),
-                    corner(1., 1., -1.),
-                ],
-                rot * Vec3::X,
-            ),
-            (
-                [
-                    corner(-1., -1., -1.),
-                    corner(-1., -1., 1.),
-                    corner(-1., 1., 1.),
-                    corner(-1., 1., -1.),
-                ],
-                rot * -Vec3::X,
-            ),
+            ([corner(-1., 1., -1.), corner(1., 1., -1.), corner(1., 1., 1.), corner(-1., 1., 1.)], Vec3::Y),
+            ([corner(-1., -1., 1.), corner(1., -1., 1.), corner(1., 1., 1.), corner(-1., 1., 1.)], rot * Vec3::Z),
+            ([corner(-1., -1., -1.), corner(1., -1., -1.), corner(1., 1., -1.), corner(-1., 1., -1.)], rot * -Vec3::Z),
+            ([corner(1., -1., -1.), corner(1., -1., 1.), corner(1., 1., 1.), corner(1., 1., -1.)], rot * Vec3::X),
+            ([corner(-1., -1., -1.), corner(-1., -1., 1.), corner(-1., 1., 1.), corner(-1., 1., -1.)], rot * -Vec3::X),
         ];
         for (q, n) in faces {
             self.quad(q, n, material);
@@ -99,93 +55,22 @@ impl Builder {
 
 /// The built-in Cornell box: 32 triangles (five walls, two five-sided blocks, one light).
 pub fn cornell_box() -> Scene {
-    let mut b = Builder {
-        scene: Scene::empty("<built-in cornell box>"),
-    };
-    let white = b.material(
-        "white",
-        Material::Diffuse {
-            albedo: Vec3::new(0.725, 0.71, 0.68),
-        },
-        Vec3::ZERO,
-    );
-    let red = b.material(
-        "red",
-        Material::Diffuse {
-            albedo: Vec3::new(0.63, 0.065, 0.05),
-        },
-        Vec3::ZERO,
-    );
-    let green = b.material(
-        "green",
-        Material::Diffuse {
-            albedo: Vec3::new(0.14, 0.45, 0.091),
-        },
-        Vec3::ZERO,
-    );
-    let light = b.material(
-        "light",
-        Material::Diffuse {
-            albedo: Vec3::splat(0.78),
-        },
-        Vec3::new(17.0, 12.0, 4.0),
-    );
+    let mut b = Builder { scene: Scene::empty("<built-in cornell box>") };
+    let white = b.material("white", Material::Diffuse { albedo: Vec3::new(0.725, 0.71, 0.68) }, Vec3::ZERO);
+    let red = b.material("red", Material::Diffuse { albedo: Vec3::new(0.63, 0.065, 0.05) }, Vec3::ZERO);
+    let green = b.material("green", Material::Diffuse { albedo: Vec3::new(0.14, 0.45, 0.091) }, Vec3::ZERO);
+    let light = b.material("light", Material::Diffuse { albedo: Vec3::splat(0.78) }, Vec3::new(17.0, 12.0, 4.0));
 
     let v = Vec3::new;
-    b.quad(
-        [
-            v(-1., 0., -1.),
-            v(1., 0., -1.),
-            v(1., 0., 1.),
-            v(-1., 0., 1.),
-        ],
-        Vec3::Y,
-        white,
-    ); // floor
-    b.quad(
-        [
-            v(-1., 2., -1.),
-            v(1., 2., -1.),
-            v(1., 2., 1.),
-            v(-1., 2., 1.),
-        ],
-        -Vec3::Y,
-        white,
-    ); // ceiling
-    b.quad(
-        [
-            v(-1., 0., -1.),
-            v(1., 0., -1.),
-            v(1., 2., -1.),
-            v(-1., 2., -1.),
-        ],
-        Vec3::Z,
-        white,
-    ); // back
-    b.quad(
-        [
-            v(-1., 0., -1.),
-            v(-1., 0., 1.),
-            v(-1., 2., 1.),
-            v(-1., 2., -1.),
-        ],
-        Vec3::X,
-        red,
-    ); // left
-    b.quad(
-        [v(1., 0., -1.), v(1., 0., 1.), v(1., 2., 1.), v(1., 2., -1.)],
-        -Vec3::X,
-        green,
-    ); // right
+    b.quad([v(-1., 0., -1.), v(1., 0., -1.), v(1., 0., 1.), v(-1., 0., 1.)], Vec3::Y, white); // floor
+    b.quad([v(-1., 2., -1.), v(1., 2., -1.), v(1., 2., 1.), v(-1., 2., 1.)], -Vec3::Y, white); // ceiling
+    b.quad([v(-1., 0., -1.), v(1., 0., -1.), v(1., 2., -1.), v(-1., 2., -1.)], Vec3::Z, white); // back
+    b.quad([v(-1., 0., -1.), v(-1., 0., 1.), v(-1., 2., 1.), v(-1., 2., -1.)], Vec3::X, red); // left
+    b.quad([v(1., 0., -1.), v(1., 0., 1.), v(1., 2., 1.), v(1., 2., -1.)], -Vec3::X, green); // right
     b.block(0.33, 0.37, Vec3::new(0.3, 0.3, 0.3), -17.0, white); // short block
     b.block(-0.34, -0.29, Vec3::new(0.3, 0.6, 0.3), 17.0, white); // tall block
     b.quad(
-        [
-            v(-0.235, 1.98, -0.19),
-            v(0.235, 1.98, -0.19),
-            v(0.235, 1.98, 0.19),
-            v(-0.235, 1.98, 0.19),
-        ],
+        [v(-0.235, 1.98, -0.19), v(0.235, 1.98, -0.19), v(0.235, 1.98, 0.19), v(-0.235, 1.98, 0.19)],
         -Vec3::Y,
         light,
     );

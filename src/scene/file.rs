@@ -63,21 +63,10 @@ struct FileMesh {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields, tag = "type", rename_all = "lowercase")]
 enum FileMaterialKind {
-    Diffuse {
-        albedo: [f32; 3],
-    },
-    Glossy {
-        diffuse: [f32; 3],
-        specular: [f32; 3],
-        roughness: f32,
-    },
-    Mirror {
-        reflectance: Option<[f32; 3]>,
-    },
-    Glass {
-        ior: Option<f32>,
-        tint: Option<[f32; 3]>,
-    },
+    Diffuse { albedo: [f32; 3] },
+    Glossy { diffuse: [f32; 3], specular: [f32; 3], roughness: f32 },
+    Mirror { reflectance: Option<[f32; 3]> },
+    Glass { ior: Option<f32>, tint: Option<[f32; 3]> },
 }
 
 #[derive(Deserialize)]
@@ -118,22 +107,15 @@ impl FileMaterial {
         let v = Vec3::from_array;
         match &self.kind {
             FileMaterialKind::Diffuse { albedo } => Material::Diffuse { albedo: v(*albedo) },
-            FileMaterialKind::Glossy {
-                diffuse,
-                specular,
-                roughness,
-            } => Material::Glossy {
-                diffuse: v(*diffuse),
-                specular: v(*specular),
-                roughness: *roughness,
-            },
-            FileMaterialKind::Mirror { reflectance } => Material::Mirror {
-                reflectance: reflectance.map_or(Vec3::ONE, v),
-            },
-            FileMaterialKind::Glass { ior, tint } => Material::Glass {
-                ior: ior.unwrap_or(1.5),
-                tint: tint.map_or(Vec3::ONE, v),
-            },
+            FileMaterialKind::Glossy { diffuse, specular, roughness } => {
+                Material::Glossy { diffuse: v(*diffuse), specular: v(*specular), roughness: *roughness }
+            }
+            FileMaterialKind::Mirror { reflectance } => {
+                Material::Mirror { reflectance: reflectance.map_or(Vec3::ONE, v) }
+            }
+            FileMaterialKind::Glass { ior, tint } => {
+                Material::Glass { ior: ior.unwrap_or(1.5), tint: tint.map_or(Vec3::ONE, v) }
+            }
         }
     }
 }
@@ -143,29 +125,19 @@ impl FileMaterial {
 pub fn load_scene(path: impl AsRef<Path>) -> Result<SceneDesc> {
     let path = path.as_ref();
     if path.as_os_str() == "cornell" {
-        return Ok(SceneDesc {
-            scene: cornell_box(),
-            settings: RenderSettings::default(),
-        });
+        return Ok(SceneDesc { scene: cornell_box(), settings: RenderSettings::default() });
     }
     let name = path.to_string_lossy().to_ascii_lowercase();
     if name.ends_with(".obj") || name.ends_with(".obj.gz") {
         let scene = load_obj(path, &ObjOptions::default())?;
-        return Ok(SceneDesc {
-            scene,
-            settings: RenderSettings::default(),
-        });
+        return Ok(SceneDesc { scene, settings: RenderSettings::default() });
     }
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     parse_scene_file(path, &text)
 }
 
 fn line_of(text: &str, offset: usize) -> usize {
-    text[..offset.min(text.len())]
-        .bytes()
-        .filter(|&b| b == b'\n')
-        .count()
-        + 1
+    text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
 }
 
 /// Parses scene-file text; `path` locates meshes and names the file in errors.
@@ -174,43 +146,22 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
         at: Location::new(path, e.span().map_or(0, |s| line_of(text, s.start))),
         msg: e.message().to_string(),
     })?;
-    let err = |msg: String| Error::SceneFile {
-        at: Location::file(path),
-        msg,
-    };
+    let err = |msg: String| Error::SceneFile { at: Location::file(path), msg };
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
 
     let mut scene = match file.base.as_deref() {
         None => Scene::empty(path),
-        Some("cornell") => Scene {
-            source: path.to_path_buf(),
-            ..cornell_box()
-        },
+        Some("cornell") => Scene { source: path.to_path_buf(), ..cornell_box() },
         Some(other) => {
-            return Err(err(format!(
-                "unknown base scene '{other}' (known: cornell)"
-            )));
+            return Err(err(format!("unknown base scene '{other}' (known: cornell)")));
         }
     };
-    let named: Vec<(String, Material, Vec3)> = file
-        .material
-        .iter()
-        .map(|m| {
-            (
-                m.name.clone(),
-                m.to_material(),
-                Vec3::from_array(m.emission),
-            )
-        })
-        .collect();
+    let named: Vec<(String, Material, Vec3)> =
+        file.material.iter().map(|m| (m.name.clone(), m.to_material(), Vec3::from_array(m.emission))).collect();
 
     for mesh in &file.mesh {
         let local = dir.join(&mesh.file);
-        let found = if local.is_file() {
-            local
-        } else {
-            models_dir().join(&mesh.file)
-        };
+        let found = if local.is_file() { local } else { models_dir().join(&mesh.file) };
         if !found.is_file() {
             return Err(Error::io(
                 &mesh.file,
@@ -224,17 +175,11 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
                 ),
             ));
         }
-        let opts = ObjOptions {
-            scale: mesh.scale,
-            translate: Vec3::from_array(mesh.translate),
-        };
+        let opts = ObjOptions { scale: mesh.scale, translate: Vec3::from_array(mesh.translate) };
         let mut part = load_obj(&found, &opts)?;
         if let Some(mname) = &mesh.material {
             let (_, m, e) = named.iter().find(|(n, ..)| n == mname).ok_or_else(|| {
-                err(format!(
-                    "mesh {} names material '{mname}', which no [[material]] defines",
-                    mesh.file.display()
-                ))
+                err(format!("mesh {} names material '{mname}', which no [[material]] defines", mesh.file.display()))
             })?;
             part.materials = vec![*m];
             part.material_names = vec![mname.clone()];
@@ -252,16 +197,13 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
             }
         }
     }
-    scene
-        .point_lights
-        .extend(file.point_light.iter().map(|l| PointLight {
-            position: Vec3::from_array(l.position),
-            intensity: Vec3::from_array(l.intensity),
-        }));
+    scene.point_lights.extend(
+        file.point_light
+            .iter()
+            .map(|l| PointLight { position: Vec3::from_array(l.position), intensity: Vec3::from_array(l.intensity) }),
+    );
     if scene.triangles.is_empty() {
-        return Err(Error::EmptyMesh {
-            at: Location::file(path),
-        });
+        return Err(Error::EmptyMesh { at: Location::file(path) });
     }
     match &file.camera {
         Some(c) => {
@@ -275,8 +217,5 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
         None => {}
     }
     scene.validate()?;
-    Ok(SceneDesc {
-        scene,
-        settings: file.render,
-    })
+    Ok(SceneDesc { scene, settings: file.render })
 }

@@ -21,11 +21,7 @@ pub enum Material {
     Diffuse { albedo: Vec3 },
     /// Lambertian base plus a GGX specular lobe (no Fresnel: `specular` is the lobe's
     /// reflectance at all angles, as in the MTL model it comes from).
-    Glossy {
-        diffuse: Vec3,
-        specular: Vec3,
-        roughness: f32,
-    },
+    Glossy { diffuse: Vec3, specular: Vec3, roughness: f32 },
     /// Perfect specular reflector.
     Mirror { reflectance: Vec3 },
     /// Smooth dielectric interface with Fresnel reflection and refraction.
@@ -33,9 +29,7 @@ pub enum Material {
 }
 
 impl Material {
-    pub const DEFAULT: Material = Material::Diffuse {
-        albedo: Vec3::splat(0.8),
-    };
+    pub const DEFAULT: Material = Material::Diffuse { albedo: Vec3::splat(0.8) };
 
     /// True when the material scatters only into discrete directions (no light
     /// sampling is possible at such a vertex).
@@ -56,14 +50,8 @@ impl Material {
     pub fn validate(&self) -> Result<(), String> {
         let colour_ok = |c: Vec3| c.is_finite() && c.min_element() >= 0.0 && c.max_element() <= 1.0;
         match *self {
-            Material::Diffuse { albedo } if !colour_ok(albedo) => {
-                Err("albedo must lie in [0, 1]".into())
-            }
-            Material::Glossy {
-                diffuse,
-                specular,
-                roughness,
-            } => {
+            Material::Diffuse { albedo } if !colour_ok(albedo) => Err("albedo must lie in [0, 1]".into()),
+            Material::Glossy { diffuse, specular, roughness } => {
                 if !colour_ok(diffuse) || !colour_ok(specular) || !colour_ok(diffuse + specular) {
                     Err("diffuse, specular and their sum must lie in [0, 1]".into())
                 } else if !(roughness > 0.0 && roughness <= 1.0) {
@@ -72,9 +60,7 @@ impl Material {
                     Ok(())
                 }
             }
-            Material::Mirror { reflectance } if !colour_ok(reflectance) => {
-                Err("reflectance must lie in [0, 1]".into())
-            }
+            Material::Mirror { reflectance } if !colour_ok(reflectance) => Err("reflectance must lie in [0, 1]".into()),
             Material::Glass { ior, tint } => {
                 if !(ior.is_finite() && ior > 0.0) {
                     Err(format!("index of refraction {ior} must be positive"))
@@ -91,43 +77,22 @@ impl Material {
     /// Maps one MTL entry (see the module table). Returns the material and its emission.
     pub fn from_mtl(m: &tobj::Material) -> (Material, Vec3) {
         let v = |c: Option<[f32; 3]>| c.map(Vec3::from_array);
-        let kd = v(m.diffuse)
-            .unwrap_or(Vec3::splat(0.8))
-            .clamp(Vec3::ZERO, Vec3::ONE);
-        let ks = v(m.specular)
-            .unwrap_or(Vec3::ZERO)
-            .clamp(Vec3::ZERO, Vec3::ONE);
-        let ke = v(m.emissive)
-            .or_else(|| parse_vec3(m.unknown_param.get("Ke")))
-            .unwrap_or(Vec3::ZERO);
+        let kd = v(m.diffuse).unwrap_or(Vec3::splat(0.8)).clamp(Vec3::ZERO, Vec3::ONE);
+        let ks = v(m.specular).unwrap_or(Vec3::ZERO).clamp(Vec3::ZERO, Vec3::ONE);
+        let ke = v(m.emissive).or_else(|| parse_vec3(m.unknown_param.get("Ke"))).unwrap_or(Vec3::ZERO);
         let illum = m.illumination_model.unwrap_or(2);
         let dissolve = m.dissolve.unwrap_or(1.0);
-        let tf = parse_vec3(m.unknown_param.get("Tf"))
-            .unwrap_or(Vec3::ONE)
-            .clamp(Vec3::ZERO, Vec3::ONE);
+        let tf = parse_vec3(m.unknown_param.get("Tf")).unwrap_or(Vec3::ONE).clamp(Vec3::ZERO, Vec3::ONE);
         let material = if illum == 5 {
-            Material::Mirror {
-                reflectance: if ks.max_element() > 0.0 {
-                    ks
-                } else {
-                    Vec3::ONE
-                },
-            }
+            Material::Mirror { reflectance: if ks.max_element() > 0.0 { ks } else { Vec3::ONE } }
         } else if illum == 7 || dissolve < 1.0 {
-            Material::Glass {
-                ior: m.optical_density.filter(|n| *n > 0.0).unwrap_or(1.5),
-                tint: tf,
-            }
+            Material::Glass { ior: m.optical_density.filter(|n| *n > 0.0).unwrap_or(1.5), tint: tf }
         } else if ks.max_element() > 0.0 {
             let ns = m.shininess.unwrap_or(10.0).max(0.0);
             let roughness = (2.0 / (ns + 2.0)).sqrt().clamp(1e-3, 1.0);
             // Keep kd + ks <= 1 per channel.
             let scale = 1.0 / (kd + ks).max_element().max(1.0);
-            Material::Glossy {
-                diffuse: kd * scale,
-                specular: ks * scale,
-                roughness,
-            }
+            Material::Glossy { diffuse: kd * scale, specular: ks * scale, roughness }
         } else {
             Material::Diffuse { albedo: kd }
         };

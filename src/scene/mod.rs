@@ -55,18 +55,12 @@ impl Scene {
     #[inline]
     pub fn vertices(&self, i: u32) -> [Vec3; 3] {
         let [a, b, c] = self.triangles[i as usize];
-        [
-            self.positions[a as usize],
-            self.positions[b as usize],
-            self.positions[c as usize],
-        ]
+        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
     }
 
     /// All triangles as corner triples, in scene order (what the casters consume).
     pub fn triangle_vertices(&self) -> Vec<[Vec3; 3]> {
-        (0..self.triangles.len() as u32)
-            .map(|i| self.vertices(i))
-            .collect()
+        (0..self.triangles.len() as u32).map(|i| self.vertices(i)).collect()
     }
 
     /// Unnormalised geometric normal of triangle `i`.
@@ -87,10 +81,7 @@ impl Scene {
     }
 
     pub fn bounds(&self) -> Aabb {
-        self.triangles
-            .iter()
-            .flat_map(|t| t.iter().map(|&i| self.positions[i as usize]))
-            .fold(Aabb::EMPTY, Aabb::grow)
+        self.triangles.iter().flat_map(|t| t.iter().map(|&i| self.positions[i as usize])).fold(Aabb::EMPTY, Aabb::grow)
     }
 
     /// Bytes held by the scene's arrays (what the memory tables count as "scene").
@@ -106,11 +97,7 @@ impl Scene {
     }
 
     pub fn has_emitters(&self) -> bool {
-        !self.point_lights.is_empty()
-            || self
-                .material_of
-                .iter()
-                .any(|&m| self.emission[m as usize].max_element() > 0.0)
+        !self.point_lights.is_empty() || self.material_of.iter().any(|&m| self.emission[m as usize].max_element() > 0.0)
     }
 
     /// Checks what every caster needs: at least one triangle, finite coordinates, indices
@@ -122,49 +109,23 @@ impl Scene {
             return Err(Error::EmptyMesh { at: at() });
         }
         if self.material_of.len() != self.triangles.len() {
-            return Err(Error::SceneFile {
-                at: at(),
-                msg: "one material index per triangle is required".into(),
-            });
+            return Err(Error::SceneFile { at: at(), msg: "one material index per triangle is required".into() });
         }
-        if self.material_names.len() != self.materials.len()
-            || self.emission.len() != self.materials.len()
-        {
-            return Err(Error::SceneFile {
-                at: at(),
-                msg: "material table arrays differ in length".into(),
-            });
+        if self.material_names.len() != self.materials.len() || self.emission.len() != self.materials.len() {
+            return Err(Error::SceneFile { at: at(), msg: "material table arrays differ in length".into() });
         }
         let nv = self.positions.len() as u32;
-        if let Some((i, t)) = self
-            .triangles
-            .iter()
-            .enumerate()
-            .find(|(_, t)| t.iter().any(|&v| v >= nv))
-        {
+        if let Some((i, t)) = self.triangles.iter().enumerate().find(|(_, t)| t.iter().any(|&v| v >= nv)) {
             return Err(Error::IndexOutOfRange {
                 at: at(),
-                msg: format!(
-                    "triangle {i} uses vertex {:?} but there are {nv} vertices",
-                    t
-                ),
+                msg: format!("triangle {i} uses vertex {:?} but there are {nv} vertices", t),
             });
         }
-        if let Some(i) = self
-            .material_of
-            .iter()
-            .position(|&m| m as usize >= self.materials.len())
-        {
-            return Err(Error::IndexOutOfRange {
-                at: at(),
-                msg: format!("triangle {i} names a missing material"),
-            });
+        if let Some(i) = self.material_of.iter().position(|&m| m as usize >= self.materials.len()) {
+            return Err(Error::IndexOutOfRange { at: at(), msg: format!("triangle {i} names a missing material") });
         }
         if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
-            return Err(Error::NonFinite {
-                at: at(),
-                what: format!("vertex {}", i + 1),
-            });
+            return Err(Error::NonFinite { at: at(), what: format!("vertex {}", i + 1) });
         }
         for (i, m) in self.materials.iter().enumerate() {
             m.validate().map_err(|msg| Error::SceneFile {
@@ -172,23 +133,15 @@ impl Scene {
                 msg: format!("material '{}': {msg}", self.material_names[i]),
             })?;
             if !self.emission[i].is_finite() || self.emission[i].min_element() < 0.0 {
-                return Err(Error::NonFinite {
-                    at: at(),
-                    what: format!("emission of '{}'", self.material_names[i]),
-                });
+                return Err(Error::NonFinite { at: at(), what: format!("emission of '{}'", self.material_names[i]) });
             }
         }
         for l in &self.point_lights {
             if !l.position.is_finite() || !l.intensity.is_finite() {
-                return Err(Error::NonFinite {
-                    at: at(),
-                    what: "point light".into(),
-                });
+                return Err(Error::NonFinite { at: at(), what: "point light".into() });
             }
         }
-        self.camera
-            .validate()
-            .map_err(|msg| Error::SceneFile { at: at(), msg })?;
+        self.camera.validate().map_err(|msg| Error::SceneFile { at: at(), msg })?;
         Ok(())
     }
 
@@ -196,9 +149,7 @@ impl Scene {
     pub fn check_renderable(&self) -> Result<()> {
         self.validate()?;
         if !self.has_emitters() {
-            return Err(Error::NoEmitters {
-                at: Location::file(&self.source),
-            });
+            return Err(Error::NoEmitters { at: Location::file(&self.source) });
         }
         Ok(())
     }
@@ -209,10 +160,8 @@ impl Scene {
         let v0 = self.positions.len() as u32;
         let m0 = self.materials.len() as u32;
         self.positions.extend(other.positions);
-        self.triangles
-            .extend(other.triangles.iter().map(|t| t.map(|i| i + v0)));
-        self.material_of
-            .extend(other.material_of.iter().map(|m| m + m0));
+        self.triangles.extend(other.triangles.iter().map(|t| t.map(|i| i + v0)));
+        self.material_of.extend(other.material_of.iter().map(|m| m + m0));
         self.materials.extend(other.materials);
         self.material_names.extend(other.material_names);
         self.emission.extend(other.emission);
@@ -248,16 +197,11 @@ impl Scene {
 
 /// The folder that holds the standard models: `$WARPRAY_MODELS`, or `assets/models`.
 pub fn models_dir() -> PathBuf {
-    std::env::var_os("WARPRAY_MODELS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("assets/models"))
+    std::env::var_os("WARPRAY_MODELS").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("assets/models"))
 }
 
 /// Path of a standard model by stem (`"bunny"` → `$WARPRAY_MODELS/bunny.obj.gz`), if present.
 pub fn find_model(stem: &str) -> Option<PathBuf> {
     let dir = models_dir();
-    [".obj.gz", ".obj"]
-        .iter()
-        .map(|ext| dir.join(format!("{stem}{ext}")))
-        .find(|p| p.is_file())
+    [".obj.gz", ".obj"].iter().map(|ext| dir.join(format!("{stem}{ext}"))).find(|p| p.is_file())
 }

@@ -23,31 +23,88 @@ pub struct ObjOptions {
 
 fn open_text(path: &Path) -> Result<Box<dyn BufRead>> {
     let file = File::open(path).map_err(|e| Error::io(path, e))?;
-    let gz = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gz"));
+    let gz = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gz"));
     Ok(if gz {
-        Box::new(BufReader::with_capacity(
-            1 << 16,
-            flate2::read::MultiGzDecoder::new(file),
-        ))
+        Box::new(BufReader::with_capacity(1 << 16, flate2::read::MultiGzDecoder::new(file)))
     } else {
         Box::new(BufReader::with_capacity(1 << 16, file))
     })
 }
 
-/// A reader that counts the lines handed out, so a parse error can name its line.
-/// The count lives in a `Cell` so the MTL callback can read it while tobj holds the reader.
+/// A reader that watches the bytes tobj consumes: it counts lines, so a parse error can
+/// name its line, and notes the first `f` statement with fewer than three vertices
+/// (tobj would silently read it as a line and drop it). The line count lives in a
+/// `Cell` so the MTL callback can read it while tobj holds the reader.
 struct LineCounter<'a, R> {
     inner: R,
     newlines: &'a Cell<usize>,
+    scan: FaceScan,
+}
+
+/// Byte-level state of the short-face check.
+#[derive(Default)]
+struct FaceScan {
+    tokens: u32,
+    in_token: bool,
+    /// The first token so far is exactly `f`.
+    face: bool,
+    line: usize,
+    first_short_face: Option<usize>,
+}
+
+impl FaceScan {
+    fn feed(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            match b {
+                b'\n' => self.end_line(),
+                b' ' | b'\t' | b'\r' => self.in_token = false,
+                _ => {
+                    if !self.in_token {
+                        self.tokens += 1;
+                        self.in_token = true;
+                        if self.tokens == 1 {
+                            self.face = b == b'f';
+                            continue;
+                        }
+                    }
+                    if self.tokens == 1 {
+                        self.face = false; // "fo..." is not a face
+                    }
+                }
+            }
+        }
+    }
+
+    fn end_line(&mut self) {
+        self.line += 1;
+        if self.face && self.tokens < 4 && self.first_short_face.is_none() {
+            self.first_short_face = Some(self.line);
+        }
+        *self = FaceScan { line: self.line, first_short_face: self.first_short_face, ..Default::default() };
+    }
+}
+
+impl<'a, R: BufRead> LineCounter<'a, R> {
+    fn new(inner: R, newlines: &'a Cell<usize>) -> Self {
+        LineCounter { inner, newlines, scan: FaceScan::default() }
+    }
+
+    fn note(newlines: &Cell<usize>, scan: &mut FaceScan, bytes: &[u8]) {
+        newlines.set(newlines.get() + bytes.iter().filter(|&&b| b == b'\n').count());
+        scan.feed(bytes);
+    }
+
+    /// The first short face line, once the whole input has been read.
+    fn first_short_face(mut self) -> Option<usize> {
+        self.scan.end_line();
+        self.scan.first_short_face
+    }
 }
 
 impl<R: BufRead> Read for LineCounter<'_, R> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let n = self.inner.read(buf)?;
-        self.newlines
-            .set(self.newlines.get() + buf[..n].iter().filter(|&&b| b == b'\n').count());
+        Self::note(self.newlines, &mut self.scan, &buf[..n]);
         Ok(n)
     }
 }
@@ -57,12 +114,12 @@ impl<R: BufRead> BufRead for LineCounter<'_, R> {
         self.inner.fill_buf()
     }
     fn consume(&mut self, amt: usize) {
-        if let Ok(buf) = self.inner.fill_buf() {
+        let LineCounter { inner, newlines, scan } = self;
+        if let Ok(buf) = inner.fill_buf() {
             let n = amt.min(buf.len());
-            self.newlines
-                .set(self.newlines.get() + buf[..n].iter().filter(|&&b| b == b'\n').count());
+            Self::note(newlines, scan, &buf[..n]);
         }
-        self.inner.consume(amt)
+        inner.consume(amt)
     }
 }
 
@@ -72,10 +129,7 @@ pub fn load_obj(path: impl AsRef<Path>, opts: &ObjOptions) -> Result<Scene> {
     let path = path.as_ref();
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let lines_read = Cell::new(0usize);
-    let mut reader = LineCounter {
-        inner: open_text(path)?,
-        newlines: &lines_read,
-    };
+    let mut reader = LineCounter::new(open_text(path)?, &lines_read);
     // The MTL loader is called from inside tobj; remember the first failure and the
     // line that named the library.
     let mtl_error: RefCell<Option<Error>> = RefCell::new(None);
@@ -98,6 +152,12 @@ pub fn load_obj(path: impl AsRef<Path>, opts: &ObjOptions) -> Result<Scene> {
             return Err(diagnose(path, Some(e), lines_read.get().max(1)));
         }
     };
+    if let Some(line) = reader.first_short_face() {
+        return Err(Error::MalformedObj {
+            at: Location::new(path, line),
+            msg: "a face needs at least three vertices".into(),
+        });
+    }
     let materials = materials.unwrap_or_default();
 
     let mut scene = Scene::empty(path);
@@ -116,27 +176,17 @@ pub fn load_obj(path: impl AsRef<Path>, opts: &ObjOptions) -> Result<Scene> {
     for model in &models {
         let mesh = &model.mesh;
         let base = scene.positions.len() as u32;
-        scene.positions.extend(
-            mesh.positions
-                .chunks_exact(3)
-                .map(|p| Vec3::new(p[0], p[1], p[2]) * scale + opts.translate),
-        );
-        let mat = mesh
-            .material_id
-            .map(|m| m as u32)
-            .filter(|&m| m < default_material)
-            .unwrap_or(default_material);
+        scene
+            .positions
+            .extend(mesh.positions.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2]) * scale + opts.translate));
+        let mat = mesh.material_id.map(|m| m as u32).filter(|&m| m < default_material).unwrap_or(default_material);
         for t in mesh.indices.chunks_exact(3) {
-            scene
-                .triangles
-                .push([t[0] + base, t[1] + base, t[2] + base]);
+            scene.triangles.push([t[0] + base, t[1] + base, t[2] + base]);
             scene.material_of.push(mat);
         }
     }
     if scene.triangles.is_empty() {
-        return Err(Error::EmptyMesh {
-            at: Location::file(path),
-        });
+        return Err(Error::EmptyMesh { at: Location::file(path) });
     }
     if scene.positions.iter().any(|p| !p.is_finite()) {
         return Err(diagnose(path, None, 0));
@@ -146,13 +196,7 @@ pub fn load_obj(path: impl AsRef<Path>, opts: &ObjOptions) -> Result<Scene> {
     Ok(scene)
 }
 
-fn load_mtl(
-    dir: &Path,
-    mtl_path: &Path,
-    obj: &Path,
-    line: usize,
-    err: &RefCell<Option<Error>>,
-) -> tobj::MTLLoadResult {
+fn load_mtl(dir: &Path, mtl_path: &Path, obj: &Path, line: usize, err: &RefCell<Option<Error>>) -> tobj::MTLLoadResult {
     let full: PathBuf = dir.join(mtl_path);
     let fail = |e: Error| {
         err.borrow_mut().get_or_insert(e);
@@ -163,24 +207,14 @@ fn load_mtl(
     let file = match File::open(&full) {
         Ok(f) => f,
         Err(_) => {
-            return fail(Error::MissingMtl {
-                at,
-                mtl: mtl_path.display().to_string(),
-                looked: full,
-            });
+            return fail(Error::MissingMtl { at, mtl: mtl_path.display().to_string(), looked: full });
         }
     };
     let mtl_lines = Cell::new(0usize);
-    let mut reader = LineCounter {
-        inner: BufReader::new(file),
-        newlines: &mtl_lines,
-    };
+    let mut reader = LineCounter::new(BufReader::new(file), &mtl_lines);
     match tobj::load_mtl_buf(&mut reader) {
         Ok(r) => Ok(r),
-        Err(e) => fail(Error::MalformedMtl {
-            at: Location::new(&full, mtl_lines.get().max(1)),
-            msg: e.to_string(),
-        }),
+        Err(e) => fail(Error::MalformedMtl { at: Location::new(&full, mtl_lines.get().max(1)), msg: e.to_string() }),
     }
 }
 
@@ -188,19 +222,13 @@ fn load_mtl(
 /// `fallback` is tobj's error when the scan finds nothing more precise.
 fn diagnose(path: &Path, fallback: Option<tobj::LoadError>, fallback_line: usize) -> Error {
     let Ok(reader) = open_text(path) else {
-        return Error::MalformedObj {
-            at: Location::file(path),
-            msg: "cannot re-read file".into(),
-        };
+        return Error::MalformedObj { at: Location::file(path), msg: "cannot re-read file".into() };
     };
     let mut n_v = 0usize;
     for (i, line) in reader.lines().enumerate() {
         let at = Location::new(path, i + 1);
         let Ok(line) = line else {
-            return Error::MalformedObj {
-                at,
-                msg: "unreadable line (not UTF-8, or a corrupt gzip stream)".into(),
-            };
+            return Error::MalformedObj { at, msg: "unreadable line (not UTF-8, or a corrupt gzip stream)".into() };
         };
         let mut words = line.split_whitespace();
         match words.next() {
@@ -208,39 +236,24 @@ fn diagnose(path: &Path, fallback: Option<tobj::LoadError>, fallback_line: usize
                 n_v += 1;
                 let coords: Vec<_> = words.take(3).map(str::parse::<f32>).collect();
                 if coords.len() < 3 || coords.iter().any(|c| c.is_err()) {
-                    return Error::MalformedObj {
-                        at,
-                        msg: format!("vertex needs three numbers: '{line}'"),
-                    };
+                    return Error::MalformedObj { at, msg: format!("vertex needs three numbers: '{line}'") };
                 }
                 if coords.iter().any(|c| !c.as_ref().unwrap().is_finite()) {
-                    return Error::NonFinite {
-                        at,
-                        what: format!("vertex {n_v}"),
-                    };
+                    return Error::NonFinite { at, what: format!("vertex {n_v}") };
                 }
             }
             Some("f") => {
                 let refs: Vec<&str> = words.collect();
                 if refs.len() < 3 {
-                    return Error::MalformedObj {
-                        at,
-                        msg: format!("face needs at least three vertices: '{line}'"),
-                    };
+                    return Error::MalformedObj { at, msg: format!("face needs at least three vertices: '{line}'") };
                 }
                 for r in refs {
                     let Ok(idx) = r.split('/').next().unwrap_or("").parse::<i64>() else {
-                        return Error::MalformedObj {
-                            at,
-                            msg: format!("bad face vertex '{r}'"),
-                        };
+                        return Error::MalformedObj { at, msg: format!("bad face vertex '{r}'") };
                     };
                     let resolved = if idx < 0 { n_v as i64 + idx + 1 } else { idx };
                     if resolved < 1 || resolved > n_v as i64 {
-                        return Error::IndexOutOfRange {
-                            at,
-                            msg: format!("vertex {idx} named, {n_v} defined so far"),
-                        };
+                        return Error::IndexOutOfRange { at, msg: format!("vertex {idx} named, {n_v} defined so far") };
                     }
                 }
             }
@@ -248,8 +261,5 @@ fn diagnose(path: &Path, fallback: Option<tobj::LoadError>, fallback_line: usize
         }
     }
     let msg = fallback.map_or("unknown problem".to_string(), |e| e.to_string());
-    Error::MalformedObj {
-        at: Location::new(path, fallback_line),
-        msg,
-    }
+    Error::MalformedObj { at: Location::new(path, fallback_line), msg }
 }

@@ -1,0 +1,111 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+use warpray::glam::Vec3;
+use warpray::sampling::{Rng, uniform_sphere};
+use warpray::scene::{Material, Scene, find_model, models_dir};
+
+/// The path of a standard model. A test that needs a model which is not there fails
+/// loudly, naming the folder and the variable to set: it never passes silently.
+pub fn require_model(stem: &str) -> PathBuf {
+    match find_model(stem) {
+        Some(p) => p,
+        None => panic!(
+            "\n\n*** MODEL MISSING: '{stem}' was not found in {} ***\n\
+             Set WARPRAY_MODELS to the folder holding the standard models \
+             (CI uses WARPRAY_MODELS=../shared/models).\n",
+            models_dir().display()
+        ),
+    }
+}
+
+/// A deterministic stream for test data.
+pub fn rng(seed: u64) -> Rng {
+    Rng::for_sample(seed, 0xdead_beef, 7)
+}
+
+pub fn random_in_box(rng: &mut Rng, min: Vec3, max: Vec3) -> Vec3 {
+    min + (max - min) * Vec3::new(rng.uniform(), rng.uniform(), rng.uniform())
+}
+
+pub fn random_dir(rng: &mut Rng) -> Vec3 {
+    uniform_sphere(rng.uniform2())
+}
+
+/// A scene made of the given triangles, one diffuse material, no lights.
+pub fn scene_from_triangles(tris: &[[Vec3; 3]]) -> Scene {
+    let mut s = Scene::empty("<test>");
+    for t in tris {
+        let base = s.positions.len() as u32;
+        s.positions.extend_from_slice(t);
+        s.triangles.push([base, base + 1, base + 2]);
+        s.material_of.push(0);
+    }
+    s.materials.push(Material::DEFAULT);
+    s.material_names.push("default".into());
+    s.emission.push(Vec3::ZERO);
+    s
+}
+
+/// An icosphere of radius 1 with shared (indexed) vertices: a closed mesh.
+pub fn icosphere(subdivisions: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let t = (1.0 + 5f32.sqrt()) / 2.0;
+    let mut v: Vec<Vec3> = [
+        (-1., t, 0.),
+        (1., t, 0.),
+        (-1., -t, 0.),
+        (1., -t, 0.),
+        (0., -1., t),
+        (0., 1., t),
+        (0., -1., -t),
+        (0., 1., -t),
+        (t, 0., -1.),
+        (t, 0., 1.),
+        (-t, 0., -1.),
+        (-t, 0., 1.),
+    ]
+    .iter()
+    .map(|&(x, y, z)| Vec3::new(x, y, z).normalize())
+    .collect();
+    let mut f: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..subdivisions {
+        let mut mid = std::collections::HashMap::new();
+        let mut midpoint = |a: u32, b: u32, v: &mut Vec<Vec3>| -> u32 {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                v.push(((v[a as usize] + v[b as usize]) * 0.5).normalize());
+                v.len() as u32 - 1
+            })
+        };
+        let mut next = Vec::new();
+        for [a, b, c] in f {
+            let ab = midpoint(a, b, &mut v);
+            let bc = midpoint(b, c, &mut v);
+            let ca = midpoint(c, a, &mut v);
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        f = next;
+    }
+    (v, f)
+}
