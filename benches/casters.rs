@@ -1,1 +1,46 @@
-fn main() {}
+//! Caster throughput: BVH build, closest-hit and shadow batches of primary rays, and the
+//! brute-force oracle for scale. `cargo bench --bench casters`.
+//! The bunny needs `WARPRAY_MODELS`; without it that group is skipped with a notice.
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use std::hint::black_box;
+use warpray::prelude::*;
+
+fn primary_rays(scene: &Scene, w: u32, h: u32) -> Vec<Ray> {
+    (0..w * h)
+        .map(|i| scene.camera.generate_ray(Vec2::new((i % w) as f32 + 0.5, (i / w) as f32 + 0.5), w, h, Vec2::ZERO))
+        .collect()
+}
+
+fn bench_scene(c: &mut Criterion, name: &str, scene: &Scene, with_brute: bool) {
+    let rays = primary_rays(scene, 256, 256);
+    let mut g = c.benchmark_group(format!("cast/{name}"));
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(rays.len() as u64));
+    let tris = scene.triangle_vertices();
+    g.bench_function("bvh_build", |b| b.iter(|| BvhCaster::from_triangles(black_box(tris.clone()))));
+    let bvh = BvhCaster::new(scene);
+    let mut hits = vec![Hit::MISS; rays.len()];
+    g.bench_function("bvh_closest", |b| b.iter(|| bvh.closest(black_box(&rays), &mut hits)));
+    bvh.closest(&rays, &mut hits);
+    let shadow: Vec<Ray> =
+        rays.iter().zip(&hits).map(|(r, h)| Ray::segment(r.at(h.t.min(10.0)) + Vec3::Y * 1e-3, Vec3::Y, 1.0)).collect();
+    let mut occ = vec![false; rays.len()];
+    g.bench_function("bvh_occluded", |b| b.iter(|| bvh.occluded(black_box(&shadow), &mut occ)));
+    if with_brute {
+        let brute = BruteForce::new(scene);
+        g.bench_function("brute_closest", |b| b.iter(|| brute.closest(black_box(&rays), &mut hits)));
+    }
+    g.finish();
+}
+
+fn casters(c: &mut Criterion) {
+    bench_scene(c, "cornell", &cornell_box(), true);
+    match warpray::scene::find_model("bunny") {
+        Some(p) => bench_scene(c, "bunny", &load_obj(p, &Default::default()).unwrap(), false),
+        None => eprintln!("*** SKIPPED cast/bunny: bunny.obj.gz not found; set WARPRAY_MODELS ***"),
+    }
+}
+
+criterion_group!(benches, casters);
+criterion_main!(benches);

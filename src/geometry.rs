@@ -125,19 +125,24 @@ impl Aabb {
     /// Slab test against a ray given with its reciprocal direction. Returns the
     /// parametric entry and exit distances clipped to `[t_min, t_max]`, or `None`.
     ///
-    /// A zero direction component gives an infinite reciprocal; a NaN from `0 · ∞`
-    /// (origin exactly on a slab plane) is ignored by `f32::min`/`max`, which return
-    /// the other operand, so such a ray is treated as inside that slab.
+    /// A zero direction component (infinite reciprocal) is decided by position alone:
+    /// the ray is inside that slab when its origin lies in the closed interval, which
+    /// avoids the NaN of `0 · ∞` for an origin exactly on a slab plane.
     #[inline]
     pub fn intersect(&self, origin: Vec3, inv_dir: Vec3, t_min: f32, t_max: f32) -> Option<(f32, f32)> {
-        let t0 = (self.min - origin) * inv_dir;
-        let t1 = (self.max - origin) * inv_dir;
         let mut near = t_min;
         let mut far = t_max;
         for a in 0..3 {
-            let (lo, hi) = if t0[a] <= t1[a] { (t0[a], t1[a]) } else { (t1[a], t0[a]) };
-            near = near.max(lo);
-            far = far.min(hi * SLAB_WIDEN);
+            if inv_dir[a].is_infinite() {
+                if origin[a] < self.min[a] || origin[a] > self.max[a] {
+                    return None;
+                }
+                continue;
+            }
+            let t0 = (self.min[a] - origin[a]) * inv_dir[a];
+            let t1 = (self.max[a] - origin[a]) * inv_dir[a];
+            near = near.max(t0.min(t1));
+            far = far.min(t0.max(t1) * SLAB_WIDEN);
         }
         (near <= far).then_some((near, far))
     }

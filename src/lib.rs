@@ -19,7 +19,7 @@
 //! assert!(film.image_mean().max_element() > 0.0 && stats.rays > 0);
 //!
 //! // Batch ray casting: one hit per ray.
-//! let rays = [Ray::new(Vec3::new(0.0, 1.0, 3.0), Vec3::new(0.0, 0.0, -1.0))];
+//! let rays = [Ray::new(Vec3::new(0.5, 1.5, 3.0), Vec3::new(0.0, 0.0, -1.0))];
 //! let mut hits = [Hit::MISS];
 //! caster.closest(&rays, &mut hits);
 //! assert!((hits[0].t - 4.0).abs() < 1e-4); // the back wall at z = -1
@@ -36,6 +36,11 @@ pub mod sampling;
 pub mod scene;
 
 pub use glam;
+
+/// The README's code, compiled as a doctest so it cannot rot.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
 
 /// The names most programs need.
 pub mod prelude {

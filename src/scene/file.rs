@@ -60,23 +60,22 @@ struct FileMesh {
     material: Option<String>,
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields, tag = "type", rename_all = "lowercase")]
-enum FileMaterialKind {
-    Diffuse { albedo: [f32; 3] },
-    Glossy { diffuse: [f32; 3], specular: [f32; 3], roughness: f32 },
-    Mirror { reflectance: Option<[f32; 3]> },
-    Glass { ior: Option<f32>, tint: Option<[f32; 3]> },
-}
-
+/// A `[[material]]` table. Which keys apply depends on `type`; see docs/scene-format.md.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FileMaterial {
     name: String,
+    #[serde(rename = "type")]
+    kind: String,
     #[serde(default)]
     emission: [f32; 3],
-    #[serde(flatten)]
-    kind: FileMaterialKind,
+    albedo: Option<[f32; 3]>,
+    diffuse: Option<[f32; 3]>,
+    specular: Option<[f32; 3]>,
+    roughness: Option<f32>,
+    reflectance: Option<[f32; 3]>,
+    ior: Option<f32>,
+    tint: Option<[f32; 3]>,
 }
 
 #[derive(Deserialize)]
@@ -103,20 +102,43 @@ struct FileScene {
 }
 
 impl FileMaterial {
-    fn to_material(&self) -> Material {
+    fn to_material(&self) -> Result<Material, String> {
         let v = Vec3::from_array;
-        match &self.kind {
-            FileMaterialKind::Diffuse { albedo } => Material::Diffuse { albedo: v(*albedo) },
-            FileMaterialKind::Glossy { diffuse, specular, roughness } => {
-                Material::Glossy { diffuse: v(*diffuse), specular: v(*specular), roughness: *roughness }
+        let need = |x: Option<[f32; 3]>, key: &str| x.map(v).ok_or(format!("material '{}' needs '{key}'", self.name));
+        let used: &[(&str, bool)] = &[
+            ("albedo", self.albedo.is_some()),
+            ("diffuse", self.diffuse.is_some()),
+            ("specular", self.specular.is_some()),
+            ("roughness", self.roughness.is_some()),
+            ("reflectance", self.reflectance.is_some()),
+            ("ior", self.ior.is_some()),
+            ("tint", self.tint.is_some()),
+        ];
+        let allowed: &[&str] = match self.kind.as_str() {
+            "diffuse" => &["albedo"],
+            "glossy" => &["diffuse", "specular", "roughness"],
+            "mirror" => &["reflectance"],
+            "glass" => &["ior", "tint"],
+            other => {
+                return Err(format!(
+                    "material '{}': unknown type '{other}' (diffuse, glossy, mirror, glass)",
+                    self.name
+                ));
             }
-            FileMaterialKind::Mirror { reflectance } => {
-                Material::Mirror { reflectance: reflectance.map_or(Vec3::ONE, v) }
-            }
-            FileMaterialKind::Glass { ior, tint } => {
-                Material::Glass { ior: ior.unwrap_or(1.5), tint: tint.map_or(Vec3::ONE, v) }
-            }
+        };
+        if let Some((key, _)) = used.iter().find(|(k, set)| *set && !allowed.contains(k)) {
+            return Err(format!("material '{}' of type {} takes no '{key}'", self.name, self.kind));
         }
+        Ok(match self.kind.as_str() {
+            "diffuse" => Material::Diffuse { albedo: need(self.albedo, "albedo")? },
+            "glossy" => Material::Glossy {
+                diffuse: need(self.diffuse, "diffuse")?,
+                specular: need(self.specular, "specular")?,
+                roughness: self.roughness.ok_or(format!("material '{}' needs 'roughness'", self.name))?,
+            },
+            "mirror" => Material::Mirror { reflectance: self.reflectance.map_or(Vec3::ONE, v) },
+            _ => Material::Glass { ior: self.ior.unwrap_or(1.5), tint: self.tint.map_or(Vec3::ONE, v) },
+        })
     }
 }
 
@@ -156,8 +178,11 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
             return Err(err(format!("unknown base scene '{other}' (known: cornell)")));
         }
     };
-    let named: Vec<(String, Material, Vec3)> =
-        file.material.iter().map(|m| (m.name.clone(), m.to_material(), Vec3::from_array(m.emission))).collect();
+    let named = file
+        .material
+        .iter()
+        .map(|m| Ok((m.name.clone(), m.to_material().map_err(&err)?, Vec3::from_array(m.emission))))
+        .collect::<Result<Vec<(String, Material, Vec3)>>>()?;
 
     for mesh in &file.mesh {
         let local = dir.join(&mesh.file);

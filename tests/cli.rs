@@ -1,0 +1,73 @@
+//! The `warpray` command as a user runs it.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn warpray() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_warpray"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("warpray-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn render_writes_png_and_exr_and_a_summary() {
+    let dir = scratch("ok");
+    let (png, exr) = (dir.join("a.png"), dir.join("a.exr"));
+    let out = warpray()
+        .args(["render", "--size", "40x30", "--spp", "2", "--threads", "1", "-q", "-o"])
+        .arg(&png)
+        .arg("-o")
+        .arg(&exr)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "stdout: {stdout}\nstderr: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("32 triangles") && stdout.contains("2 spp") && stdout.contains("a.png"), "{stdout}");
+    let img = image::open(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (40, 30));
+    let read = exr::prelude::read_first_rgba_layer_from_file(
+        &exr,
+        |res, _| vec![0f32; res.width() * res.height()],
+        |px: &mut Vec<f32>, pos, (r, _g, _b, _a): (f32, f32, f32, f32)| px[pos.y() * 40 + pos.x()] = r,
+    )
+    .unwrap();
+    let red: f32 = read.layer_data.channel_data.pixels.iter().sum();
+    assert!(red > 0.0 && red.is_finite());
+}
+
+#[test]
+fn bad_arguments_fail_with_a_message_and_write_nothing() {
+    let dir = scratch("bad");
+    let png = dir.join("never.png");
+    let cases: [&[&str]; 5] = [
+        &["render", "/no/such/scene.obj"],
+        &["render", "--size", "0x10"],
+        &["render", "--size", "20000x20000"],
+        &["render", "--threads", "0"],
+        &["render", "--spp", "0"],
+    ];
+    for args in cases {
+        let out = warpray().args(args).arg("-o").arg(&png).arg("-q").output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} should fail");
+        assert!(stderr.contains("error"), "{args:?}: {stderr}");
+        assert!(!png.exists(), "{args:?} wrote an image");
+    }
+    let out = warpray().args(["render", "-o"]).arg(dir.join("x.jpg")).output().unwrap();
+    assert!(!out.status.success());
+    assert!(std::fs::read_dir(&dir).unwrap().next().is_none(), "nothing may be left behind");
+}
+
+#[test]
+fn help_lists_the_options() {
+    let out = warpray().args(["render", "--help"]).output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    for flag in ["--integrator", "--spp", "--seconds", "--size", "--max-depth", "--threads", "--seed", "--output"] {
+        assert!(text.contains(flag), "--help lacks {flag}");
+    }
+}
