@@ -13,9 +13,13 @@ use warpray::scene::{SceneDesc, find_model, load_scene};
 
 #[derive(Parser)]
 #[command(name = "warpray", version, about = "GPU ray-tracing algorithms on CPUs, measured as a GPU would be")]
+#[command(args_conflicts_with_subcommands = true)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
+    /// With no subcommand, `warpray [OPTIONS] [SCENE]` is `warpray render [OPTIONS] [SCENE]`.
+    #[command(flatten)]
+    render: RenderArgs,
 }
 
 #[derive(Subcommand)]
@@ -182,11 +186,9 @@ fn progress_bar(budget: Budget) -> ProgressBar {
 }
 
 fn main() -> ExitCode {
-    let command = match Cli::parse().command {
-        Some(c) => c,
-        // No subcommand: `warpray` alone renders the built-in scene with the defaults.
-        None => Cli::parse_from(["warpray", "render"]).command.expect("render parses"),
-    };
+    let cli = Cli::parse();
+    // No subcommand: `warpray` alone renders the built-in scene with the defaults.
+    let command = cli.command.unwrap_or(Command::Render(cli.render));
     let result = match command {
         Command::Render(args) => run_render(args),
     };
