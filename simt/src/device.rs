@@ -1,0 +1,247 @@
+//! The device: configuration, memory accounting, kernel launches and statistics.
+
+use crate::exec::{Block, Counters, MAX_REGIONS, Thread, Worker};
+use crate::memory::{DeviceBuffer, DeviceCopy, MemCounter};
+use crate::stats::{KernelSummary, LaunchRecord, RegionStats, Stats};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// Largest block, as on current NVIDIA GPUs.
+pub const MAX_BLOCK_DIM: u32 = 1024;
+
+/// What a device is like.
+#[derive(Clone, Debug)]
+pub struct DeviceConfig {
+    /// Shared memory one block may use, in bytes (48 KiB, CUDA's default limit).
+    pub shared_capacity: usize,
+    /// Record SIMD efficiency, memory requests and sectors (launch counts, times and
+    /// shared bytes are always recorded).
+    pub measure: bool,
+}
+
+impl Default for DeviceConfig {
+    fn default() -> Self {
+        DeviceConfig { shared_capacity: 48 * 1024, measure: false }
+    }
+}
+
+/// The shape of a launch: `grid` blocks of `block` threads, `shared_bytes` of shared
+/// memory per block, and the names of the regions the kernel reports work in.
+#[derive(Clone, Debug)]
+pub struct LaunchConfig {
+    pub grid: u32,
+    pub block: u32,
+    pub shared_bytes: usize,
+    pub regions: &'static [&'static str],
+}
+
+impl LaunchConfig {
+    /// Enough blocks of `block` threads to cover `n` threads.
+    pub fn linear(n: usize, block: u32) -> LaunchConfig {
+        let grid = n.div_ceil(block.max(1) as usize).min(u32::MAX as usize) as u32;
+        LaunchConfig { grid, block, shared_bytes: 0, regions: &[] }
+    }
+
+    pub fn with_shared(mut self, bytes: usize) -> LaunchConfig {
+        self.shared_bytes = bytes;
+        self
+    }
+
+    pub fn with_regions(mut self, regions: &'static [&'static str]) -> LaunchConfig {
+        self.regions = regions;
+        self
+    }
+}
+
+/// Why a launch was refused. Nothing runs when a launch fails.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum LaunchError {
+    #[error("kernel '{kernel}' asks for {requested} bytes of shared memory per block; the device has {capacity}")]
+    SharedMemory { kernel: &'static str, requested: usize, capacity: usize },
+    #[error("kernel '{kernel}' has a block of {block} threads; blocks hold 1 to {MAX_BLOCK_DIM}")]
+    BlockSize { kernel: &'static str, block: u32 },
+    #[error("kernel '{kernel}' names {regions} regions; at most {MAX_REGIONS}")]
+    Regions { kernel: &'static str, regions: usize },
+}
+
+struct Inner {
+    config: DeviceConfig,
+    measure: AtomicBool,
+    mem: Arc<MemCounter>,
+    stats: Mutex<Stats>,
+}
+
+/// An emulated GPU. Cheap to clone (clones share memory accounting and statistics).
+/// Launches run on the current rayon thread pool.
+#[derive(Clone)]
+pub struct Device {
+    inner: Arc<Inner>,
+}
+
+impl Default for Device {
+    fn default() -> Self {
+        Device::new(DeviceConfig::default())
+    }
+}
+
+/// Current and peak bytes of device memory.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MemoryStats {
+    pub current: usize,
+    pub peak: usize,
+}
+
+impl Device {
+    pub fn new(config: DeviceConfig) -> Device {
+        let measure = AtomicBool::new(config.measure);
+        Device { inner: Arc::new(Inner { config, measure, mem: Arc::default(), stats: Mutex::new(Stats::default()) }) }
+    }
+
+    pub fn config(&self) -> &DeviceConfig {
+        &self.inner.config
+    }
+
+    /// Turns detailed measurement (SIMD efficiency, requests, sectors) on or off.
+    pub fn set_measure(&self, on: bool) {
+        self.inner.measure.store(on, Relaxed);
+    }
+
+    pub fn measuring(&self) -> bool {
+        self.inner.measure.load(Relaxed)
+    }
+
+    // ---- memory -------------------------------------------------------------------
+
+    /// A buffer of `n` default (zero) elements.
+    pub fn alloc<T: DeviceCopy + Default>(&self, n: usize) -> DeviceBuffer<T> {
+        DeviceBuffer::from_vec(self.inner.mem.clone(), vec![T::default(); n])
+    }
+
+    /// A buffer of `n` copies of `value`.
+    pub fn alloc_filled<T: DeviceCopy>(&self, n: usize, value: T) -> DeviceBuffer<T> {
+        DeviceBuffer::from_vec(self.inner.mem.clone(), vec![value; n])
+    }
+
+    /// A buffer holding a copy of host data (`cudaMemcpy` host to device).
+    pub fn alloc_from<T: DeviceCopy>(&self, data: &[T]) -> DeviceBuffer<T> {
+        DeviceBuffer::from_vec(self.inner.mem.clone(), data.to_vec())
+    }
+
+    /// A buffer taking over a host vector.
+    pub fn alloc_vec<T: DeviceCopy>(&self, data: Vec<T>) -> DeviceBuffer<T> {
+        DeviceBuffer::from_vec(self.inner.mem.clone(), data)
+    }
+
+    pub fn memory(&self) -> MemoryStats {
+        MemoryStats { current: self.inner.mem.current(), peak: self.inner.mem.peak() }
+    }
+
+    /// Starts a new peak-memory measurement from the current allocation.
+    pub fn reset_peak_memory(&self) {
+        self.inner.mem.reset_peak();
+    }
+
+    // ---- launches -----------------------------------------------------------------
+
+    /// Launches `kernel` on a grid of blocks (`kernel<<<grid, block, shared>>>`). Blocks
+    /// run in parallel on rayon; threads within a block run warp by warp. Returns the
+    /// launch's record, which is also added to the device statistics.
+    pub fn launch<K>(&self, name: &'static str, cfg: LaunchConfig, kernel: K) -> Result<LaunchRecord, LaunchError>
+    where
+        K: Fn(&mut Block) + Sync,
+    {
+        if cfg.block == 0 || cfg.block > MAX_BLOCK_DIM {
+            return Err(LaunchError::BlockSize { kernel: name, block: cfg.block });
+        }
+        let capacity = self.inner.config.shared_capacity;
+        if cfg.shared_bytes > capacity {
+            return Err(LaunchError::SharedMemory { kernel: name, requested: cfg.shared_bytes, capacity });
+        }
+        if cfg.regions.len() > MAX_REGIONS {
+            return Err(LaunchError::Regions { kernel: name, regions: cfg.regions.len() });
+        }
+        let measure = self.measuring();
+        let shared_words = cfg.shared_bytes.div_ceil(4);
+        let start = Instant::now();
+        let counters = (0..cfg.grid)
+            .into_par_iter()
+            .fold(
+                || Worker::new(shared_words),
+                |mut w, b| {
+                    let mut block = Block::new(&mut w, b, cfg.block, cfg.grid, shared_words, measure);
+                    kernel(&mut block);
+                    w
+                },
+            )
+            .map(|w| w.meter.into_inner().totals)
+            .reduce(Counters::default, Counters::merge);
+        let seconds = start.elapsed().as_secs_f64();
+        let record = LaunchRecord {
+            name,
+            grid: cfg.grid,
+            block: cfg.block,
+            shared_bytes: cfg.shared_bytes,
+            seconds,
+            measured: measure,
+            threads: counters.threads,
+            body: RegionStats { name: "body", issued: counters.body_issued, active: counters.body_active },
+            regions: cfg
+                .regions
+                .iter()
+                .enumerate()
+                .map(|(i, &n)| RegionStats { name: n, issued: counters.issued[i], active: counters.active[i] })
+                .collect(),
+            requests: counters.requests,
+            sectors: counters.sectors,
+            barriers: counters.barriers,
+        };
+        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).add(&record);
+        Ok(record)
+    }
+
+    /// One thread per element: runs `f(thread, i)` for `i in 0..n` in blocks of 256
+    /// threads. The simplest launch, for element-wise kernels.
+    ///
+    /// ```
+    /// let dev = simt::Device::default();
+    /// let x = dev.alloc_from(&[1.0f32, 2.0, 3.0]);
+    /// let mut y = dev.alloc_from(&[10.0f32, 20.0, 30.0]);
+    /// let (xv, yv) = (x.view(), y.view_mut());
+    /// dev.for_each("saxpy", 3, |t, i| t.store(&yv, i, 2.0 * t.load(&xv, i) + t.load(&yv, i)));
+    /// assert_eq!(y.as_slice(), &[12.0, 24.0, 36.0]);
+    /// ```
+    pub fn for_each<F>(&self, name: &'static str, n: usize, f: F) -> LaunchRecord
+    where
+        F: Fn(&Thread, usize) + Sync,
+    {
+        let cfg = LaunchConfig::linear(n, 256);
+        self.launch(name, cfg, |blk| {
+            blk.for_each_thread(|t| {
+                let i = t.global_idx();
+                if i < n {
+                    f(t, i)
+                }
+            })
+        })
+        .expect("a linear launch of 256-thread blocks is valid")
+    }
+
+    // ---- statistics ---------------------------------------------------------------
+
+    /// Statistics per kernel name, in order of first launch.
+    pub fn kernel_stats(&self) -> Vec<KernelSummary> {
+        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).summaries()
+    }
+
+    /// The most recent launches (at most [`crate::stats::LOG_CAPACITY`]), oldest first.
+    pub fn launch_log(&self) -> Vec<LaunchRecord> {
+        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).log()
+    }
+
+    /// Forgets all launch statistics (memory accounting is kept).
+    pub fn reset_stats(&self) {
+        *self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()) = Stats::default();
+    }
+}

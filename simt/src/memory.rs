@@ -1,0 +1,261 @@
+//! Device memory: typed buffers with allocation accounting, and the views kernels
+//! read and write through.
+//!
+//! Every element is moved as whole 32-bit words with relaxed atomic operations. That
+//! costs nothing on x86 or ARM (a relaxed word load is a plain load) and makes racing
+//! stores from different threads defined behaviour in Rust — torn, as on a GPU, but
+//! never undefined. Element types therefore implement [`DeviceCopy`]: plain data whose
+//! size and alignment are multiples of 4 bytes.
+
+use std::marker::PhantomData;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
+
+/// Plain data that can live in device memory.
+///
+/// # Safety
+/// The type must be `Copy`, contain no pointers or references that kernels could use
+/// to reach host memory, be valid for any bit pattern written by another instance of
+/// the type, have a size and alignment that are multiples of 4 bytes, and contain no
+/// padding (use `#[repr(C)]` with 4-byte fields).
+pub unsafe trait DeviceCopy: Copy + Send + Sync + 'static {}
+
+unsafe impl DeviceCopy for u32 {}
+unsafe impl DeviceCopy for i32 {}
+unsafe impl DeviceCopy for f32 {}
+unsafe impl DeviceCopy for u64 {}
+unsafe impl DeviceCopy for i64 {}
+unsafe impl DeviceCopy for f64 {}
+unsafe impl<T: DeviceCopy, const N: usize> DeviceCopy for [T; N] {}
+
+/// Words in one `T` (checked at compile time to be a whole number).
+pub(crate) const fn words<T: DeviceCopy>() -> usize {
+    assert!(std::mem::size_of::<T>() % 4 == 0 && std::mem::align_of::<T>() % 4 == 0, "DeviceCopy needs 4-byte units");
+    std::mem::size_of::<T>() / 4
+}
+
+/// Reads one element word by word with relaxed atomic loads.
+///
+/// # Safety
+/// `p` must point to a live, aligned `T`.
+#[inline(always)]
+pub(crate) unsafe fn read_words<T: DeviceCopy>(p: *const T) -> T {
+    let n = const { words::<T>() };
+    let mut out = std::mem::MaybeUninit::<T>::uninit();
+    let src = p as *const AtomicU32;
+    let dst = out.as_mut_ptr() as *mut u32;
+    for w in 0..n {
+        unsafe { dst.add(w).write((*src.add(w)).load(Relaxed)) };
+    }
+    unsafe { out.assume_init() }
+}
+
+/// Writes one element word by word with relaxed atomic stores.
+///
+/// # Safety
+/// `p` must point to a live, aligned `T`.
+#[inline(always)]
+pub(crate) unsafe fn write_words<T: DeviceCopy>(p: *mut T, v: T) {
+    let n = const { words::<T>() };
+    let src = &v as *const T as *const u32;
+    let dst = p as *const AtomicU32;
+    for w in 0..n {
+        unsafe { (*dst.add(w)).store(src.add(w).read(), Relaxed) };
+    }
+}
+
+/// Current and peak bytes allocated on a device.
+#[derive(Debug, Default)]
+pub(crate) struct MemCounter {
+    current: AtomicUsize,
+    peak: AtomicUsize,
+    next_base: AtomicU64,
+}
+
+impl MemCounter {
+    fn alloc(&self, bytes: usize) -> u64 {
+        let now = self.current.fetch_add(bytes, Relaxed) + bytes;
+        self.peak.fetch_max(now, Relaxed);
+        // A virtual address for sector accounting: each buffer starts 256-byte aligned,
+        // as cudaMalloc guarantees, and buffers never share a sector.
+        let span = (bytes as u64).div_ceil(256).max(1) * 256;
+        self.next_base.fetch_add(span, Relaxed) + 256
+    }
+    fn free(&self, bytes: usize) {
+        self.current.fetch_sub(bytes, Relaxed);
+    }
+    pub(crate) fn current(&self) -> usize {
+        self.current.load(Relaxed)
+    }
+    pub(crate) fn peak(&self) -> usize {
+        self.peak.load(Relaxed)
+    }
+    pub(crate) fn reset_peak(&self) {
+        self.peak.store(self.current(), Relaxed);
+    }
+}
+
+/// A typed allocation in device memory. Dropping it frees its bytes in the device's
+/// accounting. The host reads and writes it between launches; kernels reach it through
+/// [`Global`] and [`GlobalMut`] views.
+pub struct DeviceBuffer<T: DeviceCopy> {
+    data: Vec<T>,
+    vbase: u64,
+    mem: Arc<MemCounter>,
+}
+
+impl<T: DeviceCopy> DeviceBuffer<T> {
+    pub(crate) fn from_vec(mem: Arc<MemCounter>, data: Vec<T>) -> Self {
+        let _ = const { words::<T>() };
+        let vbase = mem.alloc(data.len() * std::mem::size_of::<T>());
+        DeviceBuffer { data, vbase, mem }
+    }
+
+    pub fn len(&self) -> usize {
+        self.data.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+
+    /// Bytes this buffer holds.
+    pub fn bytes(&self) -> usize {
+        self.data.len() * std::mem::size_of::<T>()
+    }
+
+    /// The contents, for the host.
+    pub fn as_slice(&self) -> &[T] {
+        &self.data
+    }
+
+    /// The contents, for the host to change between launches.
+    pub fn as_mut_slice(&mut self) -> &mut [T] {
+        &mut self.data
+    }
+
+    pub fn to_vec(&self) -> Vec<T> {
+        self.data.clone()
+    }
+
+    /// A read-only view for kernels.
+    pub fn view(&self) -> Global<'_, T> {
+        Global { ptr: self.data.as_ptr(), len: self.data.len(), vbase: self.vbase, _life: PhantomData }
+    }
+
+    /// A read-write view for kernels. While it lives the host cannot touch the buffer.
+    pub fn view_mut(&mut self) -> GlobalMut<'_, T> {
+        GlobalMut { ptr: self.data.as_mut_ptr(), len: self.data.len(), vbase: self.vbase, _life: PhantomData }
+    }
+
+    /// A view of elements `start..start + len`.
+    pub fn slice(&self, start: usize, len: usize) -> Global<'_, T> {
+        assert!(start + len <= self.data.len(), "slice {start}..{} of a buffer of {}", start + len, self.data.len());
+        let size = std::mem::size_of::<T>() as u64;
+        Global { ptr: self.data[start..].as_ptr(), len, vbase: self.vbase + start as u64 * size, _life: PhantomData }
+    }
+}
+
+impl<T: DeviceCopy> Drop for DeviceBuffer<T> {
+    fn drop(&mut self) {
+        self.mem.free(self.bytes());
+    }
+}
+
+impl<T: DeviceCopy + std::fmt::Debug> std::fmt::Debug for DeviceBuffer<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DeviceBuffer").field("len", &self.len()).field("bytes", &self.bytes()).finish()
+    }
+}
+
+/// A read-only kernel view of a buffer (like a `const T*` kernel argument).
+#[derive(Clone, Copy)]
+pub struct Global<'a, T: DeviceCopy> {
+    ptr: *const T,
+    len: usize,
+    vbase: u64,
+    _life: PhantomData<&'a [T]>,
+}
+
+/// A read-write kernel view of a buffer (like a `T*` kernel argument).
+#[derive(Clone, Copy)]
+pub struct GlobalMut<'a, T: DeviceCopy> {
+    ptr: *mut T,
+    len: usize,
+    vbase: u64,
+    _life: PhantomData<&'a [T]>,
+}
+
+// SAFETY: all access goes through relaxed atomic word operations.
+unsafe impl<T: DeviceCopy> Send for Global<'_, T> {}
+unsafe impl<T: DeviceCopy> Sync for Global<'_, T> {}
+unsafe impl<T: DeviceCopy> Send for GlobalMut<'_, T> {}
+unsafe impl<T: DeviceCopy> Sync for GlobalMut<'_, T> {}
+
+/// What kernels can load from: both view kinds.
+pub trait Readable<T: DeviceCopy>: Copy + Send + Sync {
+    fn len(&self) -> usize;
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Byte address of element `i` in the device's virtual address space.
+    fn address(&self, i: usize) -> u64;
+    /// Loads element `i` without measurement (bounds-checked).
+    fn read(&self, i: usize) -> T;
+}
+
+impl<T: DeviceCopy> Readable<T> for Global<'_, T> {
+    fn len(&self) -> usize {
+        self.len
+    }
+    #[inline(always)]
+    fn address(&self, i: usize) -> u64 {
+        self.vbase + (i * std::mem::size_of::<T>()) as u64
+    }
+    #[inline(always)]
+    fn read(&self, i: usize) -> T {
+        assert!(i < self.len, "load of element {i} from a buffer of {}", self.len);
+        unsafe { read_words(self.ptr.add(i)) }
+    }
+}
+
+impl<T: DeviceCopy> Readable<T> for GlobalMut<'_, T> {
+    fn len(&self) -> usize {
+        self.len
+    }
+    #[inline(always)]
+    fn address(&self, i: usize) -> u64 {
+        self.vbase + (i * std::mem::size_of::<T>()) as u64
+    }
+    #[inline(always)]
+    fn read(&self, i: usize) -> T {
+        assert!(i < self.len, "load of element {i} from a buffer of {}", self.len);
+        unsafe { read_words(self.ptr.add(i)) }
+    }
+}
+
+impl<'a, T: DeviceCopy> GlobalMut<'a, T> {
+    /// Stores element `i` without measurement (bounds-checked).
+    #[inline(always)]
+    pub fn write(&self, i: usize, v: T) {
+        assert!(i < self.len, "store to element {i} of a buffer of {}", self.len);
+        unsafe { write_words(self.ptr.add(i), v) }
+    }
+
+    /// The same memory, read-only.
+    pub fn as_global(&self) -> Global<'a, T> {
+        Global { ptr: self.ptr, len: self.len, vbase: self.vbase, _life: PhantomData }
+    }
+
+    pub(crate) fn atomic_u32(&self, i: usize) -> &AtomicU32 {
+        assert!(i < self.len, "atomic on element {i} of a buffer of {}", self.len);
+        const { assert!(std::mem::size_of::<T>() == 4) };
+        unsafe { &*(self.ptr.add(i) as *const AtomicU32) }
+    }
+
+    pub(crate) fn atomic_u64(&self, i: usize) -> &AtomicU64 {
+        assert!(i < self.len, "atomic on element {i} of a buffer of {}", self.len);
+        const { assert!(std::mem::size_of::<T>() == 8 && std::mem::align_of::<T>() == 8) };
+        unsafe { &*(self.ptr.add(i) as *const AtomicU64) }
+    }
+}

@@ -1,0 +1,282 @@
+//! Scans and reductions over an associative operator with an identity, as kernels:
+//! each block scans a tile of [`TILE`] elements (striped loads into shared memory, a
+//! sequential scan per thread, a shuffle scan across lanes, a scan across warps), the
+//! block totals are scanned recursively, and a last kernel adds each block's offset.
+
+use super::{BLOCK, ITEMS, TILE};
+use crate::device::{Device, LaunchConfig};
+use crate::memory::{DeviceBuffer, DeviceCopy};
+
+/// Scans one tile per block. Writes the inclusive (or exclusive) scan of the tile into
+/// `output` and the tile's total into `block_totals`.
+fn scan_tiles<T, F>(
+    dev: &Device,
+    input: &DeviceBuffer<T>,
+    output: &mut DeviceBuffer<T>,
+    identity: T,
+    op: F,
+    exclusive: bool,
+) -> DeviceBuffer<T>
+where
+    T: DeviceCopy,
+    F: Fn(T, T) -> T + Sync + Copy,
+{
+    let n = input.len();
+    let blocks = n.div_ceil(TILE);
+    let mut totals = dev.alloc_filled(blocks, identity);
+    let (inp, out, tot) = (input.view(), output.view_mut(), totals.view_mut());
+    let shared = (TILE + BLOCK as usize + 32) * std::mem::size_of::<T>();
+    let cfg = LaunchConfig { grid: blocks as u32, block: BLOCK, shared_bytes: shared, regions: &[] };
+    dev.launch("simt::scan_tiles", cfg, |blk| {
+        let base = blk.block_idx() as usize * TILE;
+        let valid = (n - base).min(TILE);
+        let tile = blk.shared::<T>(TILE);
+        let sums = blk.shared::<T>(BLOCK as usize);
+        let warp_sums = blk.shared::<T>(32);
+        // Coalesced striped loads into shared memory.
+        blk.for_each_thread(|t| {
+            for k in 0..ITEMS {
+                let j = k * BLOCK as usize + t.thread_idx() as usize;
+                let v = if j < valid { t.load(&inp, base + j) } else { identity };
+                t.store_shared(tile, j, v);
+            }
+        });
+        blk.sync_threads();
+        // Each thread scans its ITEMS consecutive elements (inclusive, in place).
+        blk.for_each_thread(|t| {
+            let start = t.thread_idx() as usize * ITEMS;
+            let mut acc = identity;
+            for j in start..start + ITEMS {
+                acc = op(acc, t.load_shared(tile, j));
+                t.store_shared(tile, j, acc);
+            }
+            t.store_shared(sums, t.thread_idx() as usize, acc);
+        });
+        blk.sync_threads();
+        // Inclusive scan of thread totals within each warp (Hillis–Steele with shfl_up).
+        blk.for_each_warp(|w| {
+            let first = w.warp_idx() as usize * 32;
+            let mut v = [identity; 32];
+            w.for_each_lane(|t| v[t.lane_id() as usize] = t.load_shared(sums, first + t.lane_id() as usize));
+            let mut d = 1;
+            while d < 32 {
+                let up = w.shfl_up(&v, d);
+                for lane in d as usize..32 {
+                    v[lane] = op(up[lane], v[lane]);
+                }
+                d *= 2;
+            }
+            w.for_each_lane(|t| {
+                t.store_shared(sums, first + t.lane_id() as usize, v[t.lane_id() as usize]);
+                if t.lane_id() == 31 {
+                    t.store_shared(warp_sums, t.warp_id() as usize, v[31]);
+                }
+            });
+        });
+        blk.sync_threads();
+        // Exclusive scan of the warp totals (8 values) by thread 0; block total out.
+        let warps = blk.warp_count() as usize;
+        blk.for_each_thread(|t| {
+            if t.thread_idx() == 0 {
+                let mut acc = identity;
+                for w in 0..warps {
+                    let s = t.load_shared(warp_sums, w);
+                    t.store_shared(warp_sums, w, acc);
+                    acc = op(acc, s);
+                }
+                t.store(&tot, t.block_idx() as usize, acc);
+            }
+        });
+        blk.sync_threads();
+        // Apply the thread's prefix to its elements; write out striped (coalesced).
+        blk.for_each_thread(|t| {
+            let ti = t.thread_idx() as usize;
+            let warp_prefix = t.load_shared(warp_sums, t.warp_id() as usize);
+            let lane_prefix = if t.lane_id() == 0 { identity } else { t.load_shared(sums, ti - 1) };
+            let prefix = op(warp_prefix, lane_prefix);
+            let start = ti * ITEMS;
+            let mut prev = prefix;
+            for j in start..start + ITEMS {
+                let inc = op(prefix, t.load_shared(tile, j));
+                t.store_shared(tile, j, if exclusive { prev } else { inc });
+                prev = inc;
+            }
+        });
+        blk.sync_threads();
+        blk.for_each_thread(|t| {
+            for k in 0..ITEMS {
+                let j = k * BLOCK as usize + t.thread_idx() as usize;
+                if j < valid {
+                    t.store(&out, base + j, t.load_shared(tile, j));
+                }
+            }
+        });
+    })
+    .expect("scan launch shape is valid");
+    totals
+}
+
+/// Combines block `b`'s elements with the scanned totals of blocks before it.
+fn add_block_offsets<T, F>(
+    dev: &Device,
+    output: &mut DeviceBuffer<T>,
+    scanned_totals: &DeviceBuffer<T>,
+    first: Option<T>,
+    op: F,
+) where
+    T: DeviceCopy,
+    F: Fn(T, T) -> T + Sync + Copy,
+{
+    let n = output.len();
+    let (out, tot) = (output.view_mut(), scanned_totals.view());
+    let cfg = LaunchConfig { grid: n.div_ceil(TILE) as u32, block: BLOCK, shared_bytes: 0, regions: &[] };
+    dev.launch("simt::scan_add_offsets", cfg, |blk| {
+        let b = blk.block_idx() as usize;
+        blk.for_each_thread(|t| {
+            let offset = match (b, first) {
+                (0, None) => return,
+                (0, Some(f)) => f,
+                (_, None) => t.load(&tot, b - 1),
+                (_, Some(f)) => op(f, t.load(&tot, b - 1)),
+            };
+            for k in 0..ITEMS {
+                let i = b * TILE + k * BLOCK as usize + t.thread_idx() as usize;
+                if i < n {
+                    t.store(&out, i, op(offset, t.load(&out, i)));
+                }
+            }
+        });
+    })
+    .expect("scan launch shape is valid");
+}
+
+fn scan<T, F>(dev: &Device, input: &DeviceBuffer<T>, output: &mut DeviceBuffer<T>, init: Option<T>, identity: T, op: F)
+where
+    T: DeviceCopy,
+    F: Fn(T, T) -> T + Sync + Copy,
+{
+    assert_eq!(input.len(), output.len(), "scan output must match its input");
+    if input.is_empty() {
+        return;
+    }
+    let exclusive = init.is_some();
+    let mut totals = scan_tiles(dev, input, output, identity, op, exclusive);
+    if totals.len() > 1 || exclusive {
+        let copy = dev.alloc_from(totals.as_slice());
+        if totals.len() > 1 {
+            scan(dev, &copy, &mut totals, None, identity, op);
+        }
+        add_block_offsets(dev, output, &totals, init, op);
+    }
+}
+
+/// `output[i] = input[0] ⊕ … ⊕ input[i]`. `identity` must be neutral for `op`
+/// (0 for `+`, `u32::MAX` for `min`); `op` must be associative.
+///
+/// ```
+/// let dev = simt::Device::default();
+/// let input = dev.alloc_from(&[1u32, 0, 2, 2, 1, 3]);
+/// let mut out = dev.alloc::<u32>(6);
+/// simt::inclusive_scan(&dev, &input, &mut out, 0, |a, b| a + b);
+/// assert_eq!(out.as_slice(), &[1, 1, 3, 5, 6, 9]);
+/// ```
+pub fn inclusive_scan<T, F>(dev: &Device, input: &DeviceBuffer<T>, output: &mut DeviceBuffer<T>, identity: T, op: F)
+where
+    T: DeviceCopy,
+    F: Fn(T, T) -> T + Sync + Copy,
+{
+    scan(dev, input, output, None, identity, op)
+}
+
+/// `output[0] = init`, `output[i] = init ⊕ input[0] ⊕ … ⊕ input[i-1]`.
+///
+/// ```
+/// let dev = simt::Device::default();
+/// let input = dev.alloc_from(&[1u32, 0, 2, 2, 1, 3]);
+/// let mut out = dev.alloc::<u32>(6);
+/// simt::exclusive_scan(&dev, &input, &mut out, 4, 0, |a, b| a + b);
+/// assert_eq!(out.as_slice(), &[4, 5, 5, 7, 9, 10]);
+/// ```
+pub fn exclusive_scan<T, F>(
+    dev: &Device,
+    input: &DeviceBuffer<T>,
+    output: &mut DeviceBuffer<T>,
+    init: T,
+    identity: T,
+    op: F,
+) where
+    T: DeviceCopy,
+    F: Fn(T, T) -> T + Sync + Copy,
+{
+    scan(dev, input, output, Some(init), identity, op)
+}
+
+/// `init ⊕ input[0] ⊕ … ⊕ input[n-1]`, reduced block by block on the device.
+///
+/// ```
+/// let dev = simt::Device::default();
+/// let input = dev.alloc_from(&[3u32, 9, 1, 7]);
+/// assert_eq!(simt::reduce(&dev, &input, 0, 0, |a, b| a + b), 20);
+/// assert_eq!(simt::reduce(&dev, &input, u32::MAX, u32::MAX, |a, b| a.min(b)), 1);
+/// ```
+pub fn reduce<T, F>(dev: &Device, input: &DeviceBuffer<T>, init: T, identity: T, op: F) -> T
+where
+    T: DeviceCopy,
+    F: Fn(T, T) -> T + Sync + Copy,
+{
+    let n = input.len();
+    if n == 0 {
+        return init;
+    }
+    let blocks = n.div_ceil(TILE);
+    let mut partial = dev.alloc_filled(blocks, identity);
+    let (inp, part) = (input.view(), partial.view_mut());
+    let cfg =
+        LaunchConfig { grid: blocks as u32, block: BLOCK, shared_bytes: 32 * std::mem::size_of::<T>(), regions: &[] };
+    dev.launch("simt::reduce_tiles", cfg, |blk| {
+        let base = blk.block_idx() as usize * TILE;
+        let warp_sums = blk.shared::<T>(32);
+        blk.for_each_warp(|w| {
+            let mut v = [identity; 32];
+            w.for_each_lane(|t| {
+                let mut acc = identity;
+                for k in 0..ITEMS {
+                    let i = base + k * BLOCK as usize + t.thread_idx() as usize;
+                    if i < n {
+                        acc = op(acc, t.load(&inp, i));
+                    }
+                }
+                v[t.lane_id() as usize] = acc;
+            });
+            // Tree reduction with shfl_down keeps lane order, so `op` need not commute.
+            let mut d = 16;
+            while d > 0 {
+                let down = w.shfl_down(&v, d);
+                for lane in 0..d {
+                    if lane + d < w.lane_count() {
+                        v[lane as usize] = op(v[lane as usize], down[lane as usize]);
+                    }
+                }
+                d /= 2;
+            }
+            w.for_each_lane(|t| {
+                if t.lane_id() == 0 {
+                    t.store_shared(warp_sums, t.warp_id() as usize, v[0]);
+                }
+            });
+        });
+        blk.sync_threads();
+        let warps = blk.warp_count() as usize;
+        blk.for_each_thread(|t| {
+            if t.thread_idx() == 0 {
+                let mut acc = identity;
+                for w in 0..warps {
+                    acc = op(acc, t.load_shared(warp_sums, w));
+                }
+                t.store(&part, t.block_idx() as usize, acc);
+            }
+        });
+    })
+    .expect("reduce launch shape is valid");
+    if blocks == 1 { op(init, partial.as_slice()[0]) } else { reduce(dev, &partial, init, identity, op) }
+}
