@@ -239,25 +239,28 @@ where
         blk.for_each_warp(|w| {
             let mut v = [identity; 32];
             w.for_each_lane(|t| {
+                // Each thread folds ITEMS consecutive elements (a blocked arrangement keeps
+                // operand order, so `op` need not commute).
                 let mut acc = identity;
                 for k in 0..ITEMS {
-                    let i = base + k * BLOCK as usize + t.thread_idx() as usize;
+                    let i = base + t.thread_idx() as usize * ITEMS + k;
                     if i < n {
                         acc = op(acc, t.load(&inp, i));
                     }
                 }
                 v[t.lane_id() as usize] = acc;
             });
-            // Tree reduction with shfl_down keeps lane order, so `op` need not commute.
-            let mut d = 16;
-            while d > 0 {
+            // Pairwise tree of neighbours (lane l with l + d for l a multiple of 2d):
+            // operands stay in lane order, so `op` need not commute.
+            let mut d = 1;
+            while d < 32 {
                 let down = w.shfl_down(&v, d);
-                for lane in 0..d {
+                for lane in (0..32).step_by(2 * d as usize) {
                     if lane + d < w.lane_count() {
                         v[lane as usize] = op(v[lane as usize], down[lane as usize]);
                     }
                 }
-                d /= 2;
+                d *= 2;
             }
             w.for_each_lane(|t| {
                 if t.lane_id() == 0 {

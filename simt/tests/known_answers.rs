@@ -1,0 +1,281 @@
+//! Known-answer tests of the emulator itself: launch errors, SIMD efficiency,
+//! coalescing, warp intrinsics, barriers, registers, atomics and memory accounting.
+
+use simt::{Device, DeviceConfig, LaunchConfig, LaunchError, WorkQueue};
+
+fn measured() -> Device {
+    Device::new(DeviceConfig { measure: true, ..Default::default() })
+}
+
+#[test]
+fn shared_memory_over_capacity_is_a_launch_error() {
+    let dev = Device::new(DeviceConfig { shared_capacity: 1024, measure: false });
+    let ran = std::sync::atomic::AtomicBool::new(false);
+    let cfg = LaunchConfig::linear(64, 64).with_shared(1025);
+    let err =
+        dev.launch("too_much_shared", cfg, |_| ran.store(true, std::sync::atomic::Ordering::Relaxed)).unwrap_err();
+    assert_eq!(err, LaunchError::SharedMemory { kernel: "too_much_shared", requested: 1025, capacity: 1024 });
+    assert!(err.to_string().contains("1025") && err.to_string().contains("too_much_shared"));
+    assert!(!ran.into_inner(), "a refused launch must not run");
+    // Exactly the capacity is fine; the default capacity is CUDA's 48 KiB.
+    dev.launch("exact", LaunchConfig::linear(64, 64).with_shared(1024), |_| {}).unwrap();
+    assert_eq!(Device::default().config().shared_capacity, 48 * 1024);
+    let big = LaunchConfig::linear(64, 64).with_shared(48 * 1024 + 4);
+    assert!(matches!(Device::default().launch("k", big, |_| {}), Err(LaunchError::SharedMemory { .. })));
+}
+
+#[test]
+fn bad_block_sizes_are_launch_errors() {
+    let dev = Device::default();
+    for block in [0, 1025, 4096] {
+        let cfg = LaunchConfig { grid: 1, block, shared_bytes: 0, regions: &[] };
+        assert!(matches!(dev.launch("k", cfg, |_| {}), Err(LaunchError::BlockSize { .. })));
+    }
+}
+
+#[test]
+fn claiming_more_shared_than_declared_panics_clearly() {
+    let dev = Device::default();
+    let r = std::panic::catch_unwind(|| {
+        dev.launch("greedy", LaunchConfig::linear(32, 32).with_shared(64), |blk| {
+            let _ = blk.shared::<u32>(17);
+        })
+    });
+    assert!(r.is_err());
+}
+
+#[test]
+fn half_warp_branch_of_equal_length_runs_at_half_efficiency() {
+    let dev = measured();
+    let cfg = LaunchConfig::linear(4096, 256).with_regions(&["branch"]);
+    let rec = dev
+        .launch("half_branch", cfg, |blk| {
+            blk.for_each_thread(|t| {
+                // Even lanes take the `if`, odd lanes the `else`; both arms do 10 steps.
+                let path = (t.lane_id() % 2) as usize;
+                for _ in 0..10 {
+                    t.work(0, path, 1);
+                }
+            })
+        })
+        .unwrap();
+    assert_eq!(rec.region_efficiency("branch"), Some(0.5));
+    // Everyone on the same arm: full efficiency.
+    let rec = dev
+        .launch("uniform", LaunchConfig::linear(4096, 256).with_regions(&["branch"]), |blk| {
+            blk.for_each_thread(|t| t.work(0, 0, 10))
+        })
+        .unwrap();
+    assert_eq!(rec.region_efficiency("branch"), Some(1.0));
+    // A loop where lane i runs i+1 trips: issued 32, active 1+…+32 = 528 per warp.
+    let rec = dev
+        .launch("ragged_loop", LaunchConfig::linear(64, 64).with_regions(&["loop"]), |blk| {
+            blk.for_each_thread(|t| t.work(0, 0, t.lane_id() + 1))
+        })
+        .unwrap();
+    assert_eq!(rec.region_efficiency("loop"), Some(528.0 / (32.0 * 32.0)));
+    // A partial warp lowers the body's efficiency: a block of 40 threads is one full
+    // warp and one of 8 lanes.
+    let cfg = LaunchConfig { grid: 3, block: 40, shared_bytes: 0, regions: &[] };
+    let rec = dev.launch("partial", cfg, |blk| blk.for_each_thread(|_| {})).unwrap();
+    assert_eq!(rec.simd_efficiency(), Some(40.0 / 64.0));
+}
+
+#[test]
+fn coalesced_loads_touch_4_sectors_and_strided_loads_32() {
+    let dev = measured();
+    let data = dev.alloc_from(&vec![1u32; 32 * 32 * 64]);
+    let v = data.view();
+    let rec = dev.for_each("contiguous", 1024, |t, i| {
+        std::hint::black_box(t.load(&v, i));
+    });
+    assert_eq!(rec.requests, 1024 / 32);
+    assert_eq!(rec.sectors_per_request(), Some(4.0));
+    let rec = dev.for_each("stride32", 1024, |t, i| {
+        std::hint::black_box(t.load(&v, i * 32));
+    });
+    assert_eq!(rec.sectors_per_request(), Some(32.0));
+    // Every lane reading the same word: one sector.
+    let rec = dev.for_each("broadcast", 1024, |t, _| {
+        std::hint::black_box(t.load(&v, 7));
+    });
+    assert_eq!(rec.sectors_per_request(), Some(1.0));
+    // Two call sites are two requests per warp; a loop is one request per trip.
+    let rec = dev.for_each("two_sites_and_a_loop", 64, |t, i| {
+        std::hint::black_box(t.load(&v, i));
+        for k in 0..3 {
+            std::hint::black_box(t.load(&v, i + 64 * k));
+        }
+    });
+    assert_eq!(rec.requests, 2 * (1 + 3));
+    // With measurement off nothing is counted.
+    dev.set_measure(false);
+    let rec = dev.for_each("unmeasured", 1024, |t, i| {
+        std::hint::black_box(t.load(&v, i));
+    });
+    assert_eq!((rec.requests, rec.sectors, rec.simd_efficiency()), (0, 0, None));
+}
+
+#[test]
+fn warp_intrinsics_have_cuda_meaning() {
+    let dev = Device::default();
+    let mut out = dev.alloc::<u32>(8);
+    let o = out.view_mut();
+    dev.launch("intrinsics", LaunchConfig { grid: 1, block: 40, shared_bytes: 0, regions: &[] }, |blk| {
+        blk.for_each_warp(|w| {
+            let lanes: [u32; 32] = w.lanes(|l| l);
+            let even: [bool; 32] = std::array::from_fn(|l| l % 2 == 0);
+            if w.warp_idx() == 0 {
+                w.for_each_lane(|t| {
+                    if t.lane_id() == 0 {
+                        t.store(&o, 0, w_ballot(&even));
+                    }
+                });
+                o.write(1, w.shfl_down(&lanes, 4)[3]); // lane 3 reads lane 7
+                o.write(2, w.shfl_down(&lanes, 4)[30]); // beyond the warp: keeps its own
+                o.write(3, w.shfl_xor(&lanes, 1)[6]); // butterfly partner of 6 is 7
+                o.write(4, w.shfl_up(&lanes, 2)[1]); // below lane 0: keeps its own
+                o.write(5, w.all(&[true; 32]) as u32);
+            } else {
+                // The second warp has 8 active lanes.
+                o.write(6, w.ballot(&[true; 32]));
+                o.write(7, w.all(&std::array::from_fn(|l| l < 8)) as u32);
+            }
+            fn w_ballot(p: &[bool; 32]) -> u32 {
+                p.iter().enumerate().fold(0, |m, (i, &b)| m | (b as u32) << i)
+            }
+        });
+    })
+    .unwrap();
+    assert_eq!(out.as_slice(), &[0x5555_5555, 7, 30, 7, 1, 1, 0xff, 1]);
+}
+
+#[test]
+fn barriers_separate_phases_and_registers_survive_them() {
+    let dev = measured();
+    let n = 1000;
+    let mut out = dev.alloc::<u32>(n);
+    let o = out.view_mut();
+    let cfg = LaunchConfig::linear(n, 128).with_shared(128 * 4);
+    let rec = dev
+        .launch("reverse_in_block", cfg, |blk| {
+            let s = blk.shared::<u32>(128);
+            let mine = blk.local::<u32>(0);
+            blk.for_each_thread(|t| {
+                t.set(mine, t.global_idx() as u32);
+                t.store_shared(s, t.thread_idx() as usize, t.global_idx() as u32);
+            });
+            blk.sync_threads();
+            // Every thread reads what the mirrored thread wrote in the previous phase.
+            blk.for_each_thread(|t| {
+                let i = t.global_idx();
+                let mirrored = t.load_shared(s, 127 - t.thread_idx() as usize);
+                if i < n {
+                    t.store(&o, i, t.get(mine));
+                    assert_eq!(mirrored as usize, t.block_idx() as usize * 128 + 127 - t.thread_idx() as usize);
+                }
+            });
+        })
+        .unwrap();
+    assert_eq!(rec.barriers, rec.grid as u64);
+    assert!(out.as_slice().iter().enumerate().all(|(i, &v)| v as usize == i));
+}
+
+#[test]
+fn shared_memory_starts_zeroed_in_every_block() {
+    let dev = Device::default();
+    let mut out = dev.alloc::<u32>(64);
+    let o = out.view_mut();
+    dev.launch("dirty", LaunchConfig { grid: 64, block: 32, shared_bytes: 4, regions: &[] }, |blk| {
+        let s = blk.shared::<u32>(1);
+        blk.for_each_thread(|t| {
+            if t.thread_idx() == 0 {
+                t.store(&o, t.block_idx() as usize, t.load_shared(s, 0));
+                t.store_shared(s, 0, 99);
+            }
+        });
+    })
+    .unwrap();
+    assert!(out.as_slice().iter().all(|&v| v == 0));
+}
+
+#[test]
+fn atomic_min_u64_keeps_the_closest_packed_hit() {
+    let dev = Device::default();
+    let mut best = dev.alloc_filled(4, u64::MAX);
+    let b = best.view_mut();
+    // 10 000 candidate hits per ray: key = distance bits << 32 | triangle id.
+    dev.for_each("closest", 40_000, |t, i| {
+        let ray = i % 4;
+        let dist = 1.0 + ((i * 7919) % 10_000) as f32;
+        t.atomic_min_u64(&b, ray, (dist.to_bits() as u64) << 32 | i as u64);
+    });
+    for (ray, &key) in best.as_slice().iter().enumerate() {
+        let want = (0..40_000usize)
+            .filter(|i| i % 4 == ray)
+            .map(|i| ((1.0 + ((i * 7919) % 10_000) as f32).to_bits() as u64) << 32 | i as u64)
+            .min()
+            .unwrap();
+        assert_eq!(key, want, "ray {ray}");
+    }
+    let mut c = dev.alloc::<u32>(1);
+    let cv = c.view_mut();
+    dev.for_each("count", 12_345, |t, _| {
+        t.atomic_add(&cv, 0, 1);
+    });
+    assert_eq!(c.as_slice()[0], 12_345);
+}
+
+#[test]
+fn memory_accounting_tracks_current_and_peak() {
+    let dev = Device::default();
+    assert_eq!(dev.memory().current, 0);
+    let a = dev.alloc::<u32>(1000);
+    let b = dev.alloc::<u64>(500);
+    assert_eq!(dev.memory().current, 8000);
+    drop(a);
+    assert_eq!(dev.memory(), simt::MemoryStats { current: 4000, peak: 8000 });
+    dev.reset_peak_memory();
+    assert_eq!(dev.memory().peak, 4000);
+    drop(b);
+    assert_eq!(dev.memory().current, 0);
+}
+
+#[test]
+fn work_queue_pushes_every_item_once_and_reports_overflow() {
+    let dev = Device::default();
+    let mut q = WorkQueue::<u32>::new(&dev, 1000);
+    let p = q.pusher();
+    dev.for_each("push_odd", 1500, |t, i| {
+        if i % 2 == 1 {
+            p.push(t, i as u32);
+        }
+    });
+    let mut items = q.items().to_vec();
+    items.sort();
+    assert_eq!(items, (0..1500).filter(|i| i % 2 == 1).collect::<Vec<u32>>());
+    assert_eq!(q.dropped(), 0);
+    let p = q.pusher();
+    dev.for_each("push_all", 1500, |t, i| {
+        p.push(t, i as u32);
+    });
+    assert_eq!((q.len(), q.dropped()), (1000, 750 + 1500 - 1000));
+    q.clear();
+    assert!(q.is_empty());
+}
+
+#[test]
+fn statistics_aggregate_per_kernel_name() {
+    let dev = measured();
+    for _ in 0..3 {
+        dev.for_each("a", 100, |_, _| {});
+    }
+    dev.for_each("b", 10, |_, _| {});
+    let s = dev.kernel_stats();
+    assert_eq!(s.iter().map(|k| (k.name, k.launches)).collect::<Vec<_>>(), vec![("a", 3), ("b", 1)]);
+    assert_eq!(s[0].threads, 3 * 256);
+    assert_eq!(dev.launch_log().len(), 4);
+    assert!(simt::stats::format_table(&s).contains("SIMD eff"));
+    dev.reset_stats();
+    assert!(dev.kernel_stats().is_empty());
+}
