@@ -5,14 +5,17 @@
 //! `t_min < t < t_max`). Each call returns [`CastStats`]. Rays that are not finite or
 //! have a zero direction never hit anything.
 //!
-//! Casters here: [`BruteForce`] (the test oracle) and [`BvhCaster`] (obvhs' compressed
-//! wide BVH). Serial DACRT and PDACRT implement the same trait.
+//! Casters here: [`BruteForce`] (the test oracle), [`BvhCaster`] (obvhs' compressed
+//! wide BVH) and [`Dacrt`] (divide-and-conquer, no stored structure). PDACRT implements
+//! the same trait.
 
 mod brute;
 mod bvh;
+mod dacrt;
 
 pub use brute::BruteForce;
 pub use bvh::BvhCaster;
+pub use dacrt::{Dacrt, DacrtParams};
 
 use crate::geometry::{Hit, Ray, RayShear, intersect_triangle};
 use crate::scene::Scene;
@@ -70,6 +73,8 @@ pub enum CasterKind {
     Bvh,
     /// Every ray against every triangle: the test oracle.
     Brute,
+    /// Divide-and-conquer ray tracing (Mora 2011), parallel at the top levels.
+    Dacrt,
 }
 
 impl CasterKind {
@@ -77,6 +82,7 @@ impl CasterKind {
         match self {
             CasterKind::Bvh => Box::new(BvhCaster::new(scene)),
             CasterKind::Brute => Box::new(BruteForce::new(scene)),
+            CasterKind::Dacrt => Box::new(Dacrt::new(scene)),
         }
     }
 }

@@ -1,0 +1,234 @@
+//! Divide-and-conquer casters against brute force and the BVH: same closest triangle
+//! (ties by distance), same distance, same occlusion, on primary, shadow, specular and
+//! ambient-occlusion batches over real scenes, and on adversarial input.
+
+mod common;
+
+use common::*;
+use warpray::cast::{BruteForce, BvhCaster, Dacrt, DacrtParams, RayCaster};
+use warpray::geometry::{Hit, Ray};
+use warpray::glam::{Vec2, Vec3};
+use warpray::sampling::{Frame, cosine_hemisphere};
+use warpray::scene::{ObjOptions, Scene, cornell_box, load_obj};
+
+/// The casters under test, each with its name.
+fn casters_under_test(scene: &Scene) -> Vec<Box<dyn RayCaster>> {
+    vec![
+        Box::new(Dacrt::new(scene)),
+        Box::new(Dacrt::from_triangles(scene.triangle_vertices(), DacrtParams::serial())),
+        // Tiny leaves force deep recursion.
+        Box::new(Dacrt::from_triangles(
+            scene.triangle_vertices(),
+            DacrtParams { leaf_rays: 1, leaf_triangles: 1, ..DacrtParams::default() },
+        )),
+    ]
+}
+
+fn compare_closest(oracle: &dyn RayCaster, scene: &Scene, rays: &[Ray], what: &str) {
+    let mut want = vec![Hit::MISS; rays.len()];
+    oracle.closest(rays, &mut want);
+    for c in casters_under_test(scene) {
+        let mut got = vec![Hit::MISS; rays.len()];
+        c.closest(rays, &mut got);
+        for (i, (w, g)) in want.iter().zip(&got).enumerate() {
+            assert_eq!(w.is_hit(), g.is_hit(), "{what}/{}: ray {i} {:?}: {w:?} vs {g:?}", c.name(), rays[i]);
+            if w.is_hit() {
+                let rel = (w.t - g.t).abs() / w.t.abs().max(1e-30);
+                assert!(rel <= 1e-5, "{what}/{}: ray {i}: t {} vs {}", c.name(), w.t, g.t);
+                if w.prim == g.prim {
+                    assert!((w.u - g.u).abs() < 1e-5 && (w.v - g.v).abs() < 1e-5);
+                }
+            }
+        }
+    }
+}
+
+fn compare_occluded(oracle: &dyn RayCaster, scene: &Scene, rays: &[Ray], what: &str) {
+    let mut want = vec![false; rays.len()];
+    oracle.occluded(rays, &mut want);
+    for c in casters_under_test(scene) {
+        let mut got = vec![false; rays.len()];
+        c.occluded(rays, &mut got);
+        let diff: Vec<usize> = (0..rays.len()).filter(|&i| want[i] != got[i]).collect();
+        assert!(diff.is_empty(), "{what}/{}: {} disagreements, first ray {:?}", c.name(), diff.len(), rays[diff[0]]);
+    }
+}
+
+/// Primary rays, and from their hits: shadow rays to a point, mirror reflections, and
+/// cosine-weighted ambient-occlusion rays.
+fn batches(scene: &Scene, w: u32, h: u32, ao_per_hit: usize) -> [Vec<Ray>; 4] {
+    let cam = &scene.camera;
+    let primary: Vec<Ray> = (0..w * h)
+        .map(|i| cam.generate_ray(Vec2::new((i % w) as f32 + 0.5, (i / w) as f32 + 0.5), w, h, Vec2::ZERO))
+        .collect();
+    let mut hits = vec![Hit::MISS; primary.len()];
+    BvhCaster::new(scene).closest(&primary, &mut hits);
+    let b = scene.bounds();
+    let light = b.center() + Vec3::new(0.1, 0.45, 0.2) * b.extent();
+    let mut r = rng(3);
+    let (mut shadow, mut specular, mut ao) = (Vec::new(), Vec::new(), Vec::new());
+    for (ray, hit) in primary.iter().zip(&hits) {
+        if !hit.is_hit() {
+            continue;
+        }
+        let n = scene.normal(hit.prim).normalize();
+        let n = if n.dot(ray.dir) > 0.0 { -n } else { n };
+        let p = warpray::geometry::offset_ray_origin(ray.at(hit.t), n);
+        shadow.push(Ray::segment(p, light - p, 1.0));
+        specular.push(Ray::new(p, ray.dir - 2.0 * ray.dir.dot(n) * n));
+        let frame = Frame::from_normal(n);
+        for _ in 0..ao_per_hit {
+            ao.push(Ray::new(p, frame.to_world(cosine_hemisphere(r.uniform2()))));
+        }
+    }
+    [primary, shadow, specular, ao]
+}
+
+fn check_scene(scene: &Scene, oracle: &dyn RayCaster, w: u32, h: u32, ao: usize, what: &str) {
+    let [primary, shadow, specular, ambient] = batches(scene, w, h, ao);
+    assert!(!shadow.is_empty(), "{what}: the camera sees nothing");
+    compare_closest(oracle, scene, &primary, &format!("{what}/primary"));
+    compare_occluded(oracle, scene, &shadow, &format!("{what}/shadow"));
+    compare_closest(oracle, scene, &specular, &format!("{what}/specular"));
+    compare_closest(oracle, scene, &ambient, &format!("{what}/ao"));
+    compare_occluded(oracle, scene, &ambient, &format!("{what}/ao-occlusion"));
+}
+
+#[test]
+fn dacrt_matches_brute_force_on_the_cornell_box() {
+    let scene = cornell_box();
+    check_scene(&scene, &BruteForce::new(&scene), 96, 96, 8, "cornell");
+}
+
+#[test]
+fn dacrt_matches_brute_force_on_the_bunny() {
+    let scene = load_obj(require_model("bunny"), &ObjOptions::default()).unwrap();
+    check_scene(&scene, &BruteForce::new(&scene), 40, 40, 2, "bunny");
+}
+
+#[test]
+fn dacrt_matches_the_bvh_on_bunny_and_conference_room() {
+    // The BVH itself is checked against brute force hit for hit (bvh_vs_brute.rs), so
+    // it serves as the oracle where brute force would take minutes.
+    for (name, size, ao) in [("bunny", 160, 4), ("conference", 128, 2)] {
+        let scene = load_obj(require_model(name), &ObjOptions::default()).unwrap();
+        let mut scene = scene;
+        if name == "conference" {
+            // Inside the room, looking along it.
+            let b = scene.bounds();
+            let eye = b.center() + Vec3::new(-0.3, 0.1, 0.0) * b.extent();
+            scene.camera = warpray::scene::Camera::look_at(
+                eye,
+                b.center() + Vec3::new(0.3, -0.1, 0.0) * b.extent(),
+                Vec3::Y,
+                60.0,
+            );
+        }
+        check_scene(&scene, &BvhCaster::new(&scene), size, size, ao, name);
+    }
+}
+
+/// Random rays of every kind through a small scene, against brute force.
+fn fuzz(tris: &[[Vec3; 3]], extra_rays: &[Ray], what: &str) {
+    let scene = scene_from_triangles(tris);
+    let b = scene.bounds();
+    let pad = b.extent().max(Vec3::splat(1.0)) * 0.5;
+    let mut r = rng(17);
+    let mut rays: Vec<Ray> = (0..3000)
+        .map(|_| {
+            let o = random_in_box(&mut r, b.min - pad, b.max + pad);
+            Ray::new(o, (random_in_box(&mut r, b.min, b.max) - o).normalize_or(Vec3::X))
+        })
+        .collect();
+    rays.extend_from_slice(extra_rays);
+    let brute = BruteForce::new(&scene);
+    compare_closest(&brute, &scene, &rays, what);
+    let segments: Vec<Ray> = rays.iter().map(|ray| Ray { t_max: r.uniform() * 4.0, ..*ray }).collect();
+    compare_occluded(&brute, &scene, &segments, what);
+}
+
+#[test]
+fn ten_thousand_coincident_triangles() {
+    let t = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+    let tris = vec![t; 10_000];
+    fuzz(&tris, &[Ray::new(Vec3::new(0.0, 0.0, 2.0), -Vec3::Z)], "coincident");
+}
+
+#[test]
+fn axis_aligned_rays_split_planes_and_shared_edges() {
+    // A 16x16 grid of unit quads in z = 0: every split plane of the recursion falls on
+    // grid lines, where the quads' shared edges are.
+    let mut tris = Vec::new();
+    for i in 0..16 {
+        for j in 0..16 {
+            let (x, y) = (i as f32, j as f32);
+            let q = [
+                Vec3::new(x, y, 0.0),
+                Vec3::new(x + 1.0, y, 0.0),
+                Vec3::new(x + 1.0, y + 1.0, 0.0),
+                Vec3::new(x, y + 1.0, 0.0),
+            ];
+            tris.push([q[0], q[1], q[2]]);
+            tris.push([q[0], q[2], q[3]]);
+        }
+    }
+    let mut extra = Vec::new();
+    for k in 0..=32 {
+        let c = k as f32 * 0.5;
+        extra.push(Ray::new(Vec3::new(c, c, 5.0), -Vec3::Z)); // through vertices and edges
+        extra.push(Ray::new(Vec3::new(8.0, c, 5.0), -Vec3::Z)); // on the first split plane x = 8
+        extra.push(Ray::new(Vec3::new(-1.0, c, 0.0), Vec3::X)); // in the plane of the grid
+        extra.push(Ray::new(Vec3::new(c, -1.0, 1.0), Vec3::Y)); // parallel, above it
+    }
+    fuzz(&tris, &extra, "grid");
+}
+
+#[test]
+fn one_huge_triangle_among_small_ones_and_zero_area_triangles() {
+    let mut r = rng(21);
+    let mut tris = vec![[Vec3::new(-1e4, -1e4, 0.5), Vec3::new(1e4, -1e4, 0.5), Vec3::new(0.0, 1e4, 0.5)]];
+    for _ in 0..500 {
+        let p = random_in_box(&mut r, Vec3::splat(-2.0), Vec3::splat(2.0));
+        tris.push([p, p + random_dir(&mut r) * 0.2, p + random_dir(&mut r) * 0.2]);
+    }
+    for _ in 0..100 {
+        let p = random_in_box(&mut r, Vec3::splat(-2.0), Vec3::splat(2.0));
+        tris.push([p, p, p + Vec3::X]); // zero area: two corners coincide
+        tris.push([p, p + Vec3::Y, p + 2.0 * Vec3::Y]); // zero area: collinear
+    }
+    fuzz(&tris, &[], "huge+degenerate");
+}
+
+#[test]
+fn empty_batches_and_batches_that_hit_nothing() {
+    let scene = cornell_box();
+    for c in casters_under_test(&scene) {
+        assert_eq!(c.closest(&[], &mut []).rays, 0);
+        assert_eq!(c.occluded(&[], &mut []).rays, 0);
+        let away: Vec<Ray> = (0..5000).map(|i| Ray::new(Vec3::new(i as f32 * 0.001, 50.0, 0.0), Vec3::Y)).collect();
+        let mut hits = vec![Hit { t: 1.0, prim: 0, u: 0.0, v: 0.0 }; away.len()];
+        c.closest(&away, &mut hits);
+        assert!(hits.iter().all(|h| !h.is_hit()), "{}", c.name());
+        let mut occ = vec![true; away.len()];
+        c.occluded(&away, &mut occ);
+        assert!(occ.iter().all(|&o| !o));
+        let bad = [Ray::new(Vec3::NAN, Vec3::X), Ray::new(Vec3::ZERO, Vec3::ZERO)];
+        let mut hits = [Hit { t: 1.0, prim: 0, u: 0.0, v: 0.0 }; 2];
+        c.closest(&bad, &mut hits);
+        assert!(hits.iter().all(|h| !h.is_hit()));
+    }
+}
+
+#[test]
+fn dacrt_reports_bounded_working_memory() {
+    let scene = cornell_box();
+    let [primary, ..] = batches(&scene, 64, 64, 0);
+    let d = Dacrt::new(&scene);
+    let mut hits = vec![Hit::MISS; primary.len()];
+    let stats = d.closest(&primary, &mut hits);
+    let n = primary.len();
+    // ids + keys + reciprocals, plus copies at the parallel levels: within a few times
+    // the per-ray state, never anything like rays × triangles.
+    assert!(stats.peak_working_bytes >= n * 24, "{}", stats.peak_working_bytes);
+    assert!(stats.peak_working_bytes <= n * 24 + 8 * (n + 32) * 4 * 2, "{}", stats.peak_working_bytes);
+}
