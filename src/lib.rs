@@ -31,6 +31,7 @@ pub mod error;
 pub mod film;
 pub mod geometry;
 pub mod lights;
+pub mod pdacrt;
 pub mod render;
 pub mod sampling;
 pub mod scene;
@@ -44,10 +45,11 @@ pub struct ReadmeDoctests;
 
 /// The names most programs need.
 pub mod prelude {
-    pub use crate::cast::{BruteForce, BvhCaster, CastStats, CasterKind, RayCaster};
+    pub use crate::cast::{BruteForce, BvhCaster, CastStats, CasterKind, Dacrt, RayCaster};
     pub use crate::error::{Error, Result};
     pub use crate::film::Film;
     pub use crate::geometry::{Aabb, Hit, Ray};
+    pub use crate::pdacrt::Pdacrt;
     pub use crate::render::{Budget, IntegratorKind, RenderOptions, RenderStats, render};
     pub use crate::scene::{Camera, Material, PointLight, Scene, SceneDesc, cornell_box, load_obj, load_scene};
     pub use glam::{Vec2, Vec3};

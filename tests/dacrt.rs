@@ -1,4 +1,4 @@
-//! Divide-and-conquer casters against brute force and the BVH: same closest triangle
+//! Divide-and-conquer casters (serial DACRT, PDACRT) against brute force and the BVH: same closest triangle
 //! (ties by distance), same distance, same occlusion, on primary, shadow, specular and
 //! ambient-occlusion batches over real scenes, and on adversarial input.
 
@@ -8,6 +8,7 @@ use common::*;
 use warpray::cast::{BruteForce, BvhCaster, Dacrt, DacrtParams, RayCaster};
 use warpray::geometry::{Hit, Ray};
 use warpray::glam::{Vec2, Vec3};
+use warpray::pdacrt::{Pdacrt, PdacrtParams};
 use warpray::sampling::{Frame, cosine_hemisphere};
 use warpray::scene::{ObjOptions, Scene, cornell_box, load_obj};
 
@@ -20,6 +21,11 @@ fn casters_under_test(scene: &Scene) -> Vec<Box<dyn RayCaster>> {
         Box::new(Dacrt::from_triangles(
             scene.triangle_vertices(),
             DacrtParams { leaf_rays: 1, leaf_triangles: 1, ..DacrtParams::default() },
+        )),
+        Box::new(Pdacrt::new(scene)),
+        Box::new(Pdacrt::from_triangles(
+            &scene.triangle_vertices(),
+            PdacrtParams { leaf_rays: 1, leaf_triangles: 1, measure: true, ..PdacrtParams::default() },
         )),
     ]
 }

@@ -240,6 +240,16 @@ impl Device {
         self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).log()
     }
 
+    /// A mark for [`Device::launches_since`]: the number of launches recorded so far.
+    pub fn launch_mark(&self) -> u64 {
+        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).total()
+    }
+
+    /// The launches made since `mark` (as far as the log still holds them), oldest first.
+    pub fn launches_since(&self, mark: u64) -> Vec<LaunchRecord> {
+        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).since(mark)
+    }
+
     /// Forgets all launch statistics (memory accounting is kept).
     pub fn reset_stats(&self) {
         *self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()) = Stats::default();

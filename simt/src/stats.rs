@@ -124,6 +124,8 @@ impl KernelSummary {
 
 #[derive(Default)]
 pub(crate) struct Stats {
+    /// Launches recorded since the last reset.
+    total: u64,
     order: Vec<&'static str>,
     by_name: HashMap<&'static str, KernelSummary>,
     log: VecDeque<LaunchRecord>,
@@ -131,6 +133,7 @@ pub(crate) struct Stats {
 
 impl Stats {
     pub fn add(&mut self, r: &LaunchRecord) {
+        self.total += 1;
         if !self.by_name.contains_key(r.name) {
             self.order.push(r.name);
         }
@@ -147,6 +150,16 @@ impl Stats {
 
     pub fn log(&self) -> Vec<LaunchRecord> {
         self.log.iter().cloned().collect()
+    }
+
+    pub fn total(&self) -> u64 {
+        self.total
+    }
+
+    /// The records of launches numbered `mark..total` that are still in the log.
+    pub fn since(&self, mark: u64) -> Vec<LaunchRecord> {
+        let n = (self.total.saturating_sub(mark) as usize).min(self.log.len());
+        self.log.iter().skip(self.log.len() - n).cloned().collect()
     }
 }
 

@@ -75,6 +75,8 @@ pub enum CasterKind {
     Brute,
     /// Divide-and-conquer ray tracing (Mora 2011), parallel at the top levels.
     Dacrt,
+    /// Breadth-first parallel DACRT (Ravichandran & Narayanan 2013) on the simt emulator.
+    Pdacrt,
 }
 
 impl CasterKind {
@@ -83,6 +85,7 @@ impl CasterKind {
             CasterKind::Bvh => Box::new(BvhCaster::new(scene)),
             CasterKind::Brute => Box::new(BruteForce::new(scene)),
             CasterKind::Dacrt => Box::new(Dacrt::new(scene)),
+            CasterKind::Pdacrt => Box::new(crate::pdacrt::Pdacrt::new(scene)),
         }
     }
 }
