@@ -238,3 +238,54 @@ fn dacrt_reports_bounded_working_memory() {
     assert!(stats.peak_working_bytes >= n * 24, "{}", stats.peak_working_bytes);
     assert!(stats.peak_working_bytes <= n * 24 + 8 * (n + 32) * 4 * 2, "{}", stats.peak_working_bytes);
 }
+
+#[test]
+fn pdacrt_level_records_add_up_and_depth_is_bounded() {
+    let scene = cornell_box();
+    let [primary, ..] = batches(&scene, 64, 64, 0);
+    let p =
+        Pdacrt::from_triangles(&scene.triangle_vertices(), PdacrtParams { measure: true, ..PdacrtParams::default() });
+    let mut hits = vec![Hit::MISS; primary.len()];
+    let stats = p.closest(&primary, &mut hits);
+    let levels = p.levels();
+    assert!(!levels.is_empty());
+    // Level 0 is the root with every ray that enters the scene and every triangle.
+    assert_eq!((levels[0].nodes, levels[0].rays, levels[0].triangle_refs), (1, primary.len(), 32));
+    for w in levels.windows(2) {
+        // The next level's nodes are the inner children of this one: at most two each.
+        assert!(w[1].nodes <= 2 * w[0].nodes);
+        assert_eq!(w[1].level, w[0].level + 1);
+    }
+    assert!(levels.len() as u32 <= PdacrtParams::default().max_depth + 1);
+    assert!(levels.iter().map(|l| l.terminal_nodes).sum::<usize>() > 0);
+    for l in &levels {
+        assert_eq!(l.id_bytes, (l.rays + l.triangle_refs) * 8);
+        let names: Vec<&str> = l.kernels.iter().map(|k| k.name).collect();
+        for k in ["pdacrt::split_nodes", "pdacrt::filter_rays", "pdacrt::filter_triangles", "simt::radix_scatter"] {
+            assert!(names.contains(&k), "level {} lacks {k}: {names:?}", l.level);
+        }
+        assert!(l.kernels.iter().all(|k| k.simd_efficiency.is_some_and(|e| e > 0.0 && e <= 1.0)));
+    }
+    // Working memory is the id arrays and per-ray state: far below rays × triangles.
+    assert!(stats.peak_working_bytes > primary.len() * 8);
+    assert!(stats.peak_working_bytes < primary.len() * 400, "{}", stats.peak_working_bytes);
+    // The device's statistics name the brute-force kernel with its shared memory.
+    let k = p.device().kernel_stats();
+    let bf = k.iter().find(|k| k.name == "pdacrt::brute_force").expect("terminal nodes were solved");
+    assert_eq!(bf.shared_bytes, warpray::pdacrt::kernels::STAGE * 36);
+}
+
+#[test]
+fn depth_cap_holds_on_coincident_triangles_with_tiny_leaves() {
+    // Tiny leaves would split forever without the guards: coincident triangles never
+    // separate, so the no-progress rule must make the root's children terminal.
+    let t = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+    let tris = vec![t; 2000];
+    let params = PdacrtParams { leaf_rays: 1, leaf_triangles: 1, ..PdacrtParams::default() };
+    let p = Pdacrt::from_triangles(&tris, params);
+    let rays: Vec<Ray> = (0..500).map(|i| Ray::new(Vec3::new(-0.5 + i as f32 * 0.002, 0.0, 1.0), -Vec3::Z)).collect();
+    let mut hits = vec![Hit::MISS; rays.len()];
+    p.closest(&rays, &mut hits);
+    assert!(hits.iter().all(|h| h.is_hit() && (h.t - 1.0).abs() < 1e-6 && h.prim == 0), "smallest id wins ties");
+    assert!(p.levels().len() as u32 <= params.max_depth + 1);
+}

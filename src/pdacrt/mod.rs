@@ -47,7 +47,7 @@ pub struct PdacrtParams {
 
 impl Default for PdacrtParams {
     fn default() -> Self {
-        PdacrtParams { leaf_rays: 64, leaf_triangles: 16, max_depth: 40, brute_force_block: 128, measure: false }
+        PdacrtParams { leaf_rays: 64, leaf_triangles: 32, max_depth: 40, brute_force_block: 128, measure: false }
     }
 }
 
