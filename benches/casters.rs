@@ -1,5 +1,6 @@
-//! Caster throughput: BVH build, closest-hit and shadow batches of primary rays, and the
-//! brute-force oracle for scale. `cargo bench --bench casters`.
+//! Caster throughput: BVH build, closest-hit and shadow batches of primary rays for the
+//! BVH, serial DACRT and PDACRT, and the brute-force oracle for scale. The paper's full
+//! tables come from `examples/dacrt_tables.rs`. `cargo bench --bench casters`.
 //! The bunny needs `WARPRAY_MODELS`; without it that group is skipped with a notice.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -27,6 +28,12 @@ fn bench_scene(c: &mut Criterion, name: &str, scene: &Scene, with_brute: bool) {
         rays.iter().zip(&hits).map(|(r, h)| Ray::segment(r.at(h.t.min(10.0)) + Vec3::Y * 1e-3, Vec3::Y, 1.0)).collect();
     let mut occ = vec![false; rays.len()];
     g.bench_function("bvh_occluded", |b| b.iter(|| bvh.occluded(black_box(&shadow), &mut occ)));
+    let dacrt = Dacrt::new(scene);
+    g.bench_function("dacrt_closest", |b| b.iter(|| dacrt.closest(black_box(&rays), &mut hits)));
+    g.bench_function("dacrt_occluded", |b| b.iter(|| dacrt.occluded(black_box(&shadow), &mut occ)));
+    let pdacrt = Pdacrt::new(scene);
+    g.bench_function("pdacrt_closest", |b| b.iter(|| pdacrt.closest(black_box(&rays), &mut hits)));
+    g.bench_function("pdacrt_occluded", |b| b.iter(|| pdacrt.occluded(black_box(&shadow), &mut occ)));
     if with_brute {
         let brute = BruteForce::new(scene);
         g.bench_function("brute_closest", |b| b.iter(|| brute.closest(black_box(&rays), &mut hits)));
