@@ -112,6 +112,22 @@ fn dacrt_matches_brute_force_on_the_bunny() {
     check_scene(&scene, &BruteForce::new(&scene), 40, 40, 2, "bunny");
 }
 
+fn conference_inside() -> Scene {
+    let mut scene = load_obj(require_model("conference"), &ObjOptions::default()).unwrap();
+    // Inside the room, looking along it.
+    let b = scene.bounds();
+    let eye = b.center() + Vec3::new(-0.3, 0.1, 0.0) * b.extent();
+    scene.camera =
+        warpray::scene::Camera::look_at(eye, b.center() + Vec3::new(0.3, -0.1, 0.0) * b.extent(), Vec3::Y, 60.0);
+    scene
+}
+
+#[test]
+fn dacrt_matches_brute_force_in_the_conference_room() {
+    let scene = conference_inside();
+    check_scene(&scene, &BruteForce::new(&scene), 20, 20, 1, "conference");
+}
+
 #[test]
 fn dacrt_matches_the_bvh_on_bunny_and_conference_room() {
     // The BVH itself is checked against brute force hit for hit (bvh_vs_brute.rs), so

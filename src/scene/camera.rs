@@ -90,3 +90,29 @@ impl Camera {
         Ray::new(origin, (focus - origin).normalize())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thin_lens_rays_of_one_pixel_meet_on_the_focus_plane() {
+        let cam = Camera::look_at(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 30.0).with_lens(0.3, 4.0);
+        let film = Vec2::new(170.0, 40.0);
+        let pinhole = Camera { aperture_radius: 0.0, ..cam }.generate_ray(film, 320, 240, Vec2::ZERO);
+        let on_plane = |r: Ray| {
+            r.at((4.0 - 0.0) / r.dir.dot(cam.forward)
+                - (r.origin - cam.position).dot(cam.forward) / r.dir.dot(cam.forward))
+        };
+        let focus = on_plane(pinhole);
+        let mut origins = Vec::new();
+        for (i, u) in [Vec2::new(0.1, 0.2), Vec2::new(0.9, 0.5), Vec2::new(0.5, 0.95)].into_iter().enumerate() {
+            let r = cam.generate_ray(film, 320, 240, u);
+            assert!((on_plane(r) - focus).length() < 1e-4, "lens sample {i}");
+            origins.push(r.origin);
+        }
+        // The lens samples really spread the origins over the aperture.
+        assert!((origins[0] - origins[1]).length() > 0.05);
+        assert!(origins.iter().all(|o| (*o - cam.position).length() <= 0.3 + 1e-6));
+    }
+}
