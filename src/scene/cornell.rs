@@ -60,6 +60,9 @@ pub fn cornell_box() -> Scene {
     let red = b.material("red", Material::Diffuse { albedo: Vec3::new(0.63, 0.065, 0.05) }, Vec3::ZERO);
     let green = b.material("green", Material::Diffuse { albedo: Vec3::new(0.14, 0.45, 0.091) }, Vec3::ZERO);
     let light = b.material("light", Material::Diffuse { albedo: Vec3::splat(0.78) }, Vec3::new(17.0, 12.0, 4.0));
+    // The blocks have materials of their own (white too) so scene files can replace them.
+    let short = b.material("shortBlock", Material::Diffuse { albedo: Vec3::new(0.725, 0.71, 0.68) }, Vec3::ZERO);
+    let tall = b.material("tallBlock", Material::Diffuse { albedo: Vec3::new(0.725, 0.71, 0.68) }, Vec3::ZERO);
 
     let v = Vec3::new;
     b.quad([v(-1., 0., -1.), v(1., 0., -1.), v(1., 0., 1.), v(-1., 0., 1.)], Vec3::Y, white); // floor
@@ -67,8 +70,8 @@ pub fn cornell_box() -> Scene {
     b.quad([v(-1., 0., -1.), v(1., 0., -1.), v(1., 2., -1.), v(-1., 2., -1.)], Vec3::Z, white); // back
     b.quad([v(-1., 0., -1.), v(-1., 0., 1.), v(-1., 2., 1.), v(-1., 2., -1.)], Vec3::X, red); // left
     b.quad([v(1., 0., -1.), v(1., 0., 1.), v(1., 2., 1.), v(1., 2., -1.)], -Vec3::X, green); // right
-    b.block(0.33, 0.37, Vec3::new(0.3, 0.3, 0.3), -17.0, white); // short block
-    b.block(-0.34, -0.29, Vec3::new(0.3, 0.6, 0.3), 17.0, white); // tall block
+    b.block(0.33, 0.37, Vec3::new(0.3, 0.3, 0.3), -17.0, short);
+    b.block(-0.34, -0.29, Vec3::new(0.3, 0.6, 0.3), 17.0, tall);
     b.quad(
         [v(-0.235, 1.98, -0.19), v(0.235, 1.98, -0.19), v(0.235, 1.98, 0.19), v(-0.235, 1.98, 0.19)],
         -Vec3::Y,

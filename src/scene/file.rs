@@ -2,7 +2,10 @@
 //! `assets/scenes/cornell-obj.toml` is a commented example; `docs/scene-format.md`
 //! describes every key. Unknown keys are errors, so a typo never passes silently.
 
-use super::{Camera, Material, ObjOptions, PointLight, Scene, cornell_box, load_obj, models_dir};
+use super::{
+    Camera, Coat, LayerBase, Layered, Material, ObjOptions, PointLight, Scene, cornell_box, load_obj, metals,
+    models_dir,
+};
 use crate::error::{Error, Location, Result};
 use glam::Vec3;
 use serde::Deserialize;
@@ -64,6 +67,8 @@ struct FileMesh {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FileMaterial {
+    /// Required for top-level materials; a layered material's base needs none.
+    #[serde(default)]
     name: String,
     #[serde(rename = "type")]
     kind: String,
@@ -76,6 +81,28 @@ struct FileMaterial {
     reflectance: Option<[f32; 3]>,
     ior: Option<f32>,
     tint: Option<[f32; 3]>,
+    /// Conductors: a metal's name, or `eta` and `k`.
+    metal: Option<String>,
+    eta: Option<[f32; 3]>,
+    k: Option<[f32; 3]>,
+    /// Layered: the coats, top first, over a base.
+    coats: Option<Vec<FileCoat>>,
+    base: Option<Box<FileMaterial>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileCoat {
+    #[serde(default = "default_ior")]
+    ior: f32,
+    #[serde(default)]
+    roughness: f32,
+    #[serde(default)]
+    absorption: [f32; 3],
+}
+
+fn default_ior() -> f32 {
+    1.5
 }
 
 #[derive(Deserialize)]
@@ -113,15 +140,23 @@ impl FileMaterial {
             ("reflectance", self.reflectance.is_some()),
             ("ior", self.ior.is_some()),
             ("tint", self.tint.is_some()),
+            ("metal", self.metal.is_some()),
+            ("eta", self.eta.is_some()),
+            ("k", self.k.is_some()),
+            ("coats", self.coats.is_some()),
+            ("base", self.base.is_some()),
         ];
         let allowed: &[&str] = match self.kind.as_str() {
             "diffuse" => &["albedo"],
             "glossy" => &["diffuse", "specular", "roughness"],
             "mirror" => &["reflectance"],
             "glass" => &["ior", "tint"],
+            "roughglass" => &["ior", "tint", "roughness"],
+            "conductor" => &["metal", "eta", "k", "roughness"],
+            "layered" => &["coats", "base"],
             other => {
                 return Err(format!(
-                    "material '{}': unknown type '{other}' (diffuse, glossy, mirror, glass)",
+                    "material '{}': unknown type '{other}' (diffuse, glossy, mirror, glass, roughglass, conductor, layered)",
                     self.name
                 ));
             }
@@ -137,8 +172,44 @@ impl FileMaterial {
                 roughness: self.roughness.ok_or(format!("material '{}' needs 'roughness'", self.name))?,
             },
             "mirror" => Material::Mirror { reflectance: self.reflectance.map_or(Vec3::ONE, v) },
-            _ => Material::Glass { ior: self.ior.unwrap_or(1.5), tint: self.tint.map_or(Vec3::ONE, v) },
+            "glass" => Material::Glass { ior: self.ior.unwrap_or(1.5), tint: self.tint.map_or(Vec3::ONE, v) },
+            "roughglass" => Material::RoughGlass {
+                ior: self.ior.unwrap_or(1.5),
+                roughness: self.roughness.unwrap_or(0.1),
+                tint: self.tint.map_or(Vec3::ONE, v),
+            },
+            "conductor" => {
+                let (eta, k) = self.conductor_indices()?;
+                Material::Conductor { eta, k, roughness: self.roughness.unwrap_or(0.0) }
+            }
+            _ => {
+                let coats = self.coats.as_deref().unwrap_or(&[]);
+                if coats.is_empty() || coats.len() > 2 {
+                    return Err(format!("layered material '{}' needs one or two coats", self.name));
+                }
+                let mut c = [Coat { ior: 1.5, roughness: 0.0, absorption: Vec3::ZERO }; 2];
+                for (dst, src) in c.iter_mut().zip(coats) {
+                    *dst = Coat { ior: src.ior, roughness: src.roughness, absorption: v(src.absorption) };
+                }
+                let base = self.base.as_deref().ok_or(format!("layered material '{}' needs a base", self.name))?;
+                let base = match base.to_material()? {
+                    Material::Diffuse { albedo } => LayerBase::Diffuse { albedo },
+                    Material::Conductor { eta, k, roughness } => LayerBase::Conductor { eta, k, roughness },
+                    _ => return Err(format!("layered material '{}': the base is diffuse or conductor", self.name)),
+                };
+                Material::Layered(Layered { coats: c, coat_count: coats.len() as u32, base })
+            }
         })
+    }
+
+    fn conductor_indices(&self) -> Result<(Vec3, Vec3), String> {
+        match (&self.metal, self.eta, self.k) {
+            (Some(name), None, None) => {
+                metals::by_name(name).ok_or(format!("unknown metal '{name}' (gold, copper, silver, aluminium)"))
+            }
+            (None, Some(eta), Some(k)) => Ok((Vec3::from_array(eta), Vec3::from_array(k))),
+            _ => Err(format!("conductor '{}' needs either 'metal' or both 'eta' and 'k'", self.name)),
+        }
     }
 }
 
@@ -178,6 +249,9 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
             return Err(err(format!("unknown base scene '{other}' (known: cornell)")));
         }
     };
+    if let Some(m) = file.material.iter().find(|m| m.name.is_empty()) {
+        return Err(err(format!("a [[material]] of type '{}' has no name", m.kind)));
+    }
     let named = file
         .material
         .iter()

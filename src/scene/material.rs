@@ -13,7 +13,29 @@
 //! Where `Kd + Ks` exceeds 1 in a channel both are scaled down so the surface never
 //! reflects more than it receives. `Ka`, textures and `Ni` of opaque materials are ignored.
 
+pub use crate::bsdf::layered::{Coat, LayerBase, Layered};
 use glam::Vec3;
+
+/// Complex refractive indices (η, k) at roughly 650, 550 and 450 nm of common metals
+/// (tabulated optical constants, as renderers usually ship them).
+pub mod metals {
+    use glam::Vec3;
+    pub const GOLD: (Vec3, Vec3) = (Vec3::new(0.143, 0.374, 1.442), Vec3::new(3.983, 2.385, 1.603));
+    pub const COPPER: (Vec3, Vec3) = (Vec3::new(0.200, 0.924, 1.102), Vec3::new(3.912, 2.452, 2.142));
+    pub const SILVER: (Vec3, Vec3) = (Vec3::new(0.155, 0.117, 0.138), Vec3::new(4.828, 3.122, 2.147));
+    pub const ALUMINIUM: (Vec3, Vec3) = (Vec3::new(1.657, 0.880, 0.521), Vec3::new(9.224, 6.270, 4.837));
+
+    /// By name (`gold`, `copper`, `silver`, `aluminium`/`aluminum`).
+    pub fn by_name(name: &str) -> Option<(Vec3, Vec3)> {
+        match name {
+            "gold" => Some(GOLD),
+            "copper" => Some(COPPER),
+            "silver" => Some(SILVER),
+            "aluminium" | "aluminum" => Some(ALUMINIUM),
+            _ => None,
+        }
+    }
+}
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Material {
@@ -26,16 +48,17 @@ pub enum Material {
     Mirror { reflectance: Vec3 },
     /// Smooth dielectric interface with Fresnel reflection and refraction.
     Glass { ior: f32, tint: Vec3 },
+    /// Conductor with complex index `eta + i k`: GGX of roughness α, smooth below 1e-3.
+    Conductor { eta: Vec3, k: Vec3, roughness: f32 },
+    /// Rough dielectric interface (GGX reflection and transmission, Walter et al. 2007).
+    RoughGlass { ior: f32, roughness: f32, tint: Vec3 },
+    /// One or two dielectric coats over a diffuse or conductor base (see
+    /// [`crate::bsdf::layered`] for the model and its energy behaviour).
+    Layered(Layered),
 }
 
 impl Material {
     pub const DEFAULT: Material = Material::Diffuse { albedo: Vec3::splat(0.8) };
-
-    /// True when the material scatters only into discrete directions (no light
-    /// sampling is possible at such a vertex).
-    pub fn is_delta(&self) -> bool {
-        matches!(self, Material::Mirror { .. } | Material::Glass { .. })
-    }
 
     /// Short kind name, for statistics and the inspector's material queues.
     pub fn kind_name(&self) -> &'static str {
@@ -44,6 +67,9 @@ impl Material {
             Material::Glossy { .. } => "glossy",
             Material::Mirror { .. } => "mirror",
             Material::Glass { .. } => "glass",
+            Material::Conductor { .. } => "conductor",
+            Material::RoughGlass { .. } => "roughglass",
+            Material::Layered(_) => "layered",
         }
     }
 
@@ -61,13 +87,40 @@ impl Material {
                 }
             }
             Material::Mirror { reflectance } if !colour_ok(reflectance) => Err("reflectance must lie in [0, 1]".into()),
-            Material::Glass { ior, tint } => {
+            Material::Glass { ior, tint } | Material::RoughGlass { ior, tint, .. } => {
                 if !(ior.is_finite() && ior > 0.0) {
                     Err(format!("index of refraction {ior} must be positive"))
                 } else if !colour_ok(tint) {
                     Err("glass tint must lie in [0, 1]".into())
                 } else {
-                    Ok(())
+                    roughness_ok(self)
+                }
+            }
+            Material::Conductor { eta, k, .. } => {
+                if !(eta.is_finite() && k.is_finite() && eta.min_element() > 0.0 && k.min_element() >= 0.0) {
+                    Err("conductor eta must be positive and k non-negative".into())
+                } else {
+                    roughness_ok(self)
+                }
+            }
+            Material::Layered(l) => {
+                if l.coat_count == 0 || l.coat_count > 2 {
+                    return Err("a layered material has one or two coats".into());
+                }
+                for c in l.coats() {
+                    if !(c.ior.is_finite() && c.ior > 0.0 && (0.0..=1.0).contains(&c.roughness)) {
+                        return Err("coat ior must be positive and roughness in [0, 1]".into());
+                    }
+                    if !(c.absorption.is_finite() && c.absorption.min_element() >= 0.0) {
+                        return Err("coat absorption must be finite and non-negative".into());
+                    }
+                }
+                match l.base {
+                    LayerBase::Diffuse { albedo } if !colour_ok(albedo) => Err("base albedo must lie in [0, 1]".into()),
+                    LayerBase::Conductor { roughness, .. } if !(0.0..=1.0).contains(&roughness) => {
+                        Err("base roughness must lie in [0, 1]".into())
+                    }
+                    _ => Ok(()),
                 }
             }
             _ => Ok(()),
@@ -97,6 +150,17 @@ impl Material {
             Material::Diffuse { albedo: kd }
         };
         (material, ke.max(Vec3::ZERO))
+    }
+}
+
+fn roughness_ok(m: &Material) -> Result<(), String> {
+    match *m {
+        Material::Conductor { roughness, .. } | Material::RoughGlass { roughness, .. }
+            if !(0.0..=1.0).contains(&roughness) =>
+        {
+            Err(format!("roughness {roughness} must lie in [0, 1] (0: smooth)"))
+        }
+        _ => Ok(()),
     }
 }
 

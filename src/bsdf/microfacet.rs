@@ -1,0 +1,174 @@
+//! Microfacet pieces: the GGX (Trowbridge–Reitz) distribution with visible-normal
+//! sampling (Heitz 2018), Fresnel terms, and the rough conductor and rough dielectric
+//! BSDFs (Walter et al. 2007) built from them. Directions are local (`+z` = normal).
+
+use super::TransportMode;
+use glam::{Vec2, Vec3};
+use std::f32::consts::PI;
+
+/// GGX microfacet distribution of roughness `alpha`.
+#[derive(Clone, Copy, Debug)]
+pub struct Ggx {
+    pub alpha: f32,
+}
+
+impl Ggx {
+    pub fn d(&self, wm: Vec3) -> f32 {
+        if wm.z <= 0.0 {
+            return 0.0;
+        }
+        let a2 = self.alpha * self.alpha;
+        let c2 = wm.z * wm.z;
+        let denom = c2 * (a2 - 1.0) + 1.0;
+        a2 / (PI * denom * denom)
+    }
+
+    fn lambda(&self, w: Vec3) -> f32 {
+        let c2 = w.z * w.z;
+        if c2 == 0.0 {
+            return f32::INFINITY;
+        }
+        let tan2 = ((1.0 - c2) / c2).max(0.0);
+        0.5 * ((1.0 + self.alpha * self.alpha * tan2).sqrt() - 1.0)
+    }
+
+    pub fn g1(&self, w: Vec3) -> f32 {
+        1.0 / (1.0 + self.lambda(w))
+    }
+
+    pub fn g2(&self, wo: Vec3, wi: Vec3) -> f32 {
+        1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
+    }
+
+    /// Density of visible normal `wm` seen from `wo` (`wo.z > 0`).
+    pub fn visible_pdf(&self, wo: Vec3, wm: Vec3) -> f32 {
+        self.g1(wo) * wo.dot(wm).max(0.0) * self.d(wm) / wo.z
+    }
+
+    /// Samples a visible normal seen from `wo` (`wo.z > 0`).
+    pub fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
+        let a = self.alpha;
+        let vh = Vec3::new(a * wo.x, a * wo.y, wo.z).normalize();
+        let len2 = vh.x * vh.x + vh.y * vh.y;
+        let t1 = if len2 > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) / len2.sqrt() } else { Vec3::X };
+        let t2 = vh.cross(t1);
+        let r = u.x.sqrt();
+        let phi = 2.0 * PI * u.y;
+        let p1 = r * phi.cos();
+        let s = 0.5 * (1.0 + vh.z);
+        let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
+        let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
+        Vec3::new(a * nh.x, a * nh.y, nh.z.max(1e-6)).normalize()
+    }
+
+    /// Reflection lobe `D G F / (4 cos_o cos_i)` without `F`, and its sampling density,
+    /// for directions on the `+z` side.
+    pub fn reflection(&self, wo: Vec3, wi: Vec3) -> Option<(f32, f32, Vec3)> {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return None;
+        }
+        let wm = (wo + wi).normalize_or_zero();
+        if wm == Vec3::ZERO {
+            return None;
+        }
+        let value = self.d(wm) * self.g2(wo, wi) / (4.0 * wo.z * wi.z);
+        let pdf = self.visible_pdf(wo, wm) / (4.0 * wo.dot(wm));
+        Some((value, pdf, wm))
+    }
+}
+
+/// Unpolarised Fresnel reflectance of a dielectric interface; `eta = η_t / η_i`.
+pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let r_par = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    0.5 * (r_par * r_par + r_perp * r_perp)
+}
+
+/// Fresnel reflectance of a conductor with complex index `eta + i k`, per channel.
+pub fn fresnel_conductor(cos_i: f32, eta: Vec3, k: Vec3) -> Vec3 {
+    let c = cos_i.clamp(0.0, 1.0);
+    let (c2, s2) = (c * c, 1.0 - c * c);
+    let f = |eta: f32, k: f32| {
+        let t0 = eta * eta - k * k - s2;
+        let a2b2 = (t0 * t0 + 4.0 * eta * eta * k * k).max(0.0).sqrt();
+        let t1 = a2b2 + c2;
+        let a = (0.5 * (a2b2 + t0)).max(0.0).sqrt();
+        let t2 = 2.0 * c * a;
+        let rs = (t1 - t2) / (t1 + t2);
+        let t3 = c2 * a2b2 + s2 * s2;
+        let t4 = t2 * s2;
+        let rp = rs * (t3 - t4) / (t3 + t4);
+        (0.5 * (rp + rs)).clamp(0.0, 1.0)
+    };
+    Vec3::new(f(eta.x, k.x), f(eta.y, k.y), f(eta.z, k.z))
+}
+
+/// Refracts `w` (pointing away from the interface, on the `+z` side) through an
+/// interface of relative index `eta = η_t / η_i` about normal `n` (on `w`'s side).
+/// `None` on total internal reflection.
+pub fn refract(w: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
+    let cos_i = n.dot(w);
+    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return None;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    Some(-w / eta + n * (cos_i / eta - cos_t))
+}
+
+/// Rough dielectric for `wo.z > 0`: value and density of `wi` on either side.
+/// `eta` is the index below the surface over the index above it.
+pub fn rough_dielectric(ggx: Ggx, eta: f32, wo: Vec3, wi: Vec3, mode: TransportMode) -> (f32, f32) {
+    let (cos_o, cos_i) = (wo.z, wi.z);
+    if cos_o <= 0.0 || cos_i == 0.0 {
+        return (0.0, 0.0);
+    }
+    let reflect = cos_i > 0.0;
+    let etap = if reflect { 1.0 } else { eta };
+    let wm = wi * etap + wo;
+    if wm.length_squared() == 0.0 {
+        return (0.0, 0.0);
+    }
+    let wm = wm.normalize();
+    let wm = if wm.z < 0.0 { -wm } else { wm };
+    // Microfacets seen from behind contribute nothing.
+    if wm.dot(wi) * cos_i < 0.0 || wm.dot(wo) * cos_o < 0.0 {
+        return (0.0, 0.0);
+    }
+    let fr = fresnel_dielectric(wo.dot(wm), eta);
+    let vis = ggx.visible_pdf(wo, wm);
+    if reflect {
+        let value = ggx.d(wm) * ggx.g2(wo, wi) * fr / (4.0 * cos_o * cos_i);
+        let pdf = vis / (4.0 * wo.dot(wm)) * fr;
+        (value, pdf)
+    } else {
+        let denom = wi.dot(wm) + wo.dot(wm) / etap;
+        let denom2 = denom * denom;
+        let mut value =
+            ggx.d(wm) * (1.0 - fr) * ggx.g2(wo, wi) * (wi.dot(wm) * wo.dot(wm) / (cos_i * cos_o * denom2)).abs();
+        if mode == TransportMode::Radiance {
+            value /= etap * etap;
+        }
+        let pdf = vis * (wi.dot(wm).abs() / denom2) * (1.0 - fr);
+        (value, pdf)
+    }
+}
+
+/// Samples the rough dielectric for `wo.z > 0` (see [`rough_dielectric`]).
+pub fn sample_rough_dielectric(ggx: Ggx, eta: f32, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<Vec3> {
+    let wm = ggx.sample_visible(wo, u);
+    let fr = fresnel_dielectric(wo.dot(wm), eta);
+    if u_lobe < fr {
+        let wi = 2.0 * wo.dot(wm) * wm - wo;
+        (wi.z > 0.0).then_some(wi)
+    } else {
+        let wi = refract(wo, wm, eta)?;
+        (wi.z < 0.0).then_some(wi)
+    }
+}

@@ -1,0 +1,215 @@
+//! Scattering: `f`, `pdf` and `sample_f` for every [`Material`], in a local frame whose
+//! `+z` is the geometric normal (the winding's side). Directions point away from the
+//! surface. Opaque materials are two-sided: they are evaluated as if `wo` were on the
+//! `+z` side. Dielectrics use the normal's side to tell entering from leaving.
+//!
+//! `f` and `pdf` cover the continuous part only; delta lobes (mirror, smooth glass,
+//! smooth conductor, smooth coats) are reached through `sample_f` alone, with
+//! `delta = true`.
+
+pub mod layered;
+pub mod microfacet;
+
+use crate::scene::Material;
+use glam::{Vec2, Vec3};
+use layered::SMOOTH;
+use microfacet::{Ggx, fresnel_conductor, fresnel_dielectric, rough_dielectric, sample_rough_dielectric};
+use std::f32::consts::FRAC_1_PI;
+
+/// Whether a path carries radiance (from the camera) or importance (from a light).
+/// Refraction scales radiance by 1/η² but not importance (Veach 1997, ch. 5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TransportMode {
+    Radiance,
+    Importance,
+}
+
+/// A sampled direction. `weight = f · |cos θi| / pdf`; for delta lobes `f` and `pdf`
+/// are the discrete probability and matching value, so the same identity holds.
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfSample {
+    pub wi: Vec3,
+    pub f: Vec3,
+    pub pdf: f32,
+    pub weight: Vec3,
+    pub delta: bool,
+}
+
+#[inline]
+fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// Flips both directions so that `wo` lies on `+z` (two-sided opaque surfaces).
+#[inline]
+fn upper(wo: Vec3, wi: Vec3) -> (Vec3, Vec3) {
+    if wo.z < 0.0 { (flip(wo), flip(wi)) } else { (wo, wi) }
+}
+
+#[inline]
+fn flip(w: Vec3) -> Vec3 {
+    Vec3::new(w.x, w.y, -w.z)
+}
+
+#[inline]
+fn reflect_z(w: Vec3) -> Vec3 {
+    Vec3::new(-w.x, -w.y, w.z)
+}
+
+fn continuous(wi: Vec3, f: Vec3, pdf: f32) -> Option<BsdfSample> {
+    (pdf > 0.0 && wi.z != 0.0).then(|| BsdfSample { wi, f, pdf, weight: f * wi.z.abs() / pdf, delta: false })
+}
+
+impl Material {
+    /// Probability of choosing the specular lobe of a glossy material.
+    fn specular_weight(diffuse: Vec3, specular: Vec3) -> f32 {
+        let (d, s) = (luminance(diffuse), luminance(specular));
+        if d + s > 0.0 { s / (d + s) } else { 0.0 }
+    }
+
+    /// True when the material scatters only into discrete directions (no light
+    /// sampling is possible at such a vertex).
+    pub fn is_delta(&self) -> bool {
+        match *self {
+            Material::Mirror { .. } | Material::Glass { .. } => true,
+            Material::Conductor { roughness, .. } | Material::RoughGlass { roughness, .. } => roughness < SMOOTH,
+            Material::Layered(l) => l.is_delta(),
+            Material::Diffuse { .. } | Material::Glossy { .. } => false,
+        }
+    }
+
+    /// The BSDF value for the pair (continuous part only).
+    pub fn f(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> Vec3 {
+        if let Material::RoughGlass { ior, roughness, tint } = *self {
+            if roughness < SMOOTH {
+                return Vec3::ZERO;
+            }
+            let (wo_u, wi_u, eta) = if wo.z < 0.0 { (flip(wo), flip(wi), 1.0 / ior) } else { (wo, wi, ior) };
+            let (v, _) = rough_dielectric(Ggx { alpha: roughness }, eta, wo_u, wi_u, mode);
+            return if wo.z * wi.z < 0.0 { tint * v } else { Vec3::splat(v) };
+        }
+        let (wo, wi) = upper(wo, wi);
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return Vec3::ZERO;
+        }
+        match *self {
+            Material::Diffuse { albedo } => albedo * FRAC_1_PI,
+            Material::Glossy { diffuse, specular, roughness } => {
+                let spec = Ggx { alpha: roughness }.reflection(wo, wi).map_or(0.0, |(v, _, _)| v);
+                diffuse * FRAC_1_PI + specular * spec
+            }
+            Material::Conductor { eta, k, roughness } if roughness >= SMOOTH => Ggx { alpha: roughness }
+                .reflection(wo, wi)
+                .map_or(Vec3::ZERO, |(v, _, wm)| fresnel_conductor(wo.dot(wm), eta, k) * v),
+            Material::Layered(l) => l.f(wo, wi),
+            _ => Vec3::ZERO,
+        }
+    }
+
+    /// Solid-angle density with which [`Material::sample_f`] picks `wi` (continuous part).
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        if let Material::RoughGlass { ior, roughness, .. } = *self {
+            if roughness < SMOOTH {
+                return 0.0;
+            }
+            let (wo_u, wi_u, eta) = if wo.z < 0.0 { (flip(wo), flip(wi), 1.0 / ior) } else { (wo, wi, ior) };
+            return rough_dielectric(Ggx { alpha: roughness }, eta, wo_u, wi_u, TransportMode::Radiance).1;
+        }
+        let (wo, wi) = upper(wo, wi);
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return 0.0;
+        }
+        match *self {
+            Material::Diffuse { .. } => wi.z * FRAC_1_PI,
+            Material::Glossy { diffuse, specular, roughness } => {
+                let ws = Self::specular_weight(diffuse, specular);
+                let spec = Ggx { alpha: roughness }.reflection(wo, wi).map_or(0.0, |(_, p, _)| p);
+                (1.0 - ws) * wi.z * FRAC_1_PI + ws * spec
+            }
+            Material::Conductor { roughness, .. } if roughness >= SMOOTH => {
+                Ggx { alpha: roughness }.reflection(wo, wi).map_or(0.0, |(_, p, _)| p)
+            }
+            Material::Layered(l) => l.pdf(wo, wi),
+            _ => 0.0,
+        }
+    }
+
+    /// Samples an incident direction for `wo`. `u_lobe` picks a lobe, `u` the direction.
+    pub fn sample_f(&self, wo: Vec3, u_lobe: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
+        if wo.z == 0.0 {
+            return None;
+        }
+        let side = if wo.z < 0.0 { -1.0 } else { 1.0 };
+        let to_side = |w: Vec3| Vec3::new(w.x, w.y, w.z * side);
+        let wo_up = to_side(wo);
+        match *self {
+            Material::Diffuse { .. } | Material::Glossy { .. } => {
+                let wi_up = match *self {
+                    Material::Glossy { diffuse, specular, roughness }
+                        if u_lobe < Self::specular_weight(diffuse, specular) =>
+                    {
+                        let wm = Ggx { alpha: roughness }.sample_visible(wo_up, u);
+                        2.0 * wo_up.dot(wm) * wm - wo_up
+                    }
+                    _ => crate::sampling::cosine_hemisphere(u),
+                };
+                if wi_up.z <= 0.0 {
+                    return None;
+                }
+                let wi = to_side(wi_up);
+                continuous(wi, self.f(wo, wi, mode), self.pdf(wo, wi))
+            }
+            Material::Conductor { eta, k, roughness } => {
+                if roughness < SMOOTH {
+                    let wi = reflect_z(wo);
+                    let fr = fresnel_conductor(wo_up.z, eta, k);
+                    return Some(BsdfSample { wi, f: fr / wi.z.abs(), pdf: 1.0, weight: fr, delta: true });
+                }
+                let wm = Ggx { alpha: roughness }.sample_visible(wo_up, u);
+                let wi_up = 2.0 * wo_up.dot(wm) * wm - wo_up;
+                if wi_up.z <= 0.0 {
+                    return None;
+                }
+                let wi = to_side(wi_up);
+                continuous(wi, self.f(wo, wi, mode), self.pdf(wo, wi))
+            }
+            Material::Layered(l) => {
+                let s = l.sample(wo_up, u_lobe, u, mode)?;
+                Some(BsdfSample { wi: to_side(s.wi), ..s })
+            }
+            Material::Mirror { reflectance } => {
+                let wi = reflect_z(wo);
+                Some(BsdfSample { wi, f: reflectance / wi.z.abs(), pdf: 1.0, weight: reflectance, delta: true })
+            }
+            Material::RoughGlass { ior, roughness, .. } if roughness >= SMOOTH => {
+                let eta = if wo.z > 0.0 { ior } else { 1.0 / ior };
+                let wi_up = sample_rough_dielectric(Ggx { alpha: roughness }, eta, wo_up, u_lobe, u)?;
+                let wi = to_side(wi_up);
+                continuous(wi, self.f(wo, wi, mode), self.pdf(wo, wi))
+            }
+            Material::Glass { ior, tint } | Material::RoughGlass { ior, tint, .. } => {
+                let entering = wo.z > 0.0;
+                let eta = if entering { ior } else { 1.0 / ior };
+                let fr = fresnel_dielectric(wo.z.abs(), eta);
+                if u_lobe < fr {
+                    let wi = reflect_z(wo);
+                    return Some(BsdfSample {
+                        wi,
+                        f: Vec3::splat(fr / wi.z.abs()),
+                        pdf: fr,
+                        weight: Vec3::ONE,
+                        delta: true,
+                    });
+                }
+                // Refraction about the normal on wo's side.
+                let cos_i = wo.z.abs();
+                let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+                let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+                let wi = Vec3::new(-wo.x / eta, -wo.y / eta, -side * cos_t);
+                let scale = if mode == TransportMode::Radiance { 1.0 / (eta * eta) } else { 1.0 };
+                let ft = tint * ((1.0 - fr) * scale / cos_t.max(1e-12));
+                Some(BsdfSample { wi, f: ft, pdf: 1.0 - fr, weight: tint * scale, delta: true })
+            }
+        }
+    }
+}
