@@ -15,6 +15,9 @@ pub struct Film {
     pub height: u32,
     /// Per pixel: sum of the radiance estimates of all passes.
     pub sum: Vec<Vec3>,
+    /// Per pixel: sum of contributions splatted by light paths (light tracing, BDPT's
+    /// camera connections), normalised so that it too is divided by `passes`.
+    pub splat: Vec<Vec3>,
     /// Number of passes (samples per pixel) accumulated.
     pub passes: u32,
     /// Estimates rejected because they were NaN, infinite or negative.
@@ -44,7 +47,7 @@ impl Film {
     pub fn new(width: u32, height: u32) -> Result<Film> {
         check_size(width, height)?;
         let n = (width * height) as usize;
-        Ok(Film { width, height, sum: vec![Vec3::ZERO; n], passes: 0, rejected: 0 })
+        Ok(Film { width, height, sum: vec![Vec3::ZERO; n], splat: vec![Vec3::ZERO; n], passes: 0, rejected: 0 })
     }
 
     pub fn pixel_count(&self) -> usize {
@@ -65,10 +68,30 @@ impl Film {
         self.passes += 1;
     }
 
+    /// Adds splatted contributions `(pixel, value)` in the order given (so that the
+    /// result does not depend on thread scheduling). Non-finite or negative values are
+    /// dropped and counted. Call once or more per pass, before [`Film::end_pass`].
+    pub fn add_splats(&mut self, splats: impl IntoIterator<Item = (u32, Vec3)>) {
+        for (p, v) in splats {
+            if v.is_finite() && v.min_element() >= 0.0 {
+                if let Some(s) = self.splat.get_mut(p as usize) {
+                    *s += v;
+                }
+            } else {
+                self.rejected += 1;
+            }
+        }
+    }
+
+    /// Ends a pass that added only splats.
+    pub fn end_pass(&mut self) {
+        self.passes += 1;
+    }
+
     /// The mean estimate per pixel.
     pub fn mean(&self) -> Vec<Vec3> {
         let inv = if self.passes > 0 { 1.0 / self.passes as f32 } else { 0.0 };
-        self.sum.iter().map(|&s| s * inv).collect()
+        self.sum.iter().zip(&self.splat).map(|(&s, &p)| (s + p) * inv).collect()
     }
 
     /// Mean of all pixels' means (per channel).

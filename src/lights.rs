@@ -35,6 +35,8 @@ pub struct LightSample {
     /// the selection probability alone.
     pub pdf: f32,
     pub is_delta: bool,
+    /// The emitting triangle (area lights), or `u32::MAX`.
+    pub tri: u32,
 }
 
 #[derive(Clone, Debug, Default)]
@@ -113,12 +115,25 @@ impl Lights {
                 let [a, b, c] = scene.vertices(tri);
                 let (b1, b2) = uniform_triangle(u);
                 let position = a * (1.0 - b1 - b2) + b * b1 + c * b2;
-                LightSample { position, normal, emitted: radiance, pdf: p_sel / area, is_delta: false }
+                LightSample { position, normal, emitted: radiance, pdf: p_sel / area, is_delta: false, tri }
             }
-            Light::Point { position, intensity } => {
-                LightSample { position, normal: Vec3::ZERO, emitted: intensity, pdf: p_sel, is_delta: true }
-            }
+            Light::Point { position, intensity } => LightSample {
+                position,
+                normal: Vec3::ZERO,
+                emitted: intensity,
+                pdf: p_sel,
+                is_delta: true,
+                tri: u32::MAX,
+            },
         })
+    }
+
+    /// Selection probability of the point light at `position` (0 if there is none).
+    pub fn point_select_pdf(&self, position: Vec3) -> f32 {
+        self.lights
+            .iter()
+            .position(|l| matches!(l, Light::Point { position: p, .. } if *p == position))
+            .map_or(0.0, |i| self.select_pdf(i))
     }
 
     /// Area density (selection × 1/area) with which [`Lights::sample`] picks a point on

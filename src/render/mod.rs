@@ -5,8 +5,10 @@
 //! events on a path. 0 shows only emitters seen directly; 1 is direct lighting.
 //! Russian roulette starts after 3 bounces.
 
+pub mod bdpt;
 mod path;
 
+pub use bdpt::{Bdpt, LightTracer};
 pub use path::PathTracer;
 
 use crate::cast::RayCaster;
@@ -21,14 +23,29 @@ use std::time::{Duration, Instant};
 pub enum IntegratorKind {
     /// Unidirectional path tracing with next-event estimation and MIS.
     Path,
+    /// Light tracing: paths from the lights, splatted onto the film through the camera.
+    Light,
+    /// Bidirectional path tracing with MIS over all strategies.
+    Bdpt,
 }
 
 impl IntegratorKind {
     pub fn name(self) -> &'static str {
         match self {
             IntegratorKind::Path => "path",
+            IntegratorKind::Light => "light",
+            IntegratorKind::Bdpt => "bdpt",
         }
     }
+
+    pub const ALL: [IntegratorKind; 3] = [IntegratorKind::Path, IntegratorKind::Light, IntegratorKind::Bdpt];
+}
+
+/// A running integrator with its buffers.
+enum Integrator {
+    Path(PathTracer),
+    Light(LightTracer),
+    Bdpt(Bdpt),
 }
 
 impl std::str::FromStr for IntegratorKind {
@@ -118,8 +135,16 @@ pub fn render(
     let ctx = Context { scene, lights: &lights, caster, opts };
     let mut stats = RenderStats::default();
     let start = Instant::now();
+    if opts.integrator != IntegratorKind::Path && scene.camera.aperture_radius > 0.0 {
+        return Err(Error::BadSetting(format!(
+            "the {} integrator connects to a pinhole camera; set the aperture radius to 0",
+            opts.integrator.name()
+        )));
+    }
     let mut integrator = match opts.integrator {
-        IntegratorKind::Path => PathTracer::new(&ctx),
+        IntegratorKind::Path => Integrator::Path(PathTracer::new(&ctx)),
+        IntegratorKind::Light => Integrator::Light(LightTracer),
+        IntegratorKind::Bdpt => Integrator::Bdpt(Bdpt),
     };
     loop {
         let done = match opts.budget {
@@ -129,7 +154,11 @@ pub fn render(
         if done {
             break;
         }
-        let pass = integrator.render_pass(&ctx, stats.passes, &mut film);
+        let pass = match &mut integrator {
+            Integrator::Path(i) => i.render_pass(&ctx, stats.passes, &mut film),
+            Integrator::Light(i) => i.render_pass(&ctx, stats.passes, &mut film),
+            Integrator::Bdpt(i) => i.render_pass(&ctx, stats.passes, &mut film),
+        };
         stats.rays += pass.rays as u64;
         stats.cast_seconds += pass.seconds;
         stats.passes += 1;

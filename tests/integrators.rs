@@ -1,0 +1,206 @@
+//! The integrators against an analytic case and against each other.
+
+mod common;
+
+use common::*;
+use warpray::cast::BvhCaster;
+use warpray::film::Film;
+use warpray::glam::Vec3;
+use warpray::lights::Lights;
+use warpray::render::bdpt::{Vertex, VertexKind, mis_weight};
+use warpray::render::{Budget, Context, IntegratorKind, RenderOptions, render};
+use warpray::scene::{Camera, Coat, LayerBase, Layered, Material, Scene, cornell_box, metals};
+
+fn render_mean(scene: &Scene, kind: IntegratorKind, size: u32, spp: u32, max_depth: u32) -> (Vec3, Film) {
+    let caster = BvhCaster::new(scene);
+    let opts =
+        RenderOptions { width: size, height: size, budget: Budget::Samples(spp), max_depth, integrator: kind, seed: 5 };
+    let (film, _) = render(scene, &caster, &opts, |_, _| true).unwrap();
+    assert_eq!(film.rejected, 0, "{}: non-finite samples", kind.name());
+    (film.image_mean(), film)
+}
+
+/// Inside a closed sphere of albedo ρ whose every point emits Le, the radiance is
+/// Le / (1 − ρ) everywhere.
+#[test]
+fn furnace_closed_sphere_matches_the_analytic_radiance() {
+    let (v, f) = icosphere(2);
+    // Reverse the winding so the normals (and the one-sided emission) face inward.
+    let tris: Vec<[Vec3; 3]> = f.iter().map(|t| [v[t[0] as usize], v[t[2] as usize], v[t[1] as usize]]).collect();
+    let mut scene = scene_from_triangles(&tris);
+    let (albedo, le) = (0.5, 1.0);
+    scene.materials[0] = Material::Diffuse { albedo: Vec3::splat(albedo) };
+    scene.emission[0] = Vec3::splat(le);
+    scene.camera = Camera::look_at(Vec3::new(0.1, -0.05, 0.0), Vec3::new(0.3, 0.2, 1.0), Vec3::Y, 60.0);
+    let want = le / (1.0 - albedo);
+    // Light tracing is the noisiest here (every pixel gets splats from all over the sphere).
+    for (kind, spp) in [(IntegratorKind::Path, 128), (IntegratorKind::Light, 1024), (IntegratorKind::Bdpt, 32)] {
+        let (mean, _) = render_mean(&scene, kind, 32, spp, 64);
+        let err = (mean - Vec3::splat(want)).abs().max_element() / want;
+        assert!(err < 0.01, "{}: image mean {mean}, analytic {want} (error {:.2} %)", kind.name(), err * 100.0);
+    }
+}
+
+fn relmse(a: &[Vec3], b: &[Vec3]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (*x - *y).length_squared() as f64 / ((*y).length_squared() as f64 + 1e-2)).sum::<f64>()
+        / a.len() as f64
+}
+
+/// Means of all three integrators within 0.5 % of each other, and their per-pixel
+/// disagreement falling as samples grow.
+fn converge_together(scene: &Scene, size: u32, spp: [u32; 3], what: &str) {
+    let mut means = Vec::new();
+    let mut low = Vec::new();
+    let mut high = Vec::new();
+    for (kind, n) in IntegratorKind::ALL.into_iter().zip(spp) {
+        let (_, f_low) = render_mean(scene, kind, size, n / 8, 8);
+        let (m, f) = render_mean(scene, kind, size, n, 8);
+        means.push((kind, m));
+        low.push(f_low.mean());
+        high.push(f.mean());
+    }
+    let lum = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722));
+    for i in 0..3 {
+        for j in i + 1..3 {
+            let (a, b) = (lum(means[i].1), lum(means[j].1));
+            assert!(
+                (a - b).abs() / b < 0.005,
+                "{what}: {} mean {} vs {} mean {} differ by {:.2} %",
+                means[i].0.name(),
+                a,
+                means[j].0.name(),
+                b,
+                (a - b).abs() / b * 100.0
+            );
+            let (r_low, r_high) = (relmse(&low[i], &low[j]), relmse(&high[i], &high[j]));
+            assert!(
+                r_high < 0.5 * r_low,
+                "{what}: relMSE {} vs {} went {r_low:.4} -> {r_high:.4}",
+                means[i].0.name(),
+                means[j].0.name()
+            );
+        }
+    }
+}
+
+#[test]
+fn path_light_and_bdpt_agree_on_the_cornell_box() {
+    converge_together(&cornell_box(), 32, [1024, 1024, 256], "cornell");
+}
+
+/// The Cornell box with glossy, metallic, layered and rough-glass surfaces (no delta
+/// lobes, so light tracing can see every path too).
+fn glossy_glass_box() -> Scene {
+    let mut s = cornell_box();
+    let set = |s: &mut Scene, name: &str, m: Material| {
+        let i = s.material_names.iter().position(|n| n == name).unwrap();
+        s.materials[i] = m;
+    };
+    set(&mut s, "shortBlock", Material::RoughGlass { ior: 1.5, roughness: 0.3, tint: Vec3::new(0.95, 0.97, 1.0) });
+    let (eta, k) = metals::GOLD;
+    set(&mut s, "tallBlock", Material::Conductor { eta, k, roughness: 0.35 });
+    let paint = Layered {
+        coats: [Coat { ior: 1.5, roughness: 0.3, absorption: Vec3::ZERO }; 2],
+        coat_count: 1,
+        base: LayerBase::Diffuse { albedo: Vec3::new(0.725, 0.71, 0.68) },
+    };
+    set(&mut s, "white", Material::Layered(paint));
+    set(
+        &mut s,
+        "green",
+        Material::Glossy { diffuse: Vec3::new(0.1, 0.35, 0.07), specular: Vec3::splat(0.3), roughness: 0.4 },
+    );
+    s
+}
+
+#[test]
+fn path_light_and_bdpt_agree_on_a_glossy_and_glass_scene() {
+    converge_together(&glossy_glass_box(), 32, [1024, 1024, 256], "glossy+glass");
+}
+
+/// A concrete path through the Cornell box: light, floor, back wall, camera.
+fn sample_path(scene: &Scene, mirror_in_middle: bool) -> Vec<Vertex> {
+    let surf = |p: Vec3, n: Vec3, tri: u32, delta: bool| Vertex {
+        kind: VertexKind::Surface,
+        p,
+        n,
+        tri,
+        beta: Vec3::ONE,
+        delta,
+        le: Vec3::ZERO,
+    };
+    let light_tri = (0..scene.triangle_count() as u32).find(|&t| scene.emission_of(t).max_element() > 0.0).unwrap();
+    let floor = 0; // first quad of the built-in box
+    let back = 4;
+    let cam = &scene.camera;
+    vec![
+        Vertex {
+            kind: VertexKind::Light,
+            p: Vec3::new(0.05, 1.98, 0.0),
+            n: -Vec3::Y,
+            tri: light_tri,
+            beta: Vec3::ONE,
+            delta: false,
+            le: Vec3::ONE,
+        },
+        surf(Vec3::new(0.2, 0.0, 0.6), Vec3::Y, floor, mirror_in_middle),
+        surf(Vec3::new(-0.3, 1.2, -1.0), Vec3::Z, back, false),
+        Vertex {
+            kind: VertexKind::Camera,
+            p: cam.position,
+            n: cam.forward,
+            tri: u32::MAX,
+            beta: Vec3::ONE,
+            delta: false,
+            le: Vec3::ZERO,
+        },
+    ]
+}
+
+#[test]
+fn mis_weights_of_all_strategies_sum_to_one() {
+    let scene = cornell_box();
+    let lights = Lights::new(&scene);
+    let caster = BvhCaster::new(&scene);
+    let opts = RenderOptions { width: 64, height: 64, ..Default::default() };
+    let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts };
+    let path = sample_path(&scene, false);
+    let weights: Vec<f32> = (0..path.len()).map(|s| mis_weight(&ctx, &path, s)).collect();
+    let sum: f32 = weights.iter().sum();
+    assert!((sum - 1.0).abs() < 1e-4, "weights {weights:?} sum to {sum}");
+    assert!(weights.iter().all(|&w| w > 0.0 && w < 1.0), "every strategy can make this path: {weights:?}");
+    // A delta vertex in the middle: the strategies connecting at it are impossible and
+    // get weight 0; the others still sum to 1.
+    let path = sample_path(&scene, true);
+    let weights: Vec<f32> = (0..path.len()).map(|s| mis_weight(&ctx, &path, s)).collect();
+    assert_eq!((weights[1], weights[2]), (0.0, 0.0), "{weights:?}");
+    let sum: f32 = weights.iter().sum();
+    assert!((sum - 1.0).abs() < 1e-4, "weights {weights:?} sum to {sum}");
+}
+
+#[test]
+fn the_film_guards_against_nan_and_inf() {
+    let mut film = Film::new(2, 2).unwrap();
+    film.add_pass(&[Vec3::ONE, Vec3::NAN, Vec3::splat(f32::INFINITY), Vec3::new(-1.0, 0.0, 0.0)]);
+    film.add_splats([(0, Vec3::NAN), (1, Vec3::ONE)]);
+    assert_eq!(film.rejected, 4);
+    assert!(film.mean().iter().all(|v| v.is_finite()));
+    assert_eq!(film.mean()[0], Vec3::ONE);
+    assert_eq!(film.mean()[1], Vec3::ONE);
+}
+
+#[test]
+fn every_integrator_is_deterministic_across_thread_counts() {
+    let scene = glossy_glass_box();
+    for kind in IntegratorKind::ALL {
+        let run = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| render_mean(&scene, kind, 24, 2, 8).1)
+        };
+        let (a, b) = (run(1), run(2));
+        assert!(a.sum == b.sum && a.splat == b.splat, "{}: 1 and 2 threads differ", kind.name());
+    }
+}
