@@ -26,6 +26,48 @@ struct Cli {
 enum Command {
     /// Render a scene to PNG and/or EXR (the default command).
     Render(RenderArgs),
+    /// Speed against accuracy: error against a reference over time, per integrator,
+    /// written as CSV and a log-log chart.
+    Converge(ConvergeArgs),
+}
+
+#[derive(Args)]
+struct ConvergeArgs {
+    /// Scene, as for `render`.
+    #[arg(default_value = "cornell")]
+    scene: PathBuf,
+    /// Integrators to compare, comma-separated.
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "path,light,bdpt")]
+    integrators: Vec<IntegratorKind>,
+    /// Time budget of each integrator, seconds.
+    #[arg(long, default_value_t = 10.0)]
+    seconds: f64,
+    /// Log-spaced error checkpoints per integrator.
+    #[arg(long, default_value_t = 24)]
+    checkpoints: usize,
+    /// Reference image (linear EXR of the same size). Without it, one is rendered.
+    #[arg(long)]
+    reference: Option<PathBuf>,
+    /// Samples per pixel of a rendered reference.
+    #[arg(long, default_value_t = 4096)]
+    reference_spp: u32,
+    /// Integrator of a rendered reference.
+    #[arg(long, value_enum, default_value = "path")]
+    reference_integrator: IntegratorKind,
+    /// Image size as WIDTHxHEIGHT.
+    #[arg(long, value_parser = parse_size, default_value = "128x128")]
+    size: (u32, u32),
+    /// Largest number of bounces.
+    #[arg(long, default_value_t = 8)]
+    max_depth: u32,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Output prefix: writes PREFIX.csv, PREFIX.svg, PREFIX.png (and
+    /// PREFIX-reference.exr when the reference is rendered here).
+    #[arg(short, long, default_value = "converge")]
+    output: PathBuf,
 }
 
 #[derive(Args)]
@@ -174,6 +216,110 @@ fn run_render(args: RenderArgs) -> Result<()> {
     })
 }
 
+fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        if n == 0 {
+            return Err(Error::BadSetting("--threads must be at least 1".into()));
+        }
+        pool = pool.num_threads(n);
+    }
+    pool.build().map_err(|e| Error::BadSetting(format!("thread pool: {e}")))
+}
+
+fn run_converge(args: ConvergeArgs) -> Result<()> {
+    use warpray::converge::{ConvergeOptions, read_exr, run, time_to_reach, write_chart, write_csv};
+    let desc = resolve_scene(&args.scene)?;
+    let (width, height) = args.size;
+    warpray::film::check_size(width, height)?;
+    if !(args.seconds > 0.0 && args.seconds.is_finite()) {
+        return Err(Error::BadSetting("--seconds must be positive".into()));
+    }
+    let with_ext = |ext: &str| {
+        let mut name = args.output.clone().into_os_string();
+        name.push(ext);
+        PathBuf::from(name)
+    };
+    let pool = thread_pool(args.threads)?;
+    pool.install(|| {
+        let caster = warpray::cast::BvhCaster::new(&desc.scene);
+        let reference = match &args.reference {
+            Some(path) => {
+                let (w, h, px) = read_exr(path)?;
+                if (w, h) != (width, height) {
+                    return Err(Error::BadSetting(format!(
+                        "{} is {w}x{h}; the render is {width}x{height}",
+                        path.display()
+                    )));
+                }
+                px
+            }
+            None => {
+                eprintln!(
+                    "rendering the reference: {} at {} spp ...",
+                    args.reference_integrator.name(),
+                    args.reference_spp
+                );
+                let opts = RenderOptions {
+                    width,
+                    height,
+                    budget: Budget::Samples(args.reference_spp),
+                    max_depth: args.max_depth,
+                    seed: args.seed ^ 0x5eed_0f_7ef,
+                    integrator: args.reference_integrator,
+                };
+                let bar = progress_bar(opts.budget);
+                let (film, _) = render(&desc.scene, &caster, &opts, |p, _| {
+                    bar.set_position(p as u64);
+                    true
+                })?;
+                bar.finish_and_clear();
+                film.write(&with_ext("-reference.exr"), 1.0)?;
+                film.mean()
+            }
+        };
+        let opts = ConvergeOptions {
+            integrators: args.integrators.clone(),
+            seconds: args.seconds,
+            checkpoints: args.checkpoints,
+            width,
+            height,
+            max_depth: args.max_depth,
+            seed: args.seed,
+        };
+        let rows = run(&desc.scene, &caster, &reference, &opts, |r| {
+            eprintln!(
+                "{:>6} {:8.2} s {:6} spp  RMSE {:.5}  relMSE {:.5}",
+                r.integrator, r.seconds, r.spp, r.rmse, r.relmse
+            )
+        })?;
+        write_csv(&with_ext(".csv"), &rows)?;
+        let title = format!("{}: error against time", desc.scene.source.display());
+        write_chart(&with_ext(".svg"), &rows, &title)?;
+        write_chart(&with_ext(".png"), &rows, &title)?;
+        // The time each integrator needs to reach the worst final RMSE of them all.
+        let target = opts
+            .integrators
+            .iter()
+            .filter_map(|k| rows.iter().rev().find(|r| r.integrator == k.name()).map(|r| r.rmse))
+            .fold(0.0f64, f64::max);
+        println!("time to reach RMSE {target:.5}:");
+        for k in &opts.integrators {
+            match time_to_reach(&rows, k.name(), target) {
+                Some(t) => println!("  {:>6}: {t:.2} s", k.name()),
+                None => println!("  {:>6}: not reached", k.name()),
+            }
+        }
+        println!(
+            "wrote {}, {}, {}",
+            with_ext(".csv").display(),
+            with_ext(".svg").display(),
+            with_ext(".png").display()
+        );
+        Ok(())
+    })
+}
+
 fn progress_bar(budget: Budget) -> ProgressBar {
     let (len, style) = match budget {
         Budget::Samples(n) => (n as u64, "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp, eta {eta}"),
@@ -191,6 +337,7 @@ fn main() -> ExitCode {
     let command = cli.command.unwrap_or(Command::Render(cli.render));
     let result = match command {
         Command::Render(args) => run_render(args),
+        Command::Converge(args) => run_converge(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -71,3 +71,47 @@ fn help_lists_the_options() {
         assert!(text.contains(flag), "--help lacks {flag}");
     }
 }
+
+#[test]
+fn converge_writes_csv_and_charts_and_reads_a_reference() {
+    let dir = scratch("converge");
+    let prefix = dir.join("c");
+    let out = warpray()
+        .args(["converge", "--seconds", "0.3", "--size", "24x16", "--reference-spp", "16", "--checkpoints", "4", "-o"])
+        .arg(&prefix)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let csv = std::fs::read_to_string(dir.join("c.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("integrator,seconds,spp,rmse,relmse"));
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    for name in ["path", "light", "bdpt"] {
+        let mine: Vec<&Vec<&str>> = rows.iter().filter(|r| r[0] == name).collect();
+        assert!(mine.len() >= 2, "{name}: {} checkpoints", mine.len());
+        let secs: Vec<f64> = mine.iter().map(|r| r[1].parse().unwrap()).collect();
+        assert!(secs.windows(2).all(|w| w[0] <= w[1]), "{name}: times not increasing");
+        assert!(mine.iter().all(|r| r[3].parse::<f64>().unwrap().is_finite()));
+    }
+    let svg = std::fs::read_to_string(dir.join("c.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("bdpt"));
+    assert!(image::open(dir.join("c.png")).is_ok());
+    // The rendered reference can be given back as --reference.
+    let out = warpray()
+        .args(["converge", "--seconds", "0.1", "--size", "24x16", "--integrators", "bdpt", "--reference"])
+        .arg(dir.join("c-reference.exr"))
+        .arg("-o")
+        .arg(dir.join("d"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // A reference of the wrong size is an error.
+    let out = warpray()
+        .args(["converge", "--seconds", "0.1", "--size", "32x32", "--reference"])
+        .arg(dir.join("c-reference.exr"))
+        .arg("-o")
+        .arg(dir.join("e"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("24x16"));
+}

@@ -1,0 +1,268 @@
+//! Speed against accuracy: render a scene with several integrators for a time budget
+//! each, measure the error against a reference image at log-spaced checkpoints, and
+//! write the curves as CSV and as a log-log chart (plotters).
+//!
+//! Errors: RMSE over all pixels and channels, and relMSE, the mean over pixels and
+//! channels of `(x − r)² / (r² + 0.01)` (the 0.01 keeps dark pixels from dominating).
+
+use crate::cast::RayCaster;
+use crate::error::{Error, Result};
+use crate::film::{Film, atomic_write};
+use crate::render::{Budget, IntegratorKind, RenderOptions, render};
+use crate::scene::Scene;
+use glam::Vec3;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+/// Root-mean-square error over all pixels and channels.
+pub fn rmse(image: &[Vec3], reference: &[Vec3]) -> f64 {
+    let sum: f64 = image.iter().zip(reference).map(|(a, b)| (*a - *b).length_squared() as f64).sum();
+    (sum / (3 * image.len().max(1)) as f64).sqrt()
+}
+
+/// Relative MSE: mean of `(x − r)² / (r² + 0.01)` over pixels and channels.
+pub fn relmse(image: &[Vec3], reference: &[Vec3]) -> f64 {
+    let sum: f64 = image
+        .iter()
+        .zip(reference)
+        .map(|(a, b)| {
+            let (d, r) = ((*a - *b).as_dvec3(), b.as_dvec3());
+            (d * d / (r * r + 0.01)).element_sum()
+        })
+        .sum();
+    sum / (3 * image.len().max(1)) as f64
+}
+
+/// One measurement of one integrator's progress.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Checkpoint {
+    pub integrator: &'static str,
+    /// Rendering time so far (error evaluation excluded).
+    pub seconds: f64,
+    pub spp: u32,
+    pub rmse: f64,
+    pub relmse: f64,
+}
+
+#[derive(Clone, Debug)]
+pub struct ConvergeOptions {
+    pub integrators: Vec<IntegratorKind>,
+    /// Time budget of each integrator, seconds.
+    pub seconds: f64,
+    /// Number of log-spaced checkpoints from `seconds / 200` to `seconds`.
+    pub checkpoints: usize,
+    pub width: u32,
+    pub height: u32,
+    pub max_depth: u32,
+    pub seed: u64,
+}
+
+/// Renders with every integrator, measuring against `reference` (pixel order, the
+/// same size). `progress(integrator, checkpoint)` sees each row as it is made.
+pub fn run(
+    scene: &Scene,
+    caster: &dyn RayCaster,
+    reference: &[Vec3],
+    opts: &ConvergeOptions,
+    mut progress: impl FnMut(&Checkpoint),
+) -> Result<Vec<Checkpoint>> {
+    if reference.len() != (opts.width * opts.height) as usize {
+        return Err(Error::BadSetting(format!(
+            "the reference has {} pixels; the render has {}x{}",
+            reference.len(),
+            opts.width,
+            opts.height
+        )));
+    }
+    let n = opts.checkpoints.max(2);
+    let times: Vec<f64> = (0..n).map(|i| opts.seconds / 200.0 * 200f64.powf(i as f64 / (n - 1) as f64)).collect();
+    let mut rows = Vec::new();
+    for &kind in &opts.integrators {
+        let render_opts = RenderOptions {
+            width: opts.width,
+            height: opts.height,
+            budget: Budget::Seconds(opts.seconds),
+            max_depth: opts.max_depth,
+            seed: opts.seed,
+            integrator: kind,
+        };
+        let start = Instant::now();
+        let mut measuring = Duration::ZERO;
+        let mut next = 0;
+        let mut measure = |film: &Film, rows: &mut Vec<Checkpoint>, force: bool| {
+            let elapsed = (start.elapsed() - measuring).as_secs_f64();
+            if !force && (next >= times.len() || elapsed < times[next]) {
+                return;
+            }
+            let t0 = Instant::now();
+            let mean = film.mean();
+            let row = Checkpoint {
+                integrator: kind.name(),
+                seconds: elapsed,
+                spp: film.passes,
+                rmse: rmse(&mean, reference),
+                relmse: relmse(&mean, reference),
+            };
+            progress(&row);
+            rows.push(row);
+            while next < times.len() && times[next] <= elapsed {
+                next += 1;
+            }
+            measuring += t0.elapsed();
+        };
+        let (film, _) = render(scene, caster, &render_opts, |_, film| {
+            measure(film, &mut rows, false);
+            true
+        })?;
+        if rows.last().is_none_or(|r| r.spp != film.passes || r.integrator != kind.name()) {
+            measure(&film, &mut rows, true);
+        }
+    }
+    Ok(rows)
+}
+
+/// Seconds each integrator first reached an RMSE of `target` (linear interpolation in
+/// log-log between checkpoints), or `None` if it never did.
+pub fn time_to_reach(rows: &[Checkpoint], integrator: &str, target: f64) -> Option<f64> {
+    let pts: Vec<&Checkpoint> = rows.iter().filter(|r| r.integrator == integrator).collect();
+    if pts.first()?.rmse <= target {
+        return Some(pts[0].seconds);
+    }
+    pts.windows(2).find(|w| w[1].rmse <= target).map(|w| {
+        let (t0, t1) = (w[0].seconds.max(1e-9).ln(), w[1].seconds.max(1e-9).ln());
+        let (e0, e1) = (w[0].rmse.ln(), w[1].rmse.ln());
+        let f = if e1 == e0 { 1.0 } else { (target.ln() - e0) / (e1 - e0) };
+        (t0 + f * (t1 - t0)).exp()
+    })
+}
+
+pub fn write_csv(path: &Path, rows: &[Checkpoint]) -> Result<()> {
+    let mut text = String::from("integrator,seconds,spp,rmse,relmse\n");
+    for r in rows {
+        text.push_str(&format!("{},{:.6},{},{:.8e},{:.8e}\n", r.integrator, r.seconds, r.spp, r.rmse, r.relmse));
+    }
+    atomic_write(path, |tmp| std::fs::write(tmp, &text).map_err(|e| e.to_string()))
+}
+
+static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
+
+/// A log-log chart of RMSE and relMSE against seconds, one line per integrator; SVG or
+/// PNG by the extension of `path`.
+pub fn write_chart(path: &Path, rows: &[Checkpoint], title: &str) -> Result<()> {
+    use plotters::prelude::*;
+    let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+    let svg = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("svg"));
+    let draw = |tmp: &Path| -> std::result::Result<(), String> {
+        let size = (1200, 520);
+        if svg {
+            chart(SVGBackend::new(tmp, size).into_drawing_area(), rows, title)
+        } else {
+            // Draw into memory and encode with the `image` crate (plotters' own encoder
+            // would pull in a second version of it).
+            let mut buf = vec![0u8; (size.0 * size.1 * 3) as usize];
+            chart(BitMapBackend::with_buffer(&mut buf, size).into_drawing_area(), rows, title)?;
+            image::save_buffer_with_format(tmp, &buf, size.0, size.1, image::ColorType::Rgb8, image::ImageFormat::Png)
+                .map_err(|e| e.to_string())
+        }
+    };
+    atomic_write(path, draw)
+}
+
+fn chart<DB: plotters::prelude::DrawingBackend>(
+    root: plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
+    rows: &[Checkpoint],
+    title: &str,
+) -> std::result::Result<(), String> {
+    use plotters::prelude::*;
+    let err = |e: &dyn std::fmt::Display| e.to_string();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let root = root.titled(title, ("sans-serif", 22)).map_err(|e| err(&e))?;
+    let panels = root.split_evenly((1, 2));
+    let names: Vec<&str> = {
+        let mut v: Vec<&str> = rows.iter().map(|r| r.integrator).collect();
+        v.dedup();
+        v
+    };
+    let colours = [
+        RGBColor(31, 119, 180),
+        RGBColor(214, 39, 40),
+        RGBColor(44, 160, 44),
+        RGBColor(148, 103, 189),
+        RGBColor(255, 127, 14),
+        RGBColor(23, 190, 207),
+        RGBColor(140, 86, 75),
+    ];
+    for (panel, (label, metric)) in panels.iter().zip([("RMSE", 0), ("relMSE", 1)]) {
+        let value = |r: &Checkpoint| if metric == 0 { r.rmse } else { r.relmse };
+        let pos: Vec<&Checkpoint> = rows.iter().filter(|r| value(r) > 0.0 && r.seconds > 0.0).collect();
+        if pos.is_empty() {
+            continue;
+        }
+        let (t0, t1) = pos.iter().fold((f64::MAX, 0f64), |(a, b), r| (a.min(r.seconds), b.max(r.seconds)));
+        let (e0, e1) = pos.iter().fold((f64::MAX, 0f64), |(a, b), r| (a.min(value(r)), b.max(value(r))));
+        let mut c = ChartBuilder::on(panel)
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d((t0 * 0.9..t1 * 1.1).log_scale(), (e0 * 0.8..e1 * 1.25).log_scale())
+            .map_err(|e| err(&e))?;
+        c.configure_mesh().x_desc("seconds").y_desc(label).draw().map_err(|e| err(&e))?;
+        for (i, name) in names.iter().enumerate() {
+            let colour = colours[i % colours.len()];
+            let series: Vec<(f64, f64)> =
+                pos.iter().filter(|r| r.integrator == *name).map(|r| (r.seconds, value(r))).collect();
+            c.draw_series(LineSeries::new(series, colour.stroke_width(2)))
+                .map_err(|e| err(&e))?
+                .label(*name)
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], colour.stroke_width(2)));
+        }
+        c.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| err(&e))?;
+    }
+    root.present().map_err(|e| err(&e))
+}
+
+/// Reads a linear RGB EXR (e.g. a reference written by `warpray render -o ref.exr`).
+pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
+    use exr::prelude::*;
+    let image = read_first_rgba_layer_from_file(
+        path,
+        |res, _| (res.width(), res.height(), vec![Vec3::ZERO; res.width() * res.height()]),
+        |px: &mut (usize, usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            let w = px.0;
+            px.2[pos.y() * w + pos.x()] = Vec3::new(r, g, b);
+        },
+    )
+    .map_err(|e| match e {
+        exr::error::Error::Io(io) => crate::error::Error::io(path, io),
+        other => crate::error::Error::Output { path: path.into(), msg: format!("not a readable EXR: {other}") },
+    })?;
+    let (w, h, px) = image.layer_data.channel_data.pixels;
+    Ok((w as u32, h as u32, px))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(integrator: &'static str, seconds: f64, rmse: f64) -> Checkpoint {
+        Checkpoint { integrator, seconds, spp: 1, rmse, relmse: rmse }
+    }
+
+    #[test]
+    fn error_metrics_have_known_values() {
+        let reference = [Vec3::ONE, Vec3::ZERO];
+        let image = [Vec3::new(2.0, 1.0, 1.0), Vec3::ZERO];
+        assert!((rmse(&image, &reference) - (1.0f64 / 6.0).sqrt()).abs() < 1e-9);
+        assert!((relmse(&image, &reference) - 1.0 / 1.01 / 6.0).abs() < 1e-9);
+        assert_eq!(rmse(&reference, &reference), 0.0);
+    }
+
+    #[test]
+    fn time_to_reach_interpolates_in_log_log() {
+        let rows = [row("a", 1.0, 0.1), row("a", 100.0, 0.001), row("b", 1.0, 0.5)];
+        let t = time_to_reach(&rows, "a", 0.01).unwrap();
+        assert!((t - 10.0).abs() < 1e-6, "{t}");
+        assert_eq!(time_to_reach(&rows, "a", 0.2), Some(1.0));
+        assert_eq!(time_to_reach(&rows, "b", 0.1), None);
+    }
+}
