@@ -81,7 +81,7 @@ fn pixel_of(film: Vec2, width: u32, height: u32) -> u32 {
 }
 
 /// `|cos|` between a vertex's normal and `w` (1 for point lights).
-fn cos_at(v: &Vertex, w: Vec3) -> f32 {
+pub(crate) fn cos_at(v: &Vertex, w: Vec3) -> f32 {
     match v.kind {
         VertexKind::Light if v.n == Vec3::ZERO => 1.0,
         _ => v.n.dot(w).abs(),
@@ -131,10 +131,17 @@ fn light_origin_pdf(ctx: &Context, v: &Vertex) -> f32 {
 }
 
 /// Balance-heuristic weight of strategy `s` for the full path `path` (light end first,
-/// camera last). Strategies whose connection would touch a delta vertex, and the
-/// strategy that would need a path to hit the camera (t = 0) or a point light by
-/// chance (s = 0), are excluded.
+/// camera last), one sample per strategy (BDPT). See [`mis_weight_counts`].
 pub fn mis_weight(ctx: &Context, path: &[Vertex], s: usize) -> f32 {
+    mis_weight_counts(ctx, path, s, |_, _| 1.0)
+}
+
+/// Balance-heuristic weight of strategy `s` for the full path `path`, where strategy
+/// (s', t') takes `count(s', t')` samples per camera sample (a light vertex cache makes
+/// connections more numerous than one per light path). Strategies whose connection
+/// would touch a delta vertex, and those that would need a path to hit the camera
+/// (t = 0) or a point light by chance (s = 0), are excluded.
+pub fn mis_weight_counts(ctx: &Context, path: &[Vertex], s: usize, count: impl Fn(usize, usize) -> f64) -> f32 {
     let k = path.len() - 1;
     let pl: Vec<f64> = (0..=k)
         .map(|i| match i {
@@ -157,7 +164,7 @@ pub fn mis_weight(ctx: &Context, path: &[Vertex], s: usize) -> f32 {
         let connectible = |v: &Vertex| v.kind != VertexKind::Surface || !v.delta;
         connectible(&path[s - 1]) && connectible(&path[s])
     };
-    let p = |s: usize| pl[..s].iter().product::<f64>() * pc[s..].iter().product::<f64>();
+    let p = |s: usize| count(s, k + 1 - s) * pl[..s].iter().product::<f64>() * pc[s..].iter().product::<f64>();
     let total: f64 = (0..=k).filter(|&s| valid(s)).map(p).sum();
     if total > 0.0 && valid(s) { (p(s) / total) as f32 } else { 0.0 }
 }
@@ -170,7 +177,7 @@ fn closest(ctx: &Context, ray: Ray) -> Hit {
 
 /// Continues a subpath from `ray` until it leaves the scene, is absorbed, or holds
 /// `max_vertices`. Returns the number of rays cast.
-fn random_walk(
+pub(crate) fn random_walk(
     ctx: &Context,
     mut ray: Ray,
     mut beta: Vec3,
@@ -228,7 +235,7 @@ fn random_walk(
 }
 
 /// A light subpath: a light sample, then a walk in importance mode.
-fn light_subpath(ctx: &Context, rng: &mut Rng, max_vertices: usize, verts: &mut Vec<Vertex>) -> usize {
+pub(crate) fn light_subpath(ctx: &Context, rng: &mut Rng, max_vertices: usize, verts: &mut Vec<Vertex>) -> usize {
     verts.clear();
     let Some(ls) = ctx.lights.sample(ctx.scene, rng.uniform(), rng.uniform2()) else { return 0 };
     let origin = light_vertex(&ls);
@@ -247,7 +254,7 @@ fn light_subpath(ctx: &Context, rng: &mut Rng, max_vertices: usize, verts: &mut 
     random_walk(ctx, Ray::new(start, dir), beta, TransportMode::Importance, rng, max_vertices, verts)
 }
 
-fn light_vertex(ls: &LightSample) -> Vertex {
+pub(crate) fn light_vertex(ls: &LightSample) -> Vertex {
     let tri = ls.tri;
     Vertex {
         kind: VertexKind::Light,
@@ -261,7 +268,7 @@ fn light_vertex(ls: &LightSample) -> Vertex {
 }
 
 /// What one vertex scatters from `wo_point` toward `wi_point` (emission for a light).
-fn vertex_f(ctx: &Context, v: &Vertex, prev: Option<&Vertex>, toward: Vec3, mode: TransportMode) -> Vec3 {
+pub(crate) fn vertex_f(ctx: &Context, v: &Vertex, prev: Option<&Vertex>, toward: Vec3, mode: TransportMode) -> Vec3 {
     let w = (toward - v.p).normalize();
     match v.kind {
         VertexKind::Light => {
@@ -282,7 +289,7 @@ fn vertex_f(ctx: &Context, v: &Vertex, prev: Option<&Vertex>, toward: Vec3, mode
 }
 
 /// A shadow ray between two vertices (offset off both surfaces).
-fn shadow_ray(a: &Vertex, b: &Vertex) -> Ray {
+pub(crate) fn shadow_ray(a: &Vertex, b: &Vertex) -> Ray {
     let off = |v: &Vertex, toward: Vec3| {
         if v.kind == VertexKind::Camera || v.n == Vec3::ZERO {
             v.p
@@ -295,16 +302,16 @@ fn shadow_ray(a: &Vertex, b: &Vertex) -> Ray {
     Ray::segment(pa, pb - pa, 1.0 - 1e-4)
 }
 
-fn connectible(ctx: &Context, v: &Vertex) -> bool {
+pub(crate) fn connectible(ctx: &Context, v: &Vertex) -> bool {
     v.kind != VertexKind::Surface || !ctx.scene.material(v.tri).is_delta()
 }
 
 /// A contribution waiting for its shadow ray: value, and where it goes (`None`: this
 /// sample's pixel; `Some(p)`: a splat on pixel `p`).
-type Pending = (Option<Ray>, Vec3, Option<u32>);
+pub(crate) type Pending = (Option<Ray>, Vec3, Option<u32>);
 
 /// The t = 1 strategy for light vertex `s - 1`: its contribution to the pixel it projects on.
-fn connect_to_camera(ctx: &Context, light: &[Vertex], s: usize, cam_v: &Vertex) -> Option<(Vec3, u32, Ray)> {
+pub(crate) fn connect_to_camera(ctx: &Context, light: &[Vertex], s: usize, cam_v: &Vertex) -> Option<(Vec3, u32, Ray)> {
     let v = &light[s - 1];
     if !connectible(ctx, v) {
         return None;
@@ -321,7 +328,7 @@ fn connect_to_camera(ctx: &Context, light: &[Vertex], s: usize, cam_v: &Vertex) 
 }
 
 /// The camera vertex at the sample's eye point.
-fn camera_vertex(cam: &Camera) -> Vertex {
+pub(crate) fn camera_vertex(cam: &Camera) -> Vertex {
     Vertex {
         kind: VertexKind::Camera,
         p: cam.position,
@@ -402,7 +409,7 @@ impl Bdpt {
 /// The full path of strategy (s, t): light vertices `0..s`, then camera vertices
 /// `t-1..=0`, with the connection vertices marked non-delta (they are evaluated by
 /// their continuous part).
-fn full_path(light: &[Vertex], cam: &[Vertex], s: usize, t: usize, out: &mut Vec<Vertex>) {
+pub(crate) fn full_path(light: &[Vertex], cam: &[Vertex], s: usize, t: usize, out: &mut Vec<Vertex>) {
     out.clear();
     out.extend_from_slice(&light[..s]);
     out.extend(cam[..t].iter().rev());
@@ -414,112 +421,103 @@ fn full_path(light: &[Vertex], cam: &[Vertex], s: usize, t: usize, out: &mut Vec
     }
 }
 
-fn sample_pixel(
+/// Strategy s = 0 at camera vertex `t - 1`: the camera path reached an emitter.
+/// Returns the unweighted contribution and the full path (in `path`).
+pub(crate) fn strategy_emitter(cam: &[Vertex], t: usize, light: &[Vertex], path: &mut Vec<Vertex>) -> Option<Vec3> {
+    let v = cam[t - 1];
+    if v.le.max_element() <= 0.0 || v.n.dot(cam[t - 2].p - v.p) <= 0.0 {
+        return None;
+    }
+    full_path(light, cam, 0, t, path);
+    path[0] = Vertex { kind: VertexKind::Light, ..path[0] };
+    Some(v.beta * v.le)
+}
+
+/// Strategy s = 1 at camera vertex `t - 1`: a fresh light sample (next-event
+/// estimation). Returns the unweighted contribution and its shadow ray; the full path
+/// is left in `path`.
+pub(crate) fn strategy_light_sample(
     ctx: &Context,
-    pixel: u32,
+    cam: &[Vertex],
+    t: usize,
     rng: &mut Rng,
-    cam: &mut Vec<Vertex>,
-    light: &mut Vec<Vertex>,
     path: &mut Vec<Vertex>,
-) -> (Vec3, Vec<(u32, Vec3)>, usize) {
+) -> Option<(Vec3, Ray)> {
+    let c = &cam[t - 1];
+    if !connectible(ctx, c) {
+        return None;
+    }
+    let ls = ctx.lights.sample(ctx.scene, rng.uniform(), rng.uniform2())?;
+    let lv = light_vertex(&ls);
+    let d = lv.p - c.p;
+    let d2 = d.length_squared();
+    if d2 == 0.0 {
+        return None;
+    }
+    let wdir = d / d2.sqrt();
+    let le = vertex_f(ctx, &lv, None, c.p, TransportMode::Importance);
+    let f = vertex_f(ctx, c, cam.get(t - 2), lv.p, TransportMode::Radiance);
+    let g = cos_at(c, wdir) * cos_at(&lv, wdir) / d2;
+    let l = c.beta * f * le * lv.beta * g;
+    if l.max_element() <= 0.0 {
+        return None;
+    }
+    path.clear();
+    path.push(lv);
+    path.extend(cam[..t].iter().rev());
+    path[1].delta = false;
+    Some((l, shadow_ray(c, &lv)))
+}
+
+/// A general connection: light vertex `s - 1` of `light` with camera vertex `t - 1`.
+/// Returns the unweighted contribution and its shadow ray; the full path is left in `path`.
+pub(crate) fn strategy_connect(
+    ctx: &Context,
+    light: &[Vertex],
+    s: usize,
+    cam: &[Vertex],
+    t: usize,
+    path: &mut Vec<Vertex>,
+) -> Option<(Vec3, Ray)> {
+    let (lv, c) = (&light[s - 1], &cam[t - 1]);
+    if !connectible(ctx, lv) || !connectible(ctx, c) {
+        return None;
+    }
+    let d = lv.p - c.p;
+    let d2 = d.length_squared();
+    if d2 == 0.0 {
+        return None;
+    }
+    let wdir = d / d2.sqrt();
+    let fl = vertex_f(ctx, lv, if s >= 2 { light.get(s - 2) } else { None }, c.p, TransportMode::Importance);
+    let fc = vertex_f(ctx, c, cam.get(t - 2), lv.p, TransportMode::Radiance);
+    let g = cos_at(lv, wdir) * cos_at(c, wdir) / d2;
+    let l = lv.beta * fl * g * fc * c.beta;
+    if l.max_element() <= 0.0 {
+        return None;
+    }
+    full_path(light, cam, s, t, path);
+    Some((l, shadow_ray(lv, c)))
+}
+
+/// A camera subpath through pixel `pixel` (jittered), up to `max_depth` bounces.
+pub(crate) fn camera_subpath(ctx: &Context, pixel: u32, rng: &mut Rng, cam: &mut Vec<Vertex>) -> usize {
     let (w, h) = (ctx.opts.width, ctx.opts.height);
-    let max_depth = ctx.opts.max_depth as usize;
     let camera = &ctx.scene.camera;
-    // Camera subpath.
     cam.clear();
-    let cam_v = camera_vertex(camera);
-    cam.push(cam_v);
+    cam.push(camera_vertex(camera));
     let film_pos = Vec2::new((pixel % w) as f32, (pixel / w) as f32) + rng.uniform2();
     let ray = camera.generate_ray(film_pos, w, h, Vec2::ZERO);
-    let mut rays = random_walk(ctx, ray, Vec3::ONE, TransportMode::Radiance, rng, max_depth + 2, cam);
-    // Light subpath.
-    let mut light_rng = rng.derive(1);
-    rays += light_subpath(ctx, &mut light_rng, max_depth + 1, light);
+    random_walk(ctx, ray, Vec3::ONE, TransportMode::Radiance, rng, ctx.opts.max_depth as usize + 2, cam)
+}
 
-    let mut pending: Vec<Pending> = Vec::new();
-    for t in 1..=cam.len() {
-        for s in 0..=light.len() {
-            let depth = (s + t) as isize - 2;
-            if depth < 0 || depth as usize > max_depth || (s == 0 && t < 2) {
-                continue;
-            }
-            match (s, t) {
-                (0, _) => {
-                    // The camera path reached an emitter.
-                    let v = cam[t - 1];
-                    if v.le.max_element() <= 0.0 || v.n.dot(cam[t - 2].p - v.p) <= 0.0 {
-                        continue;
-                    }
-                    let l = v.beta * v.le;
-                    full_path(light, cam, 0, t, path);
-                    path[0] = Vertex { kind: VertexKind::Light, ..path[0] };
-                    let weight = mis_weight(ctx, path, 0);
-                    pending.push((None, l * weight, None));
-                }
-                (_, 1) => {
-                    if let Some((l, px, ray)) = connect_to_camera(ctx, light, s, &cam_v) {
-                        full_path(light, cam, s, 1, path);
-                        let weight = mis_weight(ctx, path, s);
-                        pending.push((Some(ray), l * weight, Some(px)));
-                    }
-                }
-                (1, _) => {
-                    let c = &cam[t - 1];
-                    if !connectible(ctx, c) {
-                        continue;
-                    }
-                    let Some(ls) = ctx.lights.sample(ctx.scene, rng.uniform(), rng.uniform2()) else { continue };
-                    let lv = light_vertex(&ls);
-                    let d = lv.p - c.p;
-                    let d2 = d.length_squared();
-                    if d2 == 0.0 {
-                        continue;
-                    }
-                    let wdir = d / d2.sqrt();
-                    let le = vertex_f(ctx, &lv, None, c.p, TransportMode::Importance);
-                    let f = vertex_f(ctx, c, cam.get(t - 2), lv.p, TransportMode::Radiance);
-                    let g = cos_at(c, wdir) * cos_at(&lv, wdir) / d2;
-                    let l = c.beta * f * le * lv.beta * g;
-                    if l.max_element() <= 0.0 {
-                        continue;
-                    }
-                    path.clear();
-                    path.push(lv);
-                    path.extend(cam[..t].iter().rev());
-                    path[1].delta = false;
-                    let weight = mis_weight(ctx, path, 1);
-                    pending.push((Some(shadow_ray(c, &lv)), l * weight, None));
-                }
-                _ => {
-                    let (lv, c) = (&light[s - 1], &cam[t - 1]);
-                    if !connectible(ctx, lv) || !connectible(ctx, c) {
-                        continue;
-                    }
-                    let d = lv.p - c.p;
-                    let d2 = d.length_squared();
-                    if d2 == 0.0 {
-                        continue;
-                    }
-                    let wdir = d / d2.sqrt();
-                    let fl = vertex_f(ctx, lv, light.get(s - 2), c.p, TransportMode::Importance);
-                    let fc = vertex_f(ctx, c, cam.get(t - 2), lv.p, TransportMode::Radiance);
-                    let g = cos_at(lv, wdir) * cos_at(c, wdir) / d2;
-                    let l = lv.beta * fl * g * fc * c.beta;
-                    if l.max_element() <= 0.0 {
-                        continue;
-                    }
-                    full_path(light, cam, s, t, path);
-                    let weight = mis_weight(ctx, path, s);
-                    pending.push((Some(shadow_ray(lv, c)), l * weight, None));
-                }
-            }
-        }
-    }
-    // One batch of shadow rays for the whole sample.
+/// Casts the shadow rays of one sample's pending contributions as one batch and sums
+/// the visible ones: `(pixel estimate, splats, rays cast)`.
+pub(crate) fn resolve_pending(ctx: &Context, pending: Vec<Pending>) -> (Vec3, Vec<(u32, Vec3)>, usize) {
     let shadow: Vec<Ray> = pending.iter().filter_map(|p| p.0).collect();
     let mut blocked = vec![false; shadow.len()];
     ctx.caster.occluded(&shadow, &mut blocked);
-    rays += shadow.len();
+    let rays = shadow.len();
     let mut blocked = blocked.into_iter();
     let (mut estimate, mut splats) = (Vec3::ZERO, Vec::new());
     for (ray, l, target) in pending {
@@ -532,4 +530,54 @@ fn sample_pixel(
         }
     }
     (estimate, splats, rays)
+}
+
+fn sample_pixel(
+    ctx: &Context,
+    pixel: u32,
+    rng: &mut Rng,
+    cam: &mut Vec<Vertex>,
+    light: &mut Vec<Vertex>,
+    path: &mut Vec<Vertex>,
+) -> (Vec3, Vec<(u32, Vec3)>, usize) {
+    let max_depth = ctx.opts.max_depth as usize;
+    let cam_v = camera_vertex(&ctx.scene.camera);
+    let mut rays = camera_subpath(ctx, pixel, rng, cam);
+    let mut light_rng = rng.derive(1);
+    rays += light_subpath(ctx, &mut light_rng, max_depth + 1, light);
+
+    let mut pending: Vec<Pending> = Vec::new();
+    for t in 1..=cam.len() {
+        for s in 0..=light.len() {
+            let depth = (s + t) as isize - 2;
+            if depth < 0 || depth as usize > max_depth || (s == 0 && t < 2) {
+                continue;
+            }
+            match (s, t) {
+                (0, _) => {
+                    if let Some(l) = strategy_emitter(cam, t, light, path) {
+                        pending.push((None, l * mis_weight(ctx, path, 0), None));
+                    }
+                }
+                (_, 1) => {
+                    if let Some((l, px, ray)) = connect_to_camera(ctx, light, s, &cam_v) {
+                        full_path(light, cam, s, 1, path);
+                        pending.push((Some(ray), l * mis_weight(ctx, path, s), Some(px)));
+                    }
+                }
+                (1, _) => {
+                    if let Some((l, ray)) = strategy_light_sample(ctx, cam, t, rng, path) {
+                        pending.push((Some(ray), l * mis_weight(ctx, path, 1), None));
+                    }
+                }
+                _ => {
+                    if let Some((l, ray)) = strategy_connect(ctx, light, s, cam, t, path) {
+                        pending.push((Some(ray), l * mis_weight(ctx, path, s), None));
+                    }
+                }
+            }
+        }
+    }
+    let (estimate, splats, shadow_rays) = resolve_pending(ctx, pending);
+    (estimate, splats, rays + shadow_rays)
 }
