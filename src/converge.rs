@@ -85,6 +85,7 @@ pub fn run(
             max_depth: opts.max_depth,
             seed: opts.seed,
             integrator: kind,
+            ..Default::default()
         };
         let start = Instant::now();
         let mut measuring = Duration::ZERO;

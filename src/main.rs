@@ -155,6 +155,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         max_depth: args.max_depth.or(s.max_depth).unwrap_or(8),
         seed: args.seed.or(s.seed).unwrap_or(0),
         integrator,
+        ..Default::default()
     };
     for out in &args.output {
         match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
@@ -267,6 +268,7 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
                     max_depth: args.max_depth,
                     seed: args.seed ^ 0x5eed_0f_7ef,
                     integrator: args.reference_integrator,
+                    ..Default::default()
                 };
                 let bar = progress_bar(opts.budget);
                 let (film, _) = render(&desc.scene, &caster, &opts, |p, _| {

@@ -6,9 +6,11 @@
 //! Russian roulette starts after 3 bounces.
 
 pub mod bdpt;
+pub mod lvc;
 mod path;
 
 pub use bdpt::{Bdpt, LightTracer};
+pub use lvc::{LvcBdpt, LvcParams};
 pub use path::PathTracer;
 
 use crate::cast::RayCaster;
@@ -27,6 +29,8 @@ pub enum IntegratorKind {
     Light,
     /// Bidirectional path tracing with MIS over all strategies.
     Bdpt,
+    /// BDPT with a light vertex cache (LVC-BDPT), one task per path.
+    Lvc,
 }
 
 impl IntegratorKind {
@@ -35,10 +39,14 @@ impl IntegratorKind {
             IntegratorKind::Path => "path",
             IntegratorKind::Light => "light",
             IntegratorKind::Bdpt => "bdpt",
+            IntegratorKind::Lvc => "lvc",
         }
     }
 
-    pub const ALL: [IntegratorKind; 3] = [IntegratorKind::Path, IntegratorKind::Light, IntegratorKind::Bdpt];
+    /// The unidirectional and bidirectional references (the light-transport core).
+    pub const CORE: [IntegratorKind; 3] = [IntegratorKind::Path, IntegratorKind::Light, IntegratorKind::Bdpt];
+    pub const ALL: [IntegratorKind; 4] =
+        [IntegratorKind::Path, IntegratorKind::Light, IntegratorKind::Bdpt, IntegratorKind::Lvc];
 }
 
 /// A running integrator with its buffers.
@@ -46,6 +54,7 @@ enum Integrator {
     Path(PathTracer),
     Light(LightTracer),
     Bdpt(Bdpt),
+    Lvc(LvcBdpt),
 }
 
 impl std::str::FromStr for IntegratorKind {
@@ -73,6 +82,8 @@ pub struct RenderOptions {
     pub max_depth: u32,
     pub seed: u64,
     pub integrator: IntegratorKind,
+    /// Light-vertex-cache settings (LVC-BDPT).
+    pub lvc: LvcParams,
 }
 
 impl Default for RenderOptions {
@@ -84,6 +95,7 @@ impl Default for RenderOptions {
             max_depth: 8,
             seed: 0,
             integrator: IntegratorKind::Path,
+            lvc: LvcParams::default(),
         }
     }
 }
@@ -145,6 +157,7 @@ pub fn render(
         IntegratorKind::Path => Integrator::Path(PathTracer::new(&ctx)),
         IntegratorKind::Light => Integrator::Light(LightTracer),
         IntegratorKind::Bdpt => Integrator::Bdpt(Bdpt),
+        IntegratorKind::Lvc => Integrator::Lvc(LvcBdpt::new(opts.lvc)),
     };
     loop {
         let done = match opts.budget {
@@ -158,6 +171,7 @@ pub fn render(
             Integrator::Path(i) => i.render_pass(&ctx, stats.passes, &mut film),
             Integrator::Light(i) => i.render_pass(&ctx, stats.passes, &mut film),
             Integrator::Bdpt(i) => i.render_pass(&ctx, stats.passes, &mut film),
+            Integrator::Lvc(i) => i.render_pass(&ctx, stats.passes, &mut film),
         };
         stats.rays += pass.rays as u64;
         stats.cast_seconds += pass.seconds;

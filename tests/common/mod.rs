@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use warpray::glam::Vec3;
 use warpray::sampling::{Rng, uniform_sphere};
-use warpray::scene::{Material, Scene, find_model, models_dir};
+use warpray::scene::{Coat, LayerBase, Layered, Material, Scene, cornell_box, find_model, metals, models_dir};
 
 /// The path of a standard model. A test that needs a model which is not there fails
 /// loudly, naming the folder and the variable to set: it never passes silently.
@@ -108,4 +108,29 @@ pub fn icosphere(subdivisions: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
         f = next;
     }
     (v, f)
+}
+
+/// The Cornell box with glossy, metallic, layered and rough-glass surfaces (no delta
+/// lobes, so light tracing can see every path too).
+pub fn glossy_glass_box() -> Scene {
+    let mut s = cornell_box();
+    let set = |s: &mut Scene, name: &str, m: Material| {
+        let i = s.material_names.iter().position(|n| n == name).unwrap();
+        s.materials[i] = m;
+    };
+    set(&mut s, "shortBlock", Material::RoughGlass { ior: 1.5, roughness: 0.3, tint: Vec3::new(0.95, 0.97, 1.0) });
+    let (eta, k) = metals::GOLD;
+    set(&mut s, "tallBlock", Material::Conductor { eta, k, roughness: 0.35 });
+    let paint = Layered {
+        coats: [Coat { ior: 1.5, roughness: 0.3, absorption: Vec3::ZERO }; 2],
+        coat_count: 1,
+        base: LayerBase::Diffuse { albedo: Vec3::new(0.725, 0.71, 0.68) },
+    };
+    set(&mut s, "white", Material::Layered(paint));
+    set(
+        &mut s,
+        "green",
+        Material::Glossy { diffuse: Vec3::new(0.1, 0.35, 0.07), specular: Vec3::splat(0.3), roughness: 0.4 },
+    );
+    s
 }

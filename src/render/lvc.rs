@@ -1,0 +1,241 @@
+//! LVC-BDPT (Davidovič et al. 2014), the megakernel baseline: one task per path.
+//!
+//! Each iteration first traces `N_L` light subpaths and stores their connectible surface
+//! vertices in a light vertex cache; every light vertex is also splatted to the camera.
+//! Then each camera subpath, at each vertex, takes the emitter it hit (s = 0), a fresh
+//! light sample (s = 1), and `n_c` connections to cache vertices drawn uniformly. A
+//! connection stands for all `|cache|` vertices, each used `n_c · N_L / |cache|` times
+//! per camera sample on average, so its contribution is divided by that count and the
+//! balance heuristic counts connection strategies with that many samples (light-tracing
+//! splats with `N_L / pixels`).
+
+use super::Context;
+use super::bdpt::{
+    Pending, Vertex, VertexKind, camera_subpath, camera_vertex, connect_to_camera, connectible, full_path,
+    light_subpath, mis_weight_counts, resolve_pending, strategy_connect, strategy_emitter, strategy_light_sample,
+};
+use crate::cast::CastStats;
+use crate::film::Film;
+use crate::sampling::Rng;
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Parameters of [`LvcBdpt`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LvcParams {
+    /// Light subpaths per iteration (0: one per pixel).
+    pub light_paths: u32,
+    /// Cache connections per camera vertex (`n_c`).
+    pub connections: u32,
+}
+
+impl Default for LvcParams {
+    fn default() -> Self {
+        LvcParams { light_paths: 0, connections: 3 }
+    }
+}
+
+/// The light vertices of one iteration.
+#[derive(Clone, Debug, Default)]
+pub struct LightVertexCache {
+    /// Every vertex of every light subpath, subpath after subpath (light origins too,
+    /// for the MIS weights of connections).
+    pub vertices: Vec<Vertex>,
+    /// Per cached vertex: the index of its subpath's first vertex, and `s` (its index
+    /// in the subpath plus one).
+    pub entries: Vec<(u32, u32)>,
+    pub light_paths: u32,
+}
+
+impl LightVertexCache {
+    /// The subpath of entry `e` up to and including the cached vertex.
+    pub fn subpath(&self, e: usize) -> (&[Vertex], usize) {
+        let (start, s) = self.entries[e];
+        (&self.vertices[start as usize..start as usize + s as usize], s as usize)
+    }
+
+    /// Samples drawn per connection strategy: `n_c · N_L / |cache|`.
+    pub fn connection_count(&self, n_c: u32) -> f64 {
+        if self.entries.is_empty() { 0.0 } else { n_c as f64 * self.light_paths as f64 / self.entries.len() as f64 }
+    }
+}
+
+/// MIS sample counts of the strategies in one LVC iteration.
+#[derive(Clone, Copy, Debug)]
+pub struct StrategyCounts {
+    /// Light paths per camera sample (light-tracing splats).
+    pub splat: f64,
+    /// Cache connections per camera sample and strategy.
+    pub connection: f64,
+}
+
+impl StrategyCounts {
+    pub fn count(&self, s: usize, t: usize) -> f64 {
+        if t == 1 {
+            self.splat
+        } else if s >= 2 {
+            self.connection
+        } else {
+            1.0
+        }
+    }
+}
+
+/// Traces the iteration's light subpaths: the cache, and the splats of every light
+/// vertex to the camera (weighted with `counts`, which need the cache size: the splats
+/// are weighted after the cache is built).
+pub(crate) fn build_cache(
+    ctx: &Context,
+    pass: u32,
+    n_light: u32,
+    n_c: u32,
+) -> (LightVertexCache, StrategyCounts, Vec<(u32, Vec3)>, usize) {
+    let max_vertices = ctx.opts.max_depth as usize + 1;
+    let paths: Vec<(Vec<Vertex>, usize)> = (0..n_light)
+        .into_par_iter()
+        .map(|i| {
+            let mut rng = Rng::for_sample(ctx.opts.seed ^ 0x4c56_4321, i as u64, pass as u64);
+            let mut verts = Vec::new();
+            let rays = light_subpath(ctx, &mut rng, max_vertices, &mut verts);
+            (verts, rays)
+        })
+        .collect();
+    let mut cache = LightVertexCache { light_paths: n_light, ..Default::default() };
+    let mut rays = 0;
+    let mut starts = Vec::with_capacity(paths.len());
+    for (verts, r) in &paths {
+        rays += r;
+        let start = cache.vertices.len() as u32;
+        starts.push(start);
+        for (i, v) in verts.iter().enumerate() {
+            if v.kind == VertexKind::Surface && connectible(ctx, v) {
+                cache.entries.push((start, i as u32 + 1));
+            }
+        }
+        cache.vertices.extend_from_slice(verts);
+    }
+    let pixels = (ctx.opts.width * ctx.opts.height) as f64;
+    let counts = StrategyCounts { splat: n_light as f64 / pixels, connection: cache.connection_count(n_c) };
+    // Splats (t = 1) of every light vertex, in path order.
+    let cam_v = camera_vertex(&ctx.scene.camera);
+    let scale = (pixels / n_light as f64) as f32;
+    let per_path: Vec<(Vec<(Vec3, u32, crate::geometry::Ray)>, usize)> = paths
+        .par_iter()
+        .map_init(Vec::new, |path, (verts, _)| {
+            let pending: Vec<_> = (1..=verts.len())
+                .filter_map(|s| {
+                    let (l, px, ray) = connect_to_camera(ctx, verts, s, &cam_v)?;
+                    full_path(verts, std::slice::from_ref(&cam_v), s, 1, path);
+                    let w = mis_weight_counts(ctx, path, s, |s, t| counts.count(s, t));
+                    Some((l * w * scale, px, ray))
+                })
+                .collect();
+            let n = pending.len();
+            (pending, n)
+        })
+        .collect();
+    let mut splats = Vec::new();
+    for (pending, n) in per_path {
+        rays += n;
+        let shadow: Vec<_> = pending.iter().map(|p| p.2).collect();
+        let mut blocked = vec![false; shadow.len()];
+        ctx.caster.occluded(&shadow, &mut blocked);
+        splats.extend(pending.iter().zip(blocked).filter(|(_, b)| !b).map(|(p, _)| (p.1, p.0)));
+    }
+    (cache, counts, splats, rays)
+}
+
+/// LVC-BDPT, one task per camera path.
+pub struct LvcBdpt {
+    pub params: LvcParams,
+    /// The cache of the last iteration (for the inspector and tests).
+    pub last_cache: LightVertexCache,
+}
+
+impl LvcBdpt {
+    pub fn new(params: LvcParams) -> Self {
+        LvcBdpt { params, last_cache: LightVertexCache::default() }
+    }
+
+    pub fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
+        let (w, h) = (ctx.opts.width, ctx.opts.height);
+        let n_light = if self.params.light_paths == 0 { w * h } else { self.params.light_paths };
+        let n_c = self.params.connections;
+        let (cache, counts, splats, mut rays) = build_cache(ctx, pass, n_light, n_c);
+        film.add_splats(splats);
+        let results: Vec<(Vec3, usize)> = (0..w * h)
+            .into_par_iter()
+            .map_init(
+                || (Vec::new(), Vec::new()),
+                |(cam, path), pixel| {
+                    let mut rng = Rng::for_sample(ctx.opts.seed, pixel as u64, pass as u64);
+                    let mut rays = camera_subpath(ctx, pixel, &mut rng, cam);
+                    let pending = camera_strategies(ctx, cam, &cache, counts, n_c, &mut rng, path, |cands, rng| {
+                        (0..n_c).map(|_| (uniform_entry(cands, rng), 1.0)).collect()
+                    });
+                    let (estimate, _, shadow) = resolve_pending(ctx, pending);
+                    rays += shadow;
+                    (estimate, rays)
+                },
+            )
+            .collect();
+        let mut estimates = Vec::with_capacity(results.len());
+        for (e, r) in results {
+            estimates.push(e);
+            rays += r;
+        }
+        film.add_pass(&estimates);
+        self.last_cache = cache;
+        CastStats { rays, seconds: 0.0, peak_working_bytes: 0 }
+    }
+}
+
+fn uniform_entry(cache_len: usize, rng: &mut Rng) -> usize {
+    ((rng.uniform() * cache_len as f32) as usize).min(cache_len - 1)
+}
+
+/// Every strategy at every vertex of one camera subpath except the camera splats:
+/// emitter hits, light samples, and cache connections. `pick(cache_len, rng)` chooses
+/// the cache entries to connect to, each with an extra weight (1 for uniform choice;
+/// resampling weights for importance-sampled connections).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn camera_strategies(
+    ctx: &Context,
+    cam: &[Vertex],
+    cache: &LightVertexCache,
+    counts: StrategyCounts,
+    n_c: u32,
+    rng: &mut Rng,
+    path: &mut Vec<Vertex>,
+    mut pick: impl FnMut(usize, &mut Rng) -> Vec<(usize, f32)>,
+) -> Vec<Pending> {
+    let max_depth = ctx.opts.max_depth as usize;
+    let count = |s: usize, t: usize| counts.count(s, t);
+    let mut pending: Vec<Pending> = Vec::new();
+    for t in 2..=cam.len() {
+        if t - 2 <= max_depth {
+            if let Some(l) = strategy_emitter(cam, t, &[], path) {
+                pending.push((None, l * mis_weight_counts(ctx, path, 0, count), None));
+            }
+        }
+        if t - 1 <= max_depth {
+            if let Some((l, ray)) = strategy_light_sample(ctx, cam, t, rng, path) {
+                pending.push((Some(ray), l * mis_weight_counts(ctx, path, 1, count), None));
+            }
+        }
+        if cache.entries.is_empty() || n_c == 0 || t > max_depth {
+            continue;
+        }
+        for (e, extra) in pick(cache.entries.len(), rng) {
+            let (light, s) = cache.subpath(e);
+            if s + t - 2 > max_depth {
+                continue;
+            }
+            if let Some((l, ray)) = strategy_connect(ctx, light, s, cam, t, path) {
+                let w = mis_weight_counts(ctx, path, s, count);
+                pending.push((Some(ray), l * (w * extra / counts.connection as f32), None));
+            }
+        }
+    }
+    pending
+}
