@@ -102,40 +102,18 @@ fn path_light_and_bdpt_agree_on_a_glossy_and_glass_scene() {
 
 /// A concrete path through the Cornell box: light, floor, back wall, camera.
 fn sample_path(scene: &Scene, mirror_in_middle: bool) -> Vec<Vertex> {
-    let surf = |p: Vec3, n: Vec3, tri: u32, delta: bool| Vertex {
-        kind: VertexKind::Surface,
-        p,
-        n,
-        tri,
-        beta: Vec3::ONE,
-        delta,
-        le: Vec3::ZERO,
+    let surf = |p: Vec3, n: Vec3, tri: u32, delta: bool| {
+        Vertex::new(VertexKind::Surface, p, n, tri, Vec3::ONE, delta, Vec3::ZERO)
     };
     let light_tri = (0..scene.triangle_count() as u32).find(|&t| scene.emission_of(t).max_element() > 0.0).unwrap();
     let floor = 0; // first quad of the built-in box
     let back = 4;
     let cam = &scene.camera;
     vec![
-        Vertex {
-            kind: VertexKind::Light,
-            p: Vec3::new(0.05, 1.98, 0.0),
-            n: -Vec3::Y,
-            tri: light_tri,
-            beta: Vec3::ONE,
-            delta: false,
-            le: Vec3::ONE,
-        },
+        Vertex::new(VertexKind::Light, Vec3::new(0.05, 1.98, 0.0), -Vec3::Y, light_tri, Vec3::ONE, false, Vec3::ONE),
         surf(Vec3::new(0.2, 0.0, 0.6), Vec3::Y, floor, mirror_in_middle),
         surf(Vec3::new(-0.3, 1.2, -1.0), Vec3::Z, back, false),
-        Vertex {
-            kind: VertexKind::Camera,
-            p: cam.position,
-            n: cam.forward,
-            tri: u32::MAX,
-            beta: Vec3::ONE,
-            delta: false,
-            le: Vec3::ZERO,
-        },
+        Vertex::new(VertexKind::Camera, cam.position, cam.forward, u32::MAX, Vec3::ONE, false, Vec3::ZERO),
     ]
 }
 

@@ -28,6 +28,7 @@ use rayon::prelude::*;
 use std::f32::consts::{FRAC_1_PI, PI};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
 pub enum VertexKind {
     Camera,
     /// A light sample (area light point or point light); for paths that reach an
@@ -36,8 +37,10 @@ pub enum VertexKind {
     Surface,
 }
 
-/// One vertex of a light or camera subpath.
+/// One vertex of a light or camera subpath. Plain data (it lives in device buffers of
+/// the streaming integrator too).
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 pub struct Vertex {
     pub kind: VertexKind,
     pub p: Vec3,
@@ -48,10 +51,68 @@ pub struct Vertex {
     pub tri: u32,
     /// Throughput of the subpath up to this vertex (for a light vertex, 1 / its density).
     pub beta: Vec3,
-    /// The lobe sampled here was a delta lobe (or: a point light).
-    pub delta: bool,
     /// Emitted radiance (area light) or intensity (point light).
     pub le: Vec3,
+    /// The lobe sampled here was a delta lobe (or: a point light).
+    pub delta: bool,
+    pub _pad: [u8; 3],
+}
+
+// SAFETY: #[repr(C)], 4-byte fields and an explicit pad after the bool; kinds and bools
+// are only ever written by other vertices.
+unsafe impl simt::DeviceCopy for Vertex {}
+
+impl Vertex {
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(kind: VertexKind, p: Vec3, n: Vec3, tri: u32, beta: Vec3, delta: bool, le: Vec3) -> Vertex {
+        Vertex { kind, p, n, tri, beta, le, delta, _pad: [0; 3] }
+    }
+}
+
+/// Longest full path (light and camera vertices together) the bidirectional
+/// integrators handle: `max_depth + 2` vertices.
+pub const MAX_PATH: usize = 64;
+
+/// A full path on the stack, so kernels can build one without allocating.
+#[derive(Clone, Copy)]
+pub struct VertexList {
+    buf: [Vertex; MAX_PATH],
+    len: usize,
+}
+
+impl Default for VertexList {
+    fn default() -> Self {
+        let v = Vertex::new(VertexKind::Camera, Vec3::ZERO, Vec3::ZERO, u32::MAX, Vec3::ZERO, false, Vec3::ZERO);
+        VertexList { buf: [v; MAX_PATH], len: 0 }
+    }
+}
+
+impl VertexList {
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
+    pub fn push(&mut self, v: Vertex) {
+        self.buf[self.len] = v;
+        self.len += 1;
+    }
+    pub fn extend<'a>(&mut self, vs: impl IntoIterator<Item = &'a Vertex>) {
+        for v in vs {
+            self.push(*v);
+        }
+    }
+}
+
+impl std::ops::Deref for VertexList {
+    type Target = [Vertex];
+    fn deref(&self) -> &[Vertex] {
+        &self.buf[..self.len]
+    }
+}
+
+impl std::ops::DerefMut for VertexList {
+    fn deref_mut(&mut self) -> &mut [Vertex] {
+        &mut self.buf[..self.len]
+    }
 }
 
 /// Pinhole camera importance toward direction `w` (unit): `(We, pdf of the direction,
@@ -200,15 +261,7 @@ pub(crate) fn random_walk(
             break;
         }
         let p = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
-        verts.push(Vertex {
-            kind: VertexKind::Surface,
-            p,
-            n,
-            tri: hit.prim,
-            beta,
-            delta: false,
-            le: ctx.scene.emission_of(hit.prim),
-        });
+        verts.push(Vertex::new(VertexKind::Surface, p, n, hit.prim, beta, false, ctx.scene.emission_of(hit.prim)));
         if verts.len() >= max_vertices {
             break;
         }
@@ -256,15 +309,7 @@ pub(crate) fn light_subpath(ctx: &Context, rng: &mut Rng, max_vertices: usize, v
 
 pub(crate) fn light_vertex(ls: &LightSample) -> Vertex {
     let tri = ls.tri;
-    Vertex {
-        kind: VertexKind::Light,
-        p: ls.position,
-        n: ls.normal,
-        tri,
-        beta: Vec3::splat(1.0 / ls.pdf),
-        delta: ls.is_delta,
-        le: ls.emitted,
-    }
+    Vertex::new(VertexKind::Light, ls.position, ls.normal, tri, Vec3::splat(1.0 / ls.pdf), ls.is_delta, ls.emitted)
 }
 
 /// What one vertex scatters from `wo_point` toward `wi_point` (emission for a light).
@@ -329,15 +374,7 @@ pub(crate) fn connect_to_camera(ctx: &Context, light: &[Vertex], s: usize, cam_v
 
 /// The camera vertex at the sample's eye point.
 pub(crate) fn camera_vertex(cam: &Camera) -> Vertex {
-    Vertex {
-        kind: VertexKind::Camera,
-        p: cam.position,
-        n: cam.forward,
-        tri: u32::MAX,
-        beta: Vec3::ONE,
-        delta: false,
-        le: Vec3::ZERO,
-    }
+    Vertex::new(VertexKind::Camera, cam.position, cam.forward, u32::MAX, Vec3::ONE, false, Vec3::ZERO)
 }
 
 /// Bidirectional path tracing, one camera and one light subpath per pixel sample.
@@ -387,7 +424,7 @@ impl Bdpt {
         let results: Vec<(Vec3, Vec<(u32, Vec3)>, usize)> = (0..w * h)
             .into_par_iter()
             .map_init(
-                || (Vec::new(), Vec::new(), Vec::new()),
+                || (Vec::new(), Vec::new(), VertexList::default()),
                 |(cam, light, path), pixel| {
                     let mut rng = Rng::for_sample(ctx.opts.seed, pixel as u64, pass as u64);
                     sample_pixel(ctx, pixel, &mut rng, cam, light, path)
@@ -409,9 +446,9 @@ impl Bdpt {
 /// The full path of strategy (s, t): light vertices `0..s`, then camera vertices
 /// `t-1..=0`, with the connection vertices marked non-delta (they are evaluated by
 /// their continuous part).
-pub(crate) fn full_path(light: &[Vertex], cam: &[Vertex], s: usize, t: usize, out: &mut Vec<Vertex>) {
+pub(crate) fn full_path(light: &[Vertex], cam: &[Vertex], s: usize, t: usize, out: &mut VertexList) {
     out.clear();
-    out.extend_from_slice(&light[..s]);
+    out.extend(&light[..s]);
     out.extend(cam[..t].iter().rev());
     if s > 0 {
         out[s - 1].delta = out[s - 1].kind == VertexKind::Light && out[s - 1].n == Vec3::ZERO;
@@ -423,7 +460,7 @@ pub(crate) fn full_path(light: &[Vertex], cam: &[Vertex], s: usize, t: usize, ou
 
 /// Strategy s = 0 at camera vertex `t - 1`: the camera path reached an emitter.
 /// Returns the unweighted contribution and the full path (in `path`).
-pub(crate) fn strategy_emitter(cam: &[Vertex], t: usize, light: &[Vertex], path: &mut Vec<Vertex>) -> Option<Vec3> {
+pub(crate) fn strategy_emitter(cam: &[Vertex], t: usize, light: &[Vertex], path: &mut VertexList) -> Option<Vec3> {
     let v = cam[t - 1];
     if v.le.max_element() <= 0.0 || v.n.dot(cam[t - 2].p - v.p) <= 0.0 {
         return None;
@@ -441,7 +478,7 @@ pub(crate) fn strategy_light_sample(
     cam: &[Vertex],
     t: usize,
     rng: &mut Rng,
-    path: &mut Vec<Vertex>,
+    path: &mut VertexList,
 ) -> Option<(Vec3, Ray)> {
     let c = &cam[t - 1];
     if !connectible(ctx, c) {
@@ -477,7 +514,7 @@ pub(crate) fn strategy_connect(
     s: usize,
     cam: &[Vertex],
     t: usize,
-    path: &mut Vec<Vertex>,
+    path: &mut VertexList,
 ) -> Option<(Vec3, Ray)> {
     let (lv, c) = (&light[s - 1], &cam[t - 1]);
     if !connectible(ctx, lv) || !connectible(ctx, c) {
@@ -538,7 +575,7 @@ fn sample_pixel(
     rng: &mut Rng,
     cam: &mut Vec<Vertex>,
     light: &mut Vec<Vertex>,
-    path: &mut Vec<Vertex>,
+    path: &mut VertexList,
 ) -> (Vec3, Vec<(u32, Vec3)>, usize) {
     let max_depth = ctx.opts.max_depth as usize;
     let cam_v = camera_vertex(&ctx.scene.camera);

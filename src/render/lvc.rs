@@ -11,7 +11,7 @@
 
 use super::Context;
 use super::bdpt::{
-    Pending, Vertex, VertexKind, camera_subpath, camera_vertex, connect_to_camera, connectible, full_path,
+    Pending, Vertex, VertexKind, VertexList, camera_subpath, camera_vertex, connect_to_camera, connectible, full_path,
     light_subpath, mis_weight_counts, resolve_pending, strategy_connect, strategy_emitter, strategy_light_sample,
 };
 use crate::cast::CastStats;
@@ -121,7 +121,7 @@ pub(crate) fn build_cache(
     let scale = (pixels / n_light as f64) as f32;
     let per_path: Vec<(Vec<(Vec3, u32, crate::geometry::Ray)>, usize)> = paths
         .par_iter()
-        .map_init(Vec::new, |path, (verts, _)| {
+        .map_init(VertexList::default, |path, (verts, _)| {
             let pending: Vec<_> = (1..=verts.len())
                 .filter_map(|s| {
                     let (l, px, ray) = connect_to_camera(ctx, verts, s, &cam_v)?;
@@ -166,7 +166,7 @@ impl LvcBdpt {
         let results: Vec<(Vec3, usize)> = (0..w * h)
             .into_par_iter()
             .map_init(
-                || (Vec::new(), Vec::new()),
+                || (Vec::new(), VertexList::default()),
                 |(cam, path), pixel| {
                     let mut rng = Rng::for_sample(ctx.opts.seed, pixel as u64, pass as u64);
                     let mut rays = camera_subpath(ctx, pixel, &mut rng, cam);
@@ -206,7 +206,7 @@ pub(crate) fn camera_strategies(
     counts: StrategyCounts,
     n_c: u32,
     rng: &mut Rng,
-    path: &mut Vec<Vertex>,
+    path: &mut VertexList,
     mut pick: impl FnMut(usize, &mut Rng) -> Vec<(usize, f32)>,
 ) -> Vec<Pending> {
     let max_depth = ctx.opts.max_depth as usize;
