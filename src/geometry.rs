@@ -16,6 +16,7 @@ use glam::Vec3;
 /// A ray with a parametric interval `[t_min, t_max)`. `dir` need not be normalised;
 /// distances are in units of `dir`.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Ray {
     pub origin: Vec3,
     pub dir: Vec3,
@@ -50,6 +51,7 @@ impl Ray {
 
 /// The closest hit of a ray: distance, triangle id and barycentrics of vertices 1 and 2.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Hit {
     pub t: f32,
     /// Triangle index into the scene, or [`Hit::NONE`] for a miss.
@@ -307,3 +309,7 @@ mod tests {
         }
     }
 }
+
+// SAFETY: #[repr(C)] structs of 4-byte fields, no padding: they travel in device buffers.
+unsafe impl simt::DeviceCopy for Ray {}
+unsafe impl simt::DeviceCopy for Hit {}

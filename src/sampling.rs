@@ -18,6 +18,7 @@ pub fn mix64(mut z: u64) -> u64 {
 /// A counter-based stream of uniform numbers. Cheap to create, `Copy`, and the same
 /// key always yields the same sequence.
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 pub struct Rng {
     key: u64,
     counter: u64,
@@ -51,6 +52,15 @@ impl Rng {
     #[inline]
     pub fn uniform2(&mut self) -> Vec2 {
         Vec2::new(self.uniform(), self.uniform())
+    }
+}
+
+// SAFETY: two u64 fields, #[repr(C)], no padding; any bit pattern is a valid state.
+unsafe impl simt::DeviceCopy for Rng {}
+
+impl Default for Rng {
+    fn default() -> Self {
+        Rng::for_sample(0, 0, 0)
     }
 }
 

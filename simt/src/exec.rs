@@ -30,7 +30,7 @@ pub const WARP_SIZE: u32 = 32;
 /// Regions a kernel may name for SIMD accounting.
 pub const MAX_REGIONS: usize = 8;
 /// Paths (branch arms) per region.
-pub const MAX_PATHS: usize = 4;
+pub const MAX_PATHS: usize = 8;
 /// Per-thread register file, in 32-bit words (CUDA allows 255 registers; 64 words
 /// keep the emulator's per-block scratch small).
 pub const REGISTER_WORDS_PER_THREAD: usize = 64;

@@ -170,9 +170,8 @@ impl LvcBdpt {
                 |(cam, path), pixel| {
                     let mut rng = Rng::for_sample(ctx.opts.seed, pixel as u64, pass as u64);
                     let mut rays = camera_subpath(ctx, pixel, &mut rng, cam);
-                    let pending = camera_strategies(ctx, cam, &cache, counts, n_c, &mut rng, path, |cands, rng| {
-                        (0..n_c).map(|_| (uniform_entry(cands, rng), 1.0)).collect()
-                    });
+                    let connections = Connections::Uniform { n: n_c };
+                    let pending = camera_strategies(ctx, cam, &cache, counts, connections, &mut rng, path);
                     let (estimate, _, shadow) = resolve_pending(ctx, pending);
                     rays += shadow;
                     (estimate, rays)
@@ -194,48 +193,139 @@ fn uniform_entry(cache_len: usize, rng: &mut Rng) -> usize {
     ((rng.uniform() * cache_len as f32) as usize).min(cache_len - 1)
 }
 
-/// Every strategy at every vertex of one camera subpath except the camera splats:
-/// emitter hits, light samples, and cache connections. `pick(cache_len, rng)` chooses
-/// the cache entries to connect to, each with an extra weight (1 for uniform choice;
-/// resampling weights for importance-sampled connections).
+/// Most candidates a resampled connection considers.
+pub const MAX_CANDIDATES: usize = 32;
+
+/// How a camera vertex chooses the cache vertices it connects to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Connections {
+    /// `n` entries drawn uniformly.
+    Uniform { n: u32 },
+    /// Resampled importance sampling (Talbot et al. 2005): `candidates` entries drawn
+    /// uniformly, `draws` chosen among them with replacement in proportion to their
+    /// unshadowed contribution, each weighted by `mean(p̂) / p̂(chosen)` so the
+    /// estimate stays unbiased.
+    Resampled { candidates: u32, draws: u32 },
+}
+
+impl Connections {
+    /// Connections made per camera vertex (what the MIS counts and the estimator's
+    /// normalisation use).
+    pub fn per_vertex(&self) -> u32 {
+        match *self {
+            Connections::Uniform { n } => n,
+            Connections::Resampled { draws, .. } => draws,
+        }
+    }
+}
+
+fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// Every strategy at camera vertex `t - 1` except the camera splats: the emitter it hit
+/// (s = 0), a light sample (s = 1), and connections to cache vertices, each pushed to
+/// `sink` with its MIS weight applied. `subpath(e)` gives cache entry `e`'s light
+/// subpath up to the cached vertex. Allocation-free: kernels call it.
 #[allow(clippy::too_many_arguments)]
+pub(crate) fn vertex_strategies(
+    ctx: &Context,
+    cam: &[Vertex],
+    t: usize,
+    cache_len: usize,
+    subpath: &dyn Fn(usize) -> (VertexList, usize),
+    counts: StrategyCounts,
+    connections: Connections,
+    rng: &mut Rng,
+    path: &mut VertexList,
+    sink: &mut dyn FnMut(Pending),
+) {
+    let max_depth = ctx.opts.max_depth as usize;
+    let count = |s: usize, t: usize| counts.count(s, t);
+    if t - 2 <= max_depth {
+        if let Some(l) = strategy_emitter(cam, t, &[], path) {
+            sink((None, l * mis_weight_counts(ctx, path, 0, count), None));
+        }
+    }
+    if t - 1 <= max_depth {
+        if let Some((l, ray)) = strategy_light_sample(ctx, cam, t, rng, path) {
+            sink((Some(ray), l * mis_weight_counts(ctx, path, 1, count), None));
+        }
+    }
+    if cache_len == 0 || connections.per_vertex() == 0 || t > max_depth {
+        return;
+    }
+    let connect = |e: usize, extra: f32, path: &mut VertexList, sink: &mut dyn FnMut(Pending)| {
+        let (light, s) = subpath(e);
+        if s + t - 2 > max_depth {
+            return;
+        }
+        if let Some((l, ray)) = strategy_connect(ctx, &light, s, cam, t, path) {
+            let w = mis_weight_counts(ctx, path, s, count);
+            sink((Some(ray), l * (w * extra / counts.connection as f32), None));
+        }
+    };
+    match connections {
+        Connections::Uniform { n } => {
+            for _ in 0..n {
+                let e = uniform_entry(cache_len, rng);
+                connect(e, 1.0, path, sink);
+            }
+        }
+        Connections::Resampled { candidates, draws } => {
+            let n = (candidates as usize).clamp(1, MAX_CANDIDATES);
+            let (mut entry, mut target) = ([0usize; MAX_CANDIDATES], [0f32; MAX_CANDIDATES]);
+            let mut total = 0.0f32;
+            for k in 0..n {
+                entry[k] = uniform_entry(cache_len, rng);
+                let (light, s) = subpath(entry[k]);
+                target[k] = if s + t - 2 > max_depth {
+                    0.0
+                } else {
+                    strategy_connect(ctx, &light, s, cam, t, path).map_or(0.0, |(l, _)| luminance(l).max(0.0))
+                };
+                total += target[k];
+            }
+            if total <= 0.0 {
+                return;
+            }
+            let mean = total / n as f32;
+            for _ in 0..draws {
+                let mut u = rng.uniform() * total;
+                let mut k = 0;
+                while k + 1 < n && (u >= target[k] || target[k] == 0.0) {
+                    u -= target[k];
+                    k += 1;
+                }
+                if target[k] > 0.0 {
+                    connect(entry[k], mean / target[k], path, sink);
+                }
+            }
+        }
+    }
+}
+
+/// All strategies along one camera subpath (megakernel form of [`vertex_strategies`]).
 pub(crate) fn camera_strategies(
     ctx: &Context,
     cam: &[Vertex],
     cache: &LightVertexCache,
     counts: StrategyCounts,
-    n_c: u32,
+    connections: Connections,
     rng: &mut Rng,
     path: &mut VertexList,
-    mut pick: impl FnMut(usize, &mut Rng) -> Vec<(usize, f32)>,
 ) -> Vec<Pending> {
-    let max_depth = ctx.opts.max_depth as usize;
-    let count = |s: usize, t: usize| counts.count(s, t);
-    let mut pending: Vec<Pending> = Vec::new();
+    let subpath = |e: usize| {
+        let (light, s) = cache.subpath(e);
+        let mut list = VertexList::default();
+        list.extend(light);
+        (list, s)
+    };
+    let mut pending = Vec::new();
     for t in 2..=cam.len() {
-        if t - 2 <= max_depth {
-            if let Some(l) = strategy_emitter(cam, t, &[], path) {
-                pending.push((None, l * mis_weight_counts(ctx, path, 0, count), None));
-            }
-        }
-        if t - 1 <= max_depth {
-            if let Some((l, ray)) = strategy_light_sample(ctx, cam, t, rng, path) {
-                pending.push((Some(ray), l * mis_weight_counts(ctx, path, 1, count), None));
-            }
-        }
-        if cache.entries.is_empty() || n_c == 0 || t > max_depth {
-            continue;
-        }
-        for (e, extra) in pick(cache.entries.len(), rng) {
-            let (light, s) = cache.subpath(e);
-            if s + t - 2 > max_depth {
-                continue;
-            }
-            if let Some((l, ray)) = strategy_connect(ctx, light, s, cam, t, path) {
-                let w = mis_weight_counts(ctx, path, s, count);
-                pending.push((Some(ray), l * (w * extra / counts.connection as f32), None));
-            }
-        }
+        vertex_strategies(ctx, cam, t, cache.entries.len(), &subpath, counts, connections, rng, path, &mut |p| {
+            pending.push(p)
+        });
     }
     pending
 }
