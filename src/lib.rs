@@ -27,6 +27,7 @@
 
 pub mod bsdf;
 pub mod cast;
+pub mod cis;
 pub mod converge;
 pub mod error;
 pub mod film;

@@ -69,6 +69,12 @@ impl Vertex {
     }
 }
 
+impl Default for Vertex {
+    fn default() -> Self {
+        Vertex::new(VertexKind::Camera, Vec3::ZERO, Vec3::ZERO, u32::MAX, Vec3::ZERO, false, Vec3::ZERO)
+    }
+}
+
 /// Longest full path (light and camera vertices together) the bidirectional
 /// integrators handle: `max_depth + 2` vertices.
 pub const MAX_PATH: usize = 64;
@@ -82,8 +88,7 @@ pub struct VertexList {
 
 impl Default for VertexList {
     fn default() -> Self {
-        let v = Vertex::new(VertexKind::Camera, Vec3::ZERO, Vec3::ZERO, u32::MAX, Vec3::ZERO, false, Vec3::ZERO);
-        VertexList { buf: [v; MAX_PATH], len: 0 }
+        VertexList { buf: [Vertex::default(); MAX_PATH], len: 0 }
     }
 }
 

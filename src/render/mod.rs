@@ -31,6 +31,9 @@ pub enum IntegratorKind {
     Bdpt,
     /// BDPT with a light vertex cache (LVC-BDPT), one task per path.
     Lvc,
+    /// CIS-LBDPT: LVC-BDPT streamed on the simt emulator, sorted by material, with
+    /// importance-sampled connections.
+    Cis,
 }
 
 impl IntegratorKind {
@@ -40,13 +43,14 @@ impl IntegratorKind {
             IntegratorKind::Light => "light",
             IntegratorKind::Bdpt => "bdpt",
             IntegratorKind::Lvc => "lvc",
+            IntegratorKind::Cis => "cis",
         }
     }
 
     /// The unidirectional and bidirectional references (the light-transport core).
     pub const CORE: [IntegratorKind; 3] = [IntegratorKind::Path, IntegratorKind::Light, IntegratorKind::Bdpt];
-    pub const ALL: [IntegratorKind; 4] =
-        [IntegratorKind::Path, IntegratorKind::Light, IntegratorKind::Bdpt, IntegratorKind::Lvc];
+    pub const ALL: [IntegratorKind; 5] =
+        [IntegratorKind::Path, IntegratorKind::Light, IntegratorKind::Bdpt, IntegratorKind::Lvc, IntegratorKind::Cis];
 }
 
 /// A running integrator with its buffers.
@@ -55,6 +59,7 @@ enum Integrator {
     Light(LightTracer),
     Bdpt(Bdpt),
     Lvc(LvcBdpt),
+    Cis(Box<crate::cis::CisLbdpt>),
 }
 
 impl std::str::FromStr for IntegratorKind {
@@ -84,6 +89,8 @@ pub struct RenderOptions {
     pub integrator: IntegratorKind,
     /// Light-vertex-cache settings (LVC-BDPT).
     pub lvc: LvcParams,
+    /// CIS-LBDPT settings and switches.
+    pub cis: crate::cis::CisParams,
 }
 
 impl Default for RenderOptions {
@@ -96,6 +103,7 @@ impl Default for RenderOptions {
             seed: 0,
             integrator: IntegratorKind::Path,
             lvc: LvcParams::default(),
+            cis: crate::cis::CisParams::default(),
         }
     }
 }
@@ -142,6 +150,18 @@ pub fn render(
     if opts.max_depth > 1024 {
         return Err(Error::BadSetting(format!("max depth {} is absurd (at most 1024)", opts.max_depth)));
     }
+    // Full paths live in fixed-size stack lists (kernels cannot allocate).
+    let limit = match opts.integrator {
+        IntegratorKind::Path | IntegratorKind::Light => u32::MAX,
+        IntegratorKind::Bdpt | IntegratorKind::Lvc => (bdpt::MAX_PATH - 2) as u32,
+        IntegratorKind::Cis => (crate::cis::kernels::MAX_CAMERA_VERTICES - 2) as u32,
+    };
+    if opts.max_depth > limit {
+        return Err(Error::BadSetting(format!(
+            "the {} integrator supports max depth up to {limit}",
+            opts.integrator.name()
+        )));
+    }
     let mut film = Film::new(opts.width, opts.height)?;
     let lights = Lights::new(scene);
     let ctx = Context { scene, lights: &lights, caster, opts };
@@ -158,6 +178,7 @@ pub fn render(
         IntegratorKind::Light => Integrator::Light(LightTracer),
         IntegratorKind::Bdpt => Integrator::Bdpt(Bdpt),
         IntegratorKind::Lvc => Integrator::Lvc(LvcBdpt::new(opts.lvc)),
+        IntegratorKind::Cis => Integrator::Cis(Box::new(crate::cis::CisLbdpt::new(opts.cis))),
     };
     loop {
         let done = match opts.budget {
@@ -172,6 +193,7 @@ pub fn render(
             Integrator::Light(i) => i.render_pass(&ctx, stats.passes, &mut film),
             Integrator::Bdpt(i) => i.render_pass(&ctx, stats.passes, &mut film),
             Integrator::Lvc(i) => i.render_pass(&ctx, stats.passes, &mut film),
+            Integrator::Cis(i) => i.render_pass(&ctx, stats.passes, &mut film),
         };
         stats.rays += pass.rays as u64;
         stats.cast_seconds += pass.seconds;

@@ -1,0 +1,258 @@
+//! CIS-LBDPT's kernels: plain functions of a thread and `Copy` data (views, the scene
+//! and light tables by reference). None allocates, forks, launches or casts rays; the
+//! host in `mod.rs` does the ray casting through the caster trait between launches.
+
+use crate::geometry::{Hit, Ray, offset_ray_origin};
+use crate::render::Context;
+use crate::render::bdpt::{MAX_PATH, Pending, Vertex, VertexKind, VertexList};
+use crate::render::lvc::{Connections, StrategyCounts, vertex_strategies};
+use crate::sampling::{Frame, Rng};
+use crate::scene::Camera;
+use glam::{Vec2, Vec3};
+use simt::{DeviceCopy, Global, GlobalMut, Readable, Thread};
+
+/// Camera vertices kept per pool slot (`max_depth + 2` at most).
+pub const MAX_CAMERA_VERTICES: usize = MAX_PATH / 2;
+/// Pending contributions per slot and bounce: emitter, light sample, and connections.
+pub const MAX_DRAWS: usize = 8;
+pub const PENDING_PER_SLOT: usize = 2 + MAX_DRAWS;
+
+/// One camera sample in the pool.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C)]
+pub struct Slot {
+    pub rng: Rng,
+    pub ray: Ray,
+    pub beta: Vec3,
+    pub radiance: Vec3,
+    pub pixel: u32,
+    /// Camera vertices stored so far (the camera itself is vertex 0).
+    pub depth: u32,
+    pub alive: u32,
+    pub _pad: u32,
+}
+
+/// A contribution waiting for its shadow ray (`state` 1), needing none (2), or empty (0).
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C)]
+pub struct PendingData {
+    pub ray: Ray,
+    pub value: Vec3,
+    pub state: u32,
+}
+
+// SAFETY: #[repr(C)], 4- and 8-byte fields laid out without padding.
+unsafe impl DeviceCopy for Slot {}
+unsafe impl DeviceCopy for PendingData {}
+
+impl Default for Ray {
+    fn default() -> Self {
+        Ray { origin: Vec3::ZERO, dir: Vec3::ZERO, t_min: 0.0, t_max: 0.0 }
+    }
+}
+
+/// Index of a material kind, the branch arm a shading lane takes (SIMD accounting).
+pub fn kind_index(kind: &str) -> usize {
+    match kind {
+        "diffuse" => 0,
+        "glossy" => 1,
+        "mirror" => 2,
+        "glass" => 3,
+        "conductor" => 4,
+        "roughglass" => 5,
+        _ => 6,
+    }
+}
+
+/// `cis::generate`: a new camera sample for pixel `first_pixel + i` in free slot
+/// `free[i]`. Its random numbers come from (seed, pixel, pass), never from the slot.
+#[allow(clippy::too_many_arguments)]
+pub fn generate(
+    t: &Thread,
+    i: usize,
+    free: &Global<u32>,
+    first_pixel: u32,
+    pass: u32,
+    seed: u64,
+    cam: &Camera,
+    (width, height): (u32, u32),
+    slots: &GlobalMut<Slot>,
+    vertices: &GlobalMut<Vertex>,
+) {
+    let slot = t.load(free, i) as usize;
+    let pixel = first_pixel + i as u32;
+    let mut rng = Rng::for_sample(seed, pixel as u64, pass as u64);
+    let film = Vec2::new((pixel % width) as f32, (pixel / width) as f32) + rng.uniform2();
+    let ray = cam.generate_ray(film, width, height, Vec2::ZERO);
+    let v0 = Vertex::new(VertexKind::Camera, cam.position, cam.forward, u32::MAX, Vec3::ONE, false, Vec3::ZERO);
+    t.store(vertices, slot * MAX_CAMERA_VERTICES, v0);
+    t.store(slots, slot, Slot { rng, ray, beta: Vec3::ONE, radiance: Vec3::ZERO, pixel, depth: 1, alive: 1, _pad: 0 });
+}
+
+/// `cis::material_keys`: the queue key of active sample `i` (its hit's material, or
+/// `miss_key`), and its position.
+pub fn material_key(
+    t: &Thread,
+    i: usize,
+    hits: &Global<Hit>,
+    material_of: &[u32],
+    miss_key: u32,
+    keys: &GlobalMut<u32>,
+    order: &GlobalMut<u32>,
+) {
+    let h = t.load(hits, i);
+    t.store(keys, i, if h.is_hit() { material_of[h.prim as usize] } else { miss_key });
+    t.store(order, i, i as u32);
+}
+
+/// What the shading kernel reads and writes.
+#[derive(Clone, Copy)]
+pub struct ShadeArgs<'a> {
+    pub order: Global<'a, u32>,
+    pub active: Global<'a, u32>,
+    pub hits: Global<'a, Hit>,
+    pub slots: GlobalMut<'a, Slot>,
+    pub vertices: GlobalMut<'a, Vertex>,
+    pub pending: GlobalMut<'a, PendingData>,
+    pub cache_vertices: Global<'a, Vertex>,
+    pub cache_entries: Global<'a, [u32; 2]>,
+    pub counts: StrategyCounts,
+    pub connections: Connections,
+}
+
+/// Region of the shading kernel's SIMD accounting.
+pub const SHADE_REGION: usize = 0;
+
+/// `cis::shade`: the sample at sorted position `j` meets its hit: the vertex joins its
+/// camera subpath, every strategy at it is evaluated into the pending slots, and the
+/// BSDF chooses the next ray (or the path ends).
+pub fn shade(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
+    let i = t.load(&a.order, j) as usize;
+    let slot_id = t.load(&a.active, i) as usize;
+    let mut slot = t.load(&a.slots.as_global(), slot_id);
+    let base = slot_id * PENDING_PER_SLOT;
+    for k in 0..PENDING_PER_SLOT {
+        t.store(&a.pending, base + k, PendingData::default());
+    }
+    if slot.alive == 0 {
+        return; // a dead sample still in the pool: an idle lane
+    }
+    let hit = t.load(&a.hits, i);
+    if !hit.is_hit() {
+        slot.alive = 0;
+        return t.store(&a.slots, slot_id, slot);
+    }
+    let scene = ctx.scene;
+    let material = scene.material(hit.prim);
+    t.work(SHADE_REGION, kind_index(material.kind_name()), 1);
+    let [p0, p1, p2] = scene.vertices(hit.prim);
+    let n = (p1 - p0).cross(p2 - p0).normalize_or_zero();
+    if n == Vec3::ZERO {
+        slot.alive = 0;
+        return t.store(&a.slots, slot_id, slot);
+    }
+    let p = p0 * (1.0 - hit.u - hit.v) + p1 * hit.u + p2 * hit.v;
+    let vbase = slot_id * MAX_CAMERA_VERTICES;
+    let depth = slot.depth as usize;
+    let mut cam = VertexList::default();
+    for k in 0..depth {
+        cam.push(t.load(&a.vertices.as_global(), vbase + k));
+    }
+    cam.push(Vertex::new(VertexKind::Surface, p, n, hit.prim, slot.beta, false, scene.emission_of(hit.prim)));
+    let t_len = depth + 1;
+
+    // Every strategy at this vertex, into this slot's pending entries.
+    let cache_len = a.cache_entries.len();
+    let subpath = |e: usize| {
+        let [start, s] = t.load(&a.cache_entries, e);
+        let mut light = VertexList::default();
+        for k in 0..s as usize {
+            light.push(t.load(&a.cache_vertices, start as usize + k));
+        }
+        (light, s as usize)
+    };
+    let mut path = VertexList::default();
+    let mut next = 0;
+    let mut sink = |(ray, value, _): Pending| {
+        if next < PENDING_PER_SLOT {
+            let state = if ray.is_some() { 1 } else { 2 };
+            t.store(&a.pending, base + next, PendingData { ray: ray.unwrap_or_default(), value, state });
+            next += 1;
+        }
+    };
+    vertex_strategies(
+        ctx,
+        &cam,
+        t_len,
+        cache_len,
+        &subpath,
+        a.counts,
+        a.connections,
+        &mut slot.rng,
+        &mut path,
+        &mut sink,
+    );
+
+    // Continue the subpath.
+    let max_vertices = ctx.opts.max_depth as usize + 2;
+    let frame = Frame::from_normal(n);
+    let wo = frame.to_local(-slot.ray.dir.normalize());
+    let sample = if t_len >= max_vertices || t_len >= MAX_CAMERA_VERTICES {
+        None
+    } else {
+        material.sample_f(wo, slot.rng.uniform(), slot.rng.uniform2(), crate::bsdf::TransportMode::Radiance)
+    };
+    cam[t_len - 1].delta = sample.is_some_and(|s| s.delta);
+    t.store(&a.vertices, vbase + depth, cam[t_len - 1]);
+    slot.depth += 1;
+    match sample {
+        Some(s) => {
+            slot.beta *= s.weight;
+            if t_len > 4 {
+                let q = slot.beta.max_element().min(0.95);
+                if slot.rng.uniform() >= q {
+                    slot.alive = 0;
+                }
+                slot.beta /= q;
+            }
+            if !slot.beta.is_finite() || slot.beta.max_element() <= 0.0 {
+                slot.alive = 0;
+            }
+            let wi = frame.to_world(s.wi);
+            slot.ray = Ray::new(offset_ray_origin(p, if wi.dot(n) > 0.0 { n } else { -n }), wi);
+        }
+        None => slot.alive = 0,
+    }
+    t.store(&a.slots, slot_id, slot);
+}
+
+/// `cis::accumulate`: adds the visible pending contributions of active sample `i` to
+/// its radiance, in pending order.
+pub fn accumulate(
+    t: &Thread,
+    i: usize,
+    active: &Global<u32>,
+    pending: &Global<PendingData>,
+    blocked: &Global<u32>,
+    slots: &GlobalMut<Slot>,
+) {
+    let slot_id = t.load(active, i) as usize;
+    let mut slot = t.load(&slots.as_global(), slot_id);
+    let base = slot_id * PENDING_PER_SLOT;
+    for k in 0..PENDING_PER_SLOT {
+        let p = t.load(pending, base + k);
+        let visible = p.state == 2 || (p.state == 1 && t.load(blocked, base + k) == 0);
+        if visible {
+            slot.radiance += p.value;
+        }
+    }
+    t.store(slots, slot_id, slot);
+}
+
+/// `cis::retire`: a finished sample writes its radiance to its pixel's estimate.
+pub fn retire(t: &Thread, i: usize, active: &Global<u32>, slots: &Global<Slot>, estimates: &GlobalMut<[f32; 3]>) {
+    let slot = t.load(slots, t.load(active, i) as usize);
+    if slot.alive == 0 {
+        t.store(estimates, slot.pixel as usize, slot.radiance.to_array());
+    }
+}
