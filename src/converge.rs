@@ -33,6 +33,39 @@ pub fn relmse(image: &[Vec3], reference: &[Vec3]) -> f64 {
     sum / (3 * image.len().max(1)) as f64
 }
 
+/// An integrator with its settings, under a label for charts: `path`, `light`, `bdpt`,
+/// `lvc`, `cis`, and the CIS ablations `cis-nosort`, `cis-nois` (uniform connections)
+/// and `cis-nocompact` (no compaction or regeneration).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Variant {
+    pub label: &'static str,
+    pub kind: IntegratorKind,
+    pub cis: crate::cis::CisParams,
+}
+
+impl Variant {
+    pub const NAMES: [&'static str; 8] =
+        ["path", "light", "bdpt", "lvc", "cis", "cis-nosort", "cis-nois", "cis-nocompact"];
+
+    pub fn parse(name: &str) -> Result<Variant> {
+        let label = Self::NAMES.iter().find(|n| n.eq_ignore_ascii_case(name)).copied().ok_or_else(|| {
+            Error::BadSetting(format!("unknown integrator '{name}' (known: {})", Self::NAMES.join(", ")))
+        })?;
+        let d = crate::cis::CisParams::default();
+        let (kind, cis) = match label {
+            "path" => (IntegratorKind::Path, d),
+            "light" => (IntegratorKind::Light, d),
+            "bdpt" => (IntegratorKind::Bdpt, d),
+            "lvc" => (IntegratorKind::Lvc, d),
+            "cis" => (IntegratorKind::Cis, d),
+            "cis-nosort" => (IntegratorKind::Cis, crate::cis::CisParams { sort: false, ..d }),
+            "cis-nois" => (IntegratorKind::Cis, crate::cis::CisParams { importance: false, ..d }),
+            _ => (IntegratorKind::Cis, crate::cis::CisParams { regenerate: false, ..d }),
+        };
+        Ok(Variant { label, kind, cis })
+    }
+}
+
 /// One measurement of one integrator's progress.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Checkpoint {
@@ -46,7 +79,7 @@ pub struct Checkpoint {
 
 #[derive(Clone, Debug)]
 pub struct ConvergeOptions {
-    pub integrators: Vec<IntegratorKind>,
+    pub integrators: Vec<Variant>,
     /// Time budget of each integrator, seconds.
     pub seconds: f64,
     /// Number of log-spaced checkpoints from `seconds / 200` to `seconds`.
@@ -77,16 +110,18 @@ pub fn run(
     let n = opts.checkpoints.max(2);
     let times: Vec<f64> = (0..n).map(|i| opts.seconds / 200.0 * 200f64.powf(i as f64 / (n - 1) as f64)).collect();
     let mut rows = Vec::new();
-    for &kind in &opts.integrators {
+    for variant in &opts.integrators {
         let render_opts = RenderOptions {
             width: opts.width,
             height: opts.height,
             budget: Budget::Seconds(opts.seconds),
             max_depth: opts.max_depth,
             seed: opts.seed,
-            integrator: kind,
+            integrator: variant.kind,
+            cis: variant.cis,
             ..Default::default()
         };
+        let label = variant.label;
         let start = Instant::now();
         let mut measuring = Duration::ZERO;
         let mut next = 0;
@@ -98,7 +133,7 @@ pub fn run(
             let t0 = Instant::now();
             let mean = film.mean();
             let row = Checkpoint {
-                integrator: kind.name(),
+                integrator: label,
                 seconds: elapsed,
                 spp: film.passes,
                 rmse: rmse(&mean, reference),
@@ -115,7 +150,7 @@ pub fn run(
             measure(film, &mut rows, false);
             true
         })?;
-        if rows.last().is_none_or(|r| r.spp != film.passes || r.integrator != kind.name()) {
+        if rows.last().is_none_or(|r| r.spp != film.passes || r.integrator != label) {
             measure(&film, &mut rows, true);
         }
     }

@@ -36,9 +36,10 @@ struct ConvergeArgs {
     /// Scene, as for `render`.
     #[arg(default_value = "cornell")]
     scene: PathBuf,
-    /// Integrators to compare, comma-separated.
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "path,light,bdpt")]
-    integrators: Vec<IntegratorKind>,
+    /// Integrators to compare, comma-separated: path, light, bdpt, lvc, cis, and the
+    /// CIS ablations cis-nosort, cis-nois, cis-nocompact.
+    #[arg(long, value_delimiter = ',', default_value = "path,light,bdpt")]
+    integrators: Vec<String>,
     /// Time budget of each integrator, seconds.
     #[arg(long, default_value_t = 10.0)]
     seconds: f64,
@@ -229,7 +230,7 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
 }
 
 fn run_converge(args: ConvergeArgs) -> Result<()> {
-    use warpray::converge::{ConvergeOptions, read_exr, run, time_to_reach, write_chart, write_csv};
+    use warpray::converge::{ConvergeOptions, Variant, read_exr, run, time_to_reach, write_chart, write_csv};
     let desc = resolve_scene(&args.scene)?;
     let (width, height) = args.size;
     warpray::film::check_size(width, height)?;
@@ -281,7 +282,7 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
             }
         };
         let opts = ConvergeOptions {
-            integrators: args.integrators.clone(),
+            integrators: args.integrators.iter().map(|n| Variant::parse(n)).collect::<Result<Vec<_>>>()?,
             seconds: args.seconds,
             checkpoints: args.checkpoints,
             width,
@@ -303,13 +304,13 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
         let target = opts
             .integrators
             .iter()
-            .filter_map(|k| rows.iter().rev().find(|r| r.integrator == k.name()).map(|r| r.rmse))
+            .filter_map(|k| rows.iter().rev().find(|r| r.integrator == k.label).map(|r| r.rmse))
             .fold(0.0f64, f64::max);
         println!("time to reach RMSE {target:.5}:");
         for k in &opts.integrators {
-            match time_to_reach(&rows, k.name(), target) {
-                Some(t) => println!("  {:>6}: {t:.2} s", k.name()),
-                None => println!("  {:>6}: not reached", k.name()),
+            match time_to_reach(&rows, k.label, target) {
+                Some(t) => println!("  {:>13}: {t:.2} s", k.label),
+                None => println!("  {:>13}: not reached", k.label),
             }
         }
         println!(
