@@ -19,6 +19,7 @@ fn film(scene: &Scene, kind: IntegratorKind, spp: u32, lvc: LvcParams) -> Film {
         integrator: kind,
         seed: 11,
         lvc,
+        ..Default::default()
     };
     let (f, _) = render(scene, &caster, &opts, |_, _| true).unwrap();
     assert_eq!(f.rejected, 0);
