@@ -32,6 +32,8 @@ pub mod converge;
 pub mod error;
 pub mod film;
 pub mod geometry;
+#[cfg(feature = "inspector")]
+pub mod inspector;
 pub mod lights;
 pub mod pdacrt;
 pub mod render;

@@ -332,6 +332,8 @@ pub struct BruteForceArgs<'a> {
     pub rays: Global<'a, RayData>,
     pub tris: Global<'a, [f32; 9]>,
     pub keys: GlobalMut<'a, u64>,
+    /// Per ray: terminal nodes it was tested in (the inspector's work heat map).
+    pub visits: GlobalMut<'a, u32>,
     pub any_hit: bool,
 }
 
@@ -415,8 +417,11 @@ pub fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
     blk.sync_threads();
     blk.for_each_thread(|t| {
         let id = t.get(ray_id);
-        if id != u32::MAX && t.get(best) != NO_HIT {
-            t.atomic_min_u64(&a.keys, id as usize, t.get(best));
+        if id != u32::MAX {
+            t.atomic_add(&a.visits, id as usize, 1);
+            if t.get(best) != NO_HIT {
+                t.atomic_min_u64(&a.keys, id as usize, t.get(best));
+            }
         }
     });
 }

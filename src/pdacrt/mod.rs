@@ -76,6 +76,8 @@ pub struct LevelRecord {
     pub id_bytes: usize,
     pub seconds: f64,
     pub kernels: Vec<KernelTime>,
+    /// The level's node boxes (what the inspector draws over the image).
+    pub boxes: Vec<Aabb>,
 }
 
 pub struct Pdacrt {
@@ -84,6 +86,7 @@ pub struct Pdacrt {
     scene_box: Aabb,
     pub params: PdacrtParams,
     levels: Mutex<Vec<LevelRecord>>,
+    visits: Mutex<Vec<u32>>,
 }
 
 /// One level's nodes and element id arrays.
@@ -114,12 +117,24 @@ impl Pdacrt {
             })
             .collect();
         let scene_box = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(Aabb::from_points(t)));
-        Pdacrt { tris: dev.alloc_vec(flat), dev, scene_box, params, levels: Mutex::new(Vec::new()) }
+        Pdacrt {
+            tris: dev.alloc_vec(flat),
+            dev,
+            scene_box,
+            params,
+            levels: Mutex::new(Vec::new()),
+            visits: Mutex::new(Vec::new()),
+        }
     }
 
     /// The emulated device: its kernel statistics and memory accounting.
     pub fn device(&self) -> &Device {
         &self.dev
+    }
+
+    /// Per ray of the most recent trace call: how many terminal nodes tested it.
+    pub fn visits(&self) -> Vec<u32> {
+        self.visits.lock().unwrap_or_else(|e| e.into_inner()).clone()
     }
 
     /// The levels of the most recent trace call.
@@ -159,6 +174,7 @@ impl Pdacrt {
             });
         }
         let mut keys = dev.alloc_filled(n, NO_HIT);
+        let mut visits = dev.alloc::<u32>(n);
         let scene_box = self.scene_box;
         let tri_count = self.tris.len();
 
@@ -192,12 +208,13 @@ impl Pdacrt {
         let mut records = Vec::new();
         let mut depth = 0;
         while !level.nodes.is_empty() && !level.ray_ids.is_empty() && !level.tri_ids.is_empty() {
-            let (next, record) = self.level(level, &ray_buf, &mut keys, depth, any_hit);
+            let (next, record) = self.level(level, &ray_buf, &mut keys, &mut visits, depth, any_hit);
             records.push(record);
             level = next;
             depth += 1;
         }
         *self.levels.lock().unwrap_or_else(|e| e.into_inner()) = records;
+        *self.visits.lock().unwrap_or_else(|e| e.into_inner()) = visits.to_vec();
         let peak = dev.memory().peak.saturating_sub(resident);
         (keys, ray_buf, peak)
     }
@@ -208,6 +225,7 @@ impl Pdacrt {
         lv: Level,
         rays: &DeviceBuffer<RayData>,
         keys: &mut DeviceBuffer<u64>,
+        visits: &mut DeviceBuffer<u32>,
         depth: u32,
         any_hit: bool,
     ) -> (Level, LevelRecord) {
@@ -217,6 +235,7 @@ impl Pdacrt {
         let (n_nodes, n_rays, n_tris) = (lv.nodes.len(), lv.ray_ids.len(), lv.tri_ids.len());
         let Level { nodes, ray_ids, ray_node, tri_ids, tri_node } = lv;
 
+        let boxes: Vec<Aabb> = nodes.as_slice().iter().map(|n| n.bounds.aabb()).collect();
         let mut child_boxes = dev.alloc::<BoxData>(2 * n_nodes);
         {
             let (nv, cv) = (nodes.view(), child_boxes.view_mut());
@@ -312,7 +331,7 @@ impl Pdacrt {
         drop((children, ray_codes, tri_codes, ray_ids, tri_ids));
 
         if term_n > 0 {
-            self.solve_terminals(&term_nodes, &term_ray_ids, &term_tri_ids, rays, keys, any_hit);
+            self.solve_terminals(&term_nodes, &term_ray_ids, &term_tri_ids, rays, keys, visits, any_hit);
         }
 
         let record = LevelRecord {
@@ -326,6 +345,7 @@ impl Pdacrt {
             id_bytes: (n_rays + n_tris) * 8,
             seconds: start.elapsed().as_secs_f64(),
             kernels: kernel_times(&dev.launches_since(mark)),
+            boxes,
         };
         (next, record)
     }
@@ -354,6 +374,7 @@ impl Pdacrt {
         tri_ids: &DeviceBuffer<u32>,
         rays: &DeviceBuffer<RayData>,
         keys: &mut DeviceBuffer<u64>,
+        visits: &mut DeviceBuffer<u32>,
         any_hit: bool,
     ) {
         let dev = &self.dev;
@@ -376,6 +397,7 @@ impl Pdacrt {
             rays: rays.view(),
             tris: self.tris.view(),
             keys: keys.view_mut(),
+            visits: visits.view_mut(),
             any_hit,
         };
         let cfg = LaunchConfig { grid, block, shared_bytes: STAGE * 36, regions: &["tests"] };

@@ -13,7 +13,7 @@ pub use bdpt::{Bdpt, LightTracer};
 pub use lvc::{LvcBdpt, LvcParams};
 pub use path::PathTracer;
 
-use crate::cast::RayCaster;
+use crate::cast::{CastStats, RayCaster};
 use crate::error::{Error, Result};
 use crate::film::Film;
 use crate::lights::Lights;
@@ -133,6 +133,91 @@ pub struct Context<'a> {
     pub opts: &'a RenderOptions,
 }
 
+/// A progressive renderer: validated settings, the lights, and the integrator with its
+/// buffers. [`render`] drives one; the inspector drives one pass at a time.
+pub struct Renderer<'a> {
+    scene: &'a Scene,
+    caster: &'a dyn RayCaster,
+    opts: RenderOptions,
+    lights: Lights,
+    integrator: Integrator,
+}
+
+impl<'a> Renderer<'a> {
+    /// Checks the scene and settings and prepares the integrator.
+    pub fn new(scene: &'a Scene, caster: &'a dyn RayCaster, opts: &RenderOptions) -> Result<Self> {
+        scene.check_renderable()?;
+        crate::film::check_size(opts.width, opts.height)?;
+        if let Budget::Seconds(s) = opts.budget {
+            if !(s > 0.0 && s.is_finite()) {
+                return Err(Error::BadSetting(format!("time budget {s} s must be positive")));
+            }
+        }
+        if opts.max_depth > 1024 {
+            return Err(Error::BadSetting(format!("max depth {} is absurd (at most 1024)", opts.max_depth)));
+        }
+        // Full paths live in fixed-size stack lists (kernels cannot allocate).
+        let limit = match opts.integrator {
+            IntegratorKind::Path | IntegratorKind::Light => u32::MAX,
+            IntegratorKind::Bdpt | IntegratorKind::Lvc => (bdpt::MAX_PATH - 2) as u32,
+            IntegratorKind::Cis => (crate::cis::kernels::MAX_CAMERA_VERTICES - 2) as u32,
+        };
+        if opts.max_depth > limit {
+            return Err(Error::BadSetting(format!(
+                "the {} integrator supports max depth up to {limit}",
+                opts.integrator.name()
+            )));
+        }
+        if opts.integrator != IntegratorKind::Path && scene.camera.aperture_radius > 0.0 {
+            return Err(Error::BadSetting(format!(
+                "the {} integrator connects to a pinhole camera; set the aperture radius to 0",
+                opts.integrator.name()
+            )));
+        }
+        let lights = Lights::new(scene);
+        let integrator = match opts.integrator {
+            IntegratorKind::Path => {
+                let ctx = Context { scene, lights: &lights, caster, opts };
+                Integrator::Path(PathTracer::new(&ctx))
+            }
+            IntegratorKind::Light => Integrator::Light(LightTracer),
+            IntegratorKind::Bdpt => Integrator::Bdpt(Bdpt),
+            IntegratorKind::Lvc => Integrator::Lvc(LvcBdpt::new(opts.lvc)),
+            IntegratorKind::Cis => Integrator::Cis(Box::new(crate::cis::CisLbdpt::new(opts.cis))),
+        };
+        Ok(Renderer { scene, caster, opts: opts.clone(), lights, integrator })
+    }
+
+    pub fn options(&self) -> &RenderOptions {
+        &self.opts
+    }
+
+    /// An empty film of the render's size.
+    pub fn film(&self) -> Result<Film> {
+        Film::new(self.opts.width, self.opts.height)
+    }
+
+    /// Adds pass number `pass` (one sample per pixel) to `film`.
+    pub fn pass(&mut self, pass: u32, film: &mut Film) -> CastStats {
+        let ctx = Context { scene: self.scene, lights: &self.lights, caster: self.caster, opts: &self.opts };
+        match &mut self.integrator {
+            Integrator::Path(i) => i.render_pass(&ctx, pass, film),
+            Integrator::Light(i) => i.render_pass(&ctx, pass, film),
+            Integrator::Bdpt(i) => i.render_pass(&ctx, pass, film),
+            Integrator::Lvc(i) => i.render_pass(&ctx, pass, film),
+            Integrator::Cis(i) => i.render_pass(&ctx, pass, film),
+        }
+    }
+
+    /// The CIS-LBDPT integrator, when that is the one running (queue records, device).
+    pub fn cis(&self) -> Option<&crate::cis::CisLbdpt> {
+        match &self.integrator {
+            Integrator::Cis(c) => Some(c),
+            _ => None,
+        }
+    }
+}
+
 /// Renders `scene` with `caster`. `on_pass(pass_index, film)` is called after each pass
 /// (progress bars, checkpoints); return `false` from it to stop early.
 pub fn render(
@@ -141,45 +226,10 @@ pub fn render(
     opts: &RenderOptions,
     mut on_pass: impl FnMut(u32, &Film) -> bool,
 ) -> Result<(Film, RenderStats)> {
-    scene.check_renderable()?;
-    if let Budget::Seconds(s) = opts.budget {
-        if !(s > 0.0 && s.is_finite()) {
-            return Err(Error::BadSetting(format!("time budget {s} s must be positive")));
-        }
-    }
-    if opts.max_depth > 1024 {
-        return Err(Error::BadSetting(format!("max depth {} is absurd (at most 1024)", opts.max_depth)));
-    }
-    // Full paths live in fixed-size stack lists (kernels cannot allocate).
-    let limit = match opts.integrator {
-        IntegratorKind::Path | IntegratorKind::Light => u32::MAX,
-        IntegratorKind::Bdpt | IntegratorKind::Lvc => (bdpt::MAX_PATH - 2) as u32,
-        IntegratorKind::Cis => (crate::cis::kernels::MAX_CAMERA_VERTICES - 2) as u32,
-    };
-    if opts.max_depth > limit {
-        return Err(Error::BadSetting(format!(
-            "the {} integrator supports max depth up to {limit}",
-            opts.integrator.name()
-        )));
-    }
-    let mut film = Film::new(opts.width, opts.height)?;
-    let lights = Lights::new(scene);
-    let ctx = Context { scene, lights: &lights, caster, opts };
+    let mut renderer = Renderer::new(scene, caster, opts)?;
+    let mut film = renderer.film()?;
     let mut stats = RenderStats::default();
     let start = Instant::now();
-    if opts.integrator != IntegratorKind::Path && scene.camera.aperture_radius > 0.0 {
-        return Err(Error::BadSetting(format!(
-            "the {} integrator connects to a pinhole camera; set the aperture radius to 0",
-            opts.integrator.name()
-        )));
-    }
-    let mut integrator = match opts.integrator {
-        IntegratorKind::Path => Integrator::Path(PathTracer::new(&ctx)),
-        IntegratorKind::Light => Integrator::Light(LightTracer),
-        IntegratorKind::Bdpt => Integrator::Bdpt(Bdpt),
-        IntegratorKind::Lvc => Integrator::Lvc(LvcBdpt::new(opts.lvc)),
-        IntegratorKind::Cis => Integrator::Cis(Box::new(crate::cis::CisLbdpt::new(opts.cis))),
-    };
     loop {
         let done = match opts.budget {
             Budget::Samples(n) => stats.passes >= n,
@@ -188,13 +238,7 @@ pub fn render(
         if done {
             break;
         }
-        let pass = match &mut integrator {
-            Integrator::Path(i) => i.render_pass(&ctx, stats.passes, &mut film),
-            Integrator::Light(i) => i.render_pass(&ctx, stats.passes, &mut film),
-            Integrator::Bdpt(i) => i.render_pass(&ctx, stats.passes, &mut film),
-            Integrator::Lvc(i) => i.render_pass(&ctx, stats.passes, &mut film),
-            Integrator::Cis(i) => i.render_pass(&ctx, stats.passes, &mut film),
-        };
+        let pass = renderer.pass(stats.passes, &mut film);
         stats.rays += pass.rays as u64;
         stats.cast_seconds += pass.seconds;
         stats.passes += 1;

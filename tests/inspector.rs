@@ -1,0 +1,92 @@
+//! Headless UI tests of the inspector (egui_kittest, no display or GPU needed).
+#![cfg(feature = "inspector")]
+
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use std::time::{Duration, Instant};
+use warpray::inspector::{Inspector, Panel};
+
+fn harness() -> Harness<'static, Inspector> {
+    let mut app = Inspector::new();
+    app.size = 24;
+    app.spp = 100_000;
+    Harness::new_ui_state(|ui, app: &mut Inspector| app.ui(ui), app)
+}
+
+/// Steps the UI until `done` holds (the worker runs on its own thread).
+fn step_until(h: &mut Harness<'static, Inspector>, what: &str, done: impl Fn(&Inspector) -> bool) {
+    let start = Instant::now();
+    while !done(h.state()) {
+        assert!(start.elapsed() < Duration::from_secs(120), "timed out waiting for {what}");
+        h.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    h.step();
+}
+
+#[test]
+fn every_panel_opens() {
+    let mut h = harness();
+    h.step();
+    for p in Panel::ALL {
+        h.get_by_label(p.label()).click();
+        h.step();
+        h.step();
+        assert_eq!(h.state().panel, p);
+    }
+}
+
+#[test]
+fn start_stop_and_select_a_level() {
+    let mut h = harness();
+    h.step();
+    h.get_by_label("Start").click();
+    h.step();
+    step_until(&mut h, "the first passes", |a| a.shared.lock().unwrap().passes >= 2);
+    assert!(h.state().running(), "still rendering with a large budget");
+    {
+        let s = h.state().shared.lock().unwrap();
+        assert_eq!(s.image.len(), 24 * 24);
+        assert!(s.image.iter().any(|c| c.max_element() > 0.0));
+        assert!(!s.levels.is_empty() && !s.kernels.is_empty());
+        assert_eq!(s.series.len(), 1);
+    }
+    // The UI stays responsive while the worker renders: panels switch at once.
+    h.get_by_label("Kernels").click();
+    h.step();
+    h.get_by_label("Stop").click();
+    h.step();
+    step_until(&mut h, "the render to stop", |a| !a.running());
+    assert!(h.state().shared.lock().unwrap().status.contains("stopped"));
+    // Select a level: its boxes are drawn over the image.
+    h.get_by_label("Recursion levels").click();
+    h.step();
+    h.step();
+    h.get_by_label("level 0").click();
+    h.step();
+    assert_eq!(h.state().selected_level, Some(0));
+    h.get_by_label("Image").click();
+    h.step();
+    h.step();
+}
+
+#[test]
+fn queue_panel_shows_cis_records() {
+    let mut h = harness();
+    h.state_mut().integrator = warpray::render::IntegratorKind::Cis;
+    h.state_mut().spp = 2;
+    h.step();
+    h.get_by_label("Start").click();
+    h.step();
+    step_until(&mut h, "the CIS render", |a| !a.running() && a.shared.lock().unwrap().passes == 2);
+    {
+        let s = h.state().shared.lock().unwrap();
+        assert!(!s.queues.is_empty(), "queue records");
+        let (unsorted, sorted) = s.sorting_effect.expect("sorting effect measured");
+        assert!(sorted >= unsorted, "{sorted} vs {unsorted}");
+        assert!(s.kernels.iter().any(|k| k.name == "cis::shade"));
+    }
+    h.get_by_label("Queues").click();
+    h.step();
+    h.step();
+}
