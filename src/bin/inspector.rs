@@ -1,4 +1,5 @@
-//! `warpray-inspector [SCENE]`: the egui inspector (needs the `inspector` feature).
+//! `warpray-inspector [SCENE] [--start]`: the egui inspector (needs the `inspector`
+//! feature). `--start` begins rendering at once.
 //! `cargo run --release --features inspector --bin warpray-inspector`
 
 use warpray::inspector::Inspector;
@@ -13,8 +14,21 @@ impl eframe::App for App {
 
 fn main() -> eframe::Result {
     let mut inspector = Inspector::new();
-    if let Some(scene) = std::env::args().nth(1) {
-        inspector.add_scene(scene.into());
+    let mut start = false;
+    for arg in std::env::args().skip(1) {
+        match arg.as_str() {
+            "--start" => start = true,
+            "-h" | "--help" => {
+                println!(
+                    "warpray-inspector [SCENE] [--start]\n\nSCENE: a .toml scene file or an .obj/.obj.gz (default: the built-in Cornell box)"
+                );
+                return Ok(());
+            }
+            scene => inspector.add_scene(scene.into()),
+        }
+    }
+    if start {
+        inspector.start();
     }
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default().with_inner_size([1280.0, 800.0]).with_title("warpray inspector"),
