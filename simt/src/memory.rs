@@ -219,18 +219,18 @@ impl<T: DeviceCopy> Readable<T> for Global<'_, T> {
     }
 }
 
+/// A read-write view reads exactly as its read-only view does.
 impl<T: DeviceCopy> Readable<T> for GlobalMut<'_, T> {
     fn len(&self) -> usize {
         self.len
     }
     #[inline(always)]
     fn address(&self, i: usize) -> u64 {
-        self.vbase + (i * std::mem::size_of::<T>()) as u64
+        self.as_global().address(i)
     }
     #[inline(always)]
     fn read(&self, i: usize) -> T {
-        assert!(i < self.len, "load of element {i} from a buffer of {}", self.len);
-        unsafe { read_words(self.ptr.add(i)) }
+        self.as_global().read(i)
     }
 }
 
