@@ -270,6 +270,10 @@ pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
     out
 }
 
+// SAFETY: #[repr(C)] structs of 4-byte fields, no padding: they travel in device buffers.
+unsafe impl simt::DeviceCopy for Ray {}
+unsafe impl simt::DeviceCopy for Hit {}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -309,7 +313,3 @@ mod tests {
         }
     }
 }
-
-// SAFETY: #[repr(C)] structs of 4-byte fields, no padding: they travel in device buffers.
-unsafe impl simt::DeviceCopy for Ray {}
-unsafe impl simt::DeviceCopy for Hit {}

@@ -267,7 +267,7 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
                     height,
                     budget: Budget::Samples(args.reference_spp),
                     max_depth: args.max_depth,
-                    seed: args.seed ^ 0x5eed_0f_7ef,
+                    seed: args.seed ^ 0x5_eed0_f7ef,
                     integrator: args.reference_integrator,
                     ..Default::default()
                 };

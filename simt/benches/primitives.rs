@@ -187,7 +187,7 @@ fn overhead(c: &mut Criterion) {
     let x = vec![1.5f32; n];
     let mut y = vec![2.5f32; n];
     g.bench_function("saxpy/rayon", |b| {
-        b.iter(|| y.par_iter_mut().zip(black_box(&x)).for_each(|(y, &x)| *y = 2.0 * x + *y))
+        b.iter(|| y.par_iter_mut().zip(black_box(&x)).for_each(|(y, &x)| *y += 2.0 * x))
     });
     g.finish();
 }

@@ -367,6 +367,7 @@ impl Pdacrt {
         table
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn solve_terminals(
         &self,
         terminals: &DeviceBuffer<NodeData>,

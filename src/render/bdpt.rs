@@ -382,6 +382,9 @@ pub(crate) fn camera_vertex(cam: &Camera) -> Vertex {
     Vertex::new(VertexKind::Camera, cam.position, cam.forward, u32::MAX, Vec3::ONE, false, Vec3::ZERO)
 }
 
+/// One pixel sample's estimate, its splats, and the rays it cast.
+type SampleResult = (Vec3, Vec<(u32, Vec3)>, usize);
+
 /// Bidirectional path tracing, one camera and one light subpath per pixel sample.
 pub struct Bdpt;
 
@@ -426,7 +429,7 @@ fn unoccluded(ctx: &Context, pending: &[(Vec3, u32, Ray)], rays: &mut usize) -> 
 impl Bdpt {
     pub fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let (w, h) = (ctx.opts.width, ctx.opts.height);
-        let results: Vec<(Vec3, Vec<(u32, Vec3)>, usize)> = (0..w * h)
+        let results: Vec<SampleResult> = (0..w * h)
             .into_par_iter()
             .map_init(
                 || (Vec::new(), Vec::new(), VertexList::default()),

@@ -119,7 +119,7 @@ pub(crate) fn build_cache(
     // Splats (t = 1) of every light vertex, in path order.
     let cam_v = camera_vertex(&ctx.scene.camera);
     let scale = (pixels / n_light as f64) as f32;
-    let per_path: Vec<(Vec<(Vec3, u32, crate::geometry::Ray)>, usize)> = paths
+    let per_path: Vec<(Vec<PendingSplat>, usize)> = paths
         .par_iter()
         .map_init(VertexList::default, |path, (verts, _)| {
             let pending: Vec<_> = (1..=verts.len())
@@ -144,6 +144,9 @@ pub(crate) fn build_cache(
     }
     (cache, counts, splats, rays)
 }
+
+/// A light vertex's camera splat waiting for its shadow ray: value, pixel, ray.
+type PendingSplat = (Vec3, u32, crate::geometry::Ray);
 
 /// LVC-BDPT, one task per camera path.
 pub struct LvcBdpt {

@@ -133,13 +133,8 @@ pub fn load_obj(path: impl AsRef<Path>, opts: &ObjOptions) -> Result<Scene> {
     // The MTL loader is called from inside tobj; remember the first failure and the
     // line that named the library.
     let mtl_error: RefCell<Option<Error>> = RefCell::new(None);
-    let load_opts = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ignore_points: true,
-        ignore_lines: true,
-        ..Default::default()
-    };
+    let load_opts =
+        tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
     let result = tobj::load_obj_buf(&mut reader, &load_opts, |mtl_path: &Path| {
         load_mtl(&dir, mtl_path, path, lines_read.get(), &mtl_error)
     });
