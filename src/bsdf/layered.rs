@@ -22,8 +22,10 @@
 //! **Energy.** Light reflected back down at the underside of a coat, and light that
 //! would leave the film beyond the critical angle, is dropped: the model only ever
 //! loses energy relative to the physical stack (never gains). A white Lambertian under a
-//! clear coat of index 1.5 reflects about 60 % at normal incidence instead of the ~95 %
-//! of the full multiple-scattering solution; coloured coats and bases darken further.
+//! clear coat of index 1.5 reflects 43 % at normal incidence (4 % at the coat, the rest
+//! the light that leaves the film on its first try; `examples/layered_albedo.rs`), where
+//! the full multiple-scattering solution would reflect nearly all of it; coloured coats
+//! and bases darken further.
 
 use super::microfacet::{Ggx, fresnel_conductor, fresnel_dielectric};
 use super::{BsdfSample, TransportMode};
