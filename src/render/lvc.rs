@@ -119,10 +119,12 @@ pub(crate) fn build_cache(
     // Splats (t = 1) of every light vertex, in path order.
     let cam_v = camera_vertex(&ctx.scene.camera);
     let scale = (pixels / n_light as f64) as f32;
-    let per_path: Vec<(Vec<PendingSplat>, usize)> = paths
+    // Each path's splats, with their shadow rays cast as one batch per path, in parallel;
+    // then merged in path order (deterministic).
+    let per_path: Vec<(Vec<(u32, Vec3)>, usize)> = paths
         .par_iter()
         .map_init(VertexList::default, |path, (verts, _)| {
-            let pending: Vec<_> = (1..=verts.len())
+            let pending: Vec<PendingSplat> = (1..=verts.len())
                 .filter_map(|s| {
                     let (l, px, ray) = connect_to_camera(ctx, verts, s, &cam_v)?;
                     full_path(verts, std::slice::from_ref(&cam_v), s, 1, path);
@@ -130,17 +132,17 @@ pub(crate) fn build_cache(
                     Some((l * w * scale, px, ray))
                 })
                 .collect();
-            let n = pending.len();
-            (pending, n)
+            let shadow: Vec<_> = pending.iter().map(|p| p.2).collect();
+            let mut blocked = vec![false; shadow.len()];
+            ctx.caster.occluded(&shadow, &mut blocked);
+            let visible = pending.iter().zip(blocked).filter(|(_, b)| !b).map(|(p, _)| (p.1, p.0)).collect();
+            (visible, shadow.len())
         })
         .collect();
     let mut splats = Vec::new();
-    for (pending, n) in per_path {
+    for (visible, n) in per_path {
         rays += n;
-        let shadow: Vec<_> = pending.iter().map(|p| p.2).collect();
-        let mut blocked = vec![false; shadow.len()];
-        ctx.caster.occluded(&shadow, &mut blocked);
-        splats.extend(pending.iter().zip(blocked).filter(|(_, b)| !b).map(|(p, _)| (p.1, p.0)));
+        splats.extend(visible);
     }
     (cache, counts, splats, rays)
 }
