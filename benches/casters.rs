@@ -7,14 +7,8 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 use warpray::prelude::*;
 
-fn primary_rays(scene: &Scene, w: u32, h: u32) -> Vec<Ray> {
-    (0..w * h)
-        .map(|i| scene.camera.generate_ray(Vec2::new((i % w) as f32 + 0.5, (i / w) as f32 + 0.5), w, h, Vec2::ZERO))
-        .collect()
-}
-
 fn bench_scene(c: &mut Criterion, name: &str, scene: &Scene, with_brute: bool) {
-    let rays = primary_rays(scene, 256, 256);
+    let rays = warpray::cast::batches::primary_rays(&scene.camera, 256, 256);
     let mut g = c.benchmark_group(format!("cast/{name}"));
     g.sample_size(10);
     g.throughput(Throughput::Elements(rays.len() as u64));

@@ -9,12 +9,11 @@
 //!     [--threads N] [--scaling 1,2,4,8,16] [--ao 8] [--sweep]
 //! ```
 
+use warpray::cast::batches::interior_camera;
 use warpray::cast::{BvhCaster, Dacrt, DacrtParams, RayCaster};
-use warpray::geometry::{Hit, Ray, offset_ray_origin};
-use warpray::glam::{Vec2, Vec3};
+use warpray::geometry::{Hit, Ray};
 use warpray::pdacrt::{Pdacrt, PdacrtParams};
-use warpray::sampling::{Frame, Rng, cosine_hemisphere};
-use warpray::scene::{Camera, ObjOptions, Scene, find_model, load_obj, models_dir};
+use warpray::scene::{ObjOptions, Scene, find_model, load_obj, models_dir};
 
 struct Args {
     size: u32,
@@ -64,41 +63,20 @@ fn scene(name: &str) -> Scene {
         .unwrap_or_else(|| panic!("{name} not found in {}: set WARPRAY_MODELS", models_dir().display()));
     let mut s = load_obj(path, &ObjOptions::default()).unwrap();
     if name == "conference" {
-        let b = s.bounds();
-        let eye = b.center() + Vec3::new(-0.3, 0.1, 0.0) * b.extent();
-        s.camera = Camera::look_at(eye, b.center() + Vec3::new(0.3, -0.1, 0.0) * b.extent(), Vec3::Y, 60.0);
+        interior_camera(&mut s);
     }
     s
 }
 
-/// Primary rays, then from their hits (found with the BVH): shadow rays to a point
-/// light, mirror reflections, and `ao` cosine-weighted rays per hit.
+/// The paper's four batches, named, with whether they are shadow rays.
 fn batches(s: &Scene, size: u32, ao: usize) -> Vec<(&'static str, Vec<Ray>, bool)> {
-    let cam = &s.camera;
-    let primary: Vec<Ray> = (0..size * size)
-        .map(|i| cam.generate_ray(Vec2::new((i % size) as f32 + 0.5, (i / size) as f32 + 0.5), size, size, Vec2::ZERO))
-        .collect();
-    let mut hits = vec![Hit::MISS; primary.len()];
-    BvhCaster::new(s).closest(&primary, &mut hits);
-    let b = s.bounds();
-    let light = b.center() + Vec3::new(0.1, 0.45, 0.2) * b.extent();
-    let (mut shadow, mut specular, mut ambient) = (Vec::new(), Vec::new(), Vec::new());
-    for (i, (ray, hit)) in primary.iter().zip(&hits).enumerate() {
-        if !hit.is_hit() {
-            continue;
-        }
-        let n = s.normal(hit.prim).normalize();
-        let n = if n.dot(ray.dir) > 0.0 { -n } else { n };
-        let p = offset_ray_origin(ray.at(hit.t), n);
-        shadow.push(Ray::segment(p, light - p, 1.0));
-        specular.push(Ray::new(p, ray.dir - 2.0 * ray.dir.dot(n) * n));
-        let frame = Frame::from_normal(n);
-        let mut rng = Rng::for_sample(1, i as u64, 0);
-        for _ in 0..ao {
-            ambient.push(Ray::new(p, frame.to_world(cosine_hemisphere(rng.uniform2()))));
-        }
-    }
-    vec![("primary", primary, false), ("shadow", shadow, true), ("specular", specular, false), ("ao", ambient, false)]
+    let b = warpray::cast::batches::batches(s, size, size, ao, 1);
+    vec![
+        ("primary", b.primary, false),
+        ("shadow", b.shadow, true),
+        ("specular", b.specular, false),
+        ("ao", b.ambient, false),
+    ]
 }
 
 struct Row {

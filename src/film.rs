@@ -141,6 +141,12 @@ impl Film {
     }
 }
 
+/// Rec. 709 luminance of a linear RGB colour.
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
 /// sRGB transfer curve, clamped, to 8 bits.
 pub fn encode_srgb8(linear: f32) -> u8 {
     let x = if linear.is_nan() { 0.0 } else { linear.clamp(0.0, 1.0) };

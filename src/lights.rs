@@ -2,6 +2,7 @@
 //! face) and point lights, chosen in proportion to their power, then a uniform point
 //! on the chosen triangle.
 
+use crate::film::luminance;
 use crate::geometry::triangle_normal;
 use crate::sampling::uniform_triangle;
 use crate::scene::Scene;
@@ -46,10 +47,6 @@ pub struct Lights {
     cdf: Vec<f32>,
     /// Per scene triangle: index into `lights`, or `u32::MAX`.
     light_of_tri: Vec<u32>,
-}
-
-fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
 impl Lights {

@@ -7,9 +7,8 @@ mod common;
 use common::*;
 use warpray::cast::{BruteForce, BvhCaster, Dacrt, DacrtParams, RayCaster};
 use warpray::geometry::{Hit, Ray};
-use warpray::glam::{Vec2, Vec3};
+use warpray::glam::Vec3;
 use warpray::pdacrt::{Pdacrt, PdacrtParams};
-use warpray::sampling::{Frame, cosine_hemisphere};
 use warpray::scene::{ObjOptions, Scene, cornell_box, load_obj};
 
 /// The casters under test, each with its name.
@@ -63,31 +62,8 @@ fn compare_occluded(oracle: &dyn RayCaster, scene: &Scene, rays: &[Ray], what: &
 /// Primary rays, and from their hits: shadow rays to a point, mirror reflections, and
 /// cosine-weighted ambient-occlusion rays.
 fn batches(scene: &Scene, w: u32, h: u32, ao_per_hit: usize) -> [Vec<Ray>; 4] {
-    let cam = &scene.camera;
-    let primary: Vec<Ray> = (0..w * h)
-        .map(|i| cam.generate_ray(Vec2::new((i % w) as f32 + 0.5, (i / w) as f32 + 0.5), w, h, Vec2::ZERO))
-        .collect();
-    let mut hits = vec![Hit::MISS; primary.len()];
-    BvhCaster::new(scene).closest(&primary, &mut hits);
-    let b = scene.bounds();
-    let light = b.center() + Vec3::new(0.1, 0.45, 0.2) * b.extent();
-    let mut r = rng(3);
-    let (mut shadow, mut specular, mut ao) = (Vec::new(), Vec::new(), Vec::new());
-    for (ray, hit) in primary.iter().zip(&hits) {
-        if !hit.is_hit() {
-            continue;
-        }
-        let n = scene.normal(hit.prim).normalize();
-        let n = if n.dot(ray.dir) > 0.0 { -n } else { n };
-        let p = warpray::geometry::offset_ray_origin(ray.at(hit.t), n);
-        shadow.push(Ray::segment(p, light - p, 1.0));
-        specular.push(Ray::new(p, ray.dir - 2.0 * ray.dir.dot(n) * n));
-        let frame = Frame::from_normal(n);
-        for _ in 0..ao_per_hit {
-            ao.push(Ray::new(p, frame.to_world(cosine_hemisphere(r.uniform2()))));
-        }
-    }
-    [primary, shadow, specular, ao]
+    let b = warpray::cast::batches::batches(scene, w, h, ao_per_hit, 3);
+    [b.primary, b.shadow, b.specular, b.ambient]
 }
 
 fn check_scene(scene: &Scene, oracle: &dyn RayCaster, w: u32, h: u32, ao: usize, what: &str) {
@@ -114,11 +90,7 @@ fn dacrt_matches_brute_force_on_the_bunny() {
 
 fn conference_inside() -> Scene {
     let mut scene = load_obj(require_model("conference"), &ObjOptions::default()).unwrap();
-    // Inside the room, looking along it.
-    let b = scene.bounds();
-    let eye = b.center() + Vec3::new(-0.3, 0.1, 0.0) * b.extent();
-    scene.camera =
-        warpray::scene::Camera::look_at(eye, b.center() + Vec3::new(0.3, -0.1, 0.0) * b.extent(), Vec3::Y, 60.0);
+    warpray::cast::batches::interior_camera(&mut scene);
     scene
 }
 

@@ -25,7 +25,8 @@ impl RegionStats {
         (self.issued > 0).then(|| self.active as f64 / (self.issued as f64 * WARP_SIZE as f64))
     }
 
-    fn add(&mut self, o: &RegionStats) {
+    /// Adds another region's steps to this one.
+    pub fn add(&mut self, o: &RegionStats) {
         self.issued += o.issued;
         self.active += o.active;
     }
@@ -54,11 +55,16 @@ pub struct LaunchRecord {
 }
 
 impl LaunchRecord {
-    /// SIMD efficiency over the body and every named region.
-    pub fn simd_efficiency(&self) -> Option<f64> {
+    /// The body and every named region together.
+    pub fn all_regions(&self) -> RegionStats {
         let mut all = self.body.clone();
         self.regions.iter().for_each(|r| all.add(r));
-        all.simd_efficiency()
+        all
+    }
+
+    /// SIMD efficiency over the body and every named region.
+    pub fn simd_efficiency(&self) -> Option<f64> {
+        self.all_regions().simd_efficiency()
     }
 
     /// Efficiency of the named region.

@@ -10,6 +10,7 @@
 pub mod layered;
 pub mod microfacet;
 
+use crate::film::luminance;
 use crate::scene::Material;
 use glam::{Vec2, Vec3};
 use layered::SMOOTH;
@@ -33,11 +34,6 @@ pub struct BsdfSample {
     pub pdf: f32,
     pub weight: Vec3,
     pub delta: bool,
-}
-
-#[inline]
-fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
 /// Flips both directions so that `wo` lies on `+z` (two-sided opaque surfaces).

@@ -9,6 +9,7 @@
 //! wide BVH) and [`Dacrt`] (divide-and-conquer, no stored structure). PDACRT implements
 //! the same trait.
 
+pub mod batches;
 mod brute;
 mod bvh;
 mod dacrt;

@@ -10,7 +10,7 @@ use crate::cast::{BvhCaster, CasterKind, RayCaster};
 use crate::cis::{CisLbdpt, CisParams, QueueRecord};
 use crate::converge::rmse;
 use crate::film::encode_srgb8;
-use crate::geometry::{Aabb, Hit, Ray};
+use crate::geometry::{Aabb, Hit};
 use crate::pdacrt::{LevelRecord, Pdacrt, PdacrtParams};
 use crate::render::{Budget, Context, IntegratorKind, RenderOptions, Renderer};
 use crate::scene::{Scene, load_scene};
@@ -584,9 +584,7 @@ impl Job {
     fn analyse(&self, scene: &Scene, shared: &Mutex<Shared>) -> crate::error::Result<()> {
         lock(shared).status = "analysing: PDACRT levels".into();
         let (w, h) = (self.size, self.size);
-        let rays: Vec<Ray> = (0..w * h)
-            .map(|i| scene.camera.generate_ray(Vec2::new((i % w) as f32 + 0.5, (i / w) as f32 + 0.5), w, h, Vec2::ZERO))
-            .collect();
+        let rays = crate::cast::batches::primary_rays(&scene.camera, w, h);
         let pd = Pdacrt::from_triangles(
             &scene.triangle_vertices(),
             PdacrtParams { measure: true, ..PdacrtParams::default() },

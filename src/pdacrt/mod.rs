@@ -411,17 +411,12 @@ impl Pdacrt {
 fn kernel_times(launches: &[simt::LaunchRecord]) -> Vec<KernelTime> {
     let mut out: Vec<(KernelTime, simt::RegionStats)> = Vec::new();
     for r in launches {
-        let mut all = r.body.clone();
-        for reg in &r.regions {
-            all.issued += reg.issued;
-            all.active += reg.active;
-        }
+        let all = r.all_regions();
         match out.iter_mut().find(|(k, _)| k.name == r.name) {
             Some((k, acc)) => {
                 k.launches += 1;
                 k.seconds += r.seconds;
-                acc.issued += all.issued;
-                acc.active += all.active;
+                acc.add(&all);
             }
             None => {
                 out.push((KernelTime { name: r.name, launches: 1, seconds: r.seconds, simd_efficiency: None }, all))

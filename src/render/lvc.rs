@@ -16,6 +16,7 @@ use super::bdpt::{
 };
 use crate::cast::CastStats;
 use crate::film::Film;
+use crate::film::luminance;
 use crate::sampling::Rng;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -222,10 +223,6 @@ impl Connections {
             Connections::Resampled { draws, .. } => draws,
         }
     }
-}
-
-fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
 /// Every strategy at camera vertex `t - 1` except the camera splats: the emitter it hit
