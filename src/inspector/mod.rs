@@ -291,7 +291,11 @@ impl Inspector {
         let selected = self.selected_level;
         let shared = self.shared.clone();
         egui::ScrollArea::both().show(ui, |ui| {
-            let (rect, _) = ui.allocate_exact_size(size, egui::Sense::drag());
+            let (rect, response) = ui.allocate_exact_size(size, egui::Sense::drag());
+            // Pan: dragging the image scrolls it (the scroll bars and wheel work too).
+            if response.dragged() {
+                ui.scroll_with_delta(response.drag_delta());
+            }
             ui.painter().image(
                 tex_id,
                 rect,
