@@ -1,71 +1,95 @@
-//! The paper's tables for this machine: ray casting without a stored structure (serial
-//! DACRT, PDACRT) against the obvhs BVH (build and trace separately, and summed), on
-//! primary, shadow (one point light), specular (mirror) and ambient-occlusion batches
-//! (8 rays per primary hit), with peak memory; and thread scaling.
+//! The paper's tables for this machine: ray casting without a stored structure (DACRT,
+//! PDACRT) against the obvhs BVH (build and trace separately, and summed), on primary,
+//! shadow (one point light), specular (mirror) and ambient-occlusion batches (8 rays
+//! per primary hit), with peak memory and ray–triangle tests; and thread scaling.
 //!
 //! ```text
 //! WARPRAY_MODELS=../shared/models cargo run --release --example dacrt_tables -- \
 //!     [--size 1024] [--scenes bunny,conference,dragon] [--casters bvh,dacrt,pdacrt] \
-//!     [--threads N] [--scaling 1,2,4,8,16] [--ao 8] [--sweep]
+//!     [--threads N] [--scaling 1,2,4,8,16] [--ao 8] [--repeat 1] [--sweep] [--json]
 //! ```
+//!
+//! `--json` prints one object per measured row (keys `scene, batch, caster, threads,
+//! rays, build_ms, trace_ms, peak_bytes, tests`, plus `structure_bytes`) instead of
+//! the tables.
 
+use clap::Parser;
 use warpray::cast::batches::interior_camera;
-use warpray::cast::{BvhCaster, Dacrt, DacrtParams, RayCaster};
+use warpray::cast::{BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster};
 use warpray::geometry::{Hit, Ray};
 use warpray::pdacrt::{Pdacrt, PdacrtParams};
 use warpray::scene::{ObjOptions, Scene, find_model, load_obj, models_dir};
 
+#[derive(Parser)]
 struct Args {
+    /// Image side in pixels (primary rays: size²).
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=8192))]
     size: u32,
+    /// Models from WARPRAY_MODELS.
+    #[arg(long, value_delimiter = ',', default_values_t = ["bunny".to_string(), "conference".into(), "dragon".into()])]
     scenes: Vec<String>,
+    #[arg(long, value_delimiter = ',', default_values_t = ["bvh".to_string(), "dacrt".into(), "pdacrt".into()])]
     casters: Vec<String>,
-    threads: Option<usize>,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: Option<u32>,
+    /// Thread counts for the scaling table (primary + shadow rays).
+    #[arg(long, value_delimiter = ',')]
     scaling: Vec<usize>,
-    ao: usize,
+    /// AO rays per primary hit.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(0..=64))]
+    ao: u32,
+    /// Runs per measurement; the fastest is kept.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100))]
+    repeat: u32,
+    /// Leaf-size sweep on primary rays.
+    #[arg(long)]
     sweep: bool,
+    /// One JSON object per row instead of tables.
+    #[arg(long)]
+    json: bool,
 }
 
-fn parse() -> Args {
-    let mut a = Args {
-        size: 1024,
-        scenes: vec!["bunny".into(), "conference".into(), "dragon".into()],
-        casters: vec!["bvh".into(), "dacrt".into(), "pdacrt".into()],
-        threads: None,
-        scaling: Vec::new(),
-        ao: 8,
-        sweep: false,
-    };
-    let argv: Vec<String> = std::env::args().skip(1).collect();
-    let list = |s: &str| s.split(',').map(str::to_string).collect::<Vec<_>>();
-    let mut i = 0;
-    while i < argv.len() {
-        let v = argv.get(i + 1).cloned().unwrap_or_default();
-        match argv[i].as_str() {
-            "--size" => a.size = v.parse().expect("--size N"),
-            "--scenes" => a.scenes = list(&v),
-            "--casters" => a.casters = list(&v),
-            "--threads" => a.threads = Some(v.parse().expect("--threads N")),
-            "--scaling" => a.scaling = v.split(',').map(|x| x.parse().expect("--scaling 1,2,4")).collect(),
-            "--ao" => a.ao = v.parse().expect("--ao N"),
-            "--sweep" => {
-                a.sweep = true;
-                i -= 1;
-            }
-            other => panic!("unknown argument {other}"),
-        }
-        i += 2;
+/// One measured (scene, batch, caster, threads) cell.
+struct Row {
+    scene: String,
+    batch: &'static str,
+    caster: &'static str,
+    threads: usize,
+    rays: usize,
+    build_ms: f64,
+    trace_ms: f64,
+    peak_bytes: usize,
+    structure_bytes: usize,
+    tests: u64,
+}
+
+impl Row {
+    fn json(&self) -> String {
+        format!(
+            "{{\"scene\":\"{}\",\"batch\":\"{}\",\"caster\":\"{}\",\"threads\":{},\"rays\":{},\"build_ms\":{:.3},\"trace_ms\":{:.3},\"peak_bytes\":{},\"structure_bytes\":{},\"tests\":{}}}",
+            self.scene,
+            self.batch,
+            self.caster,
+            self.threads,
+            self.rays,
+            self.build_ms,
+            self.trace_ms,
+            self.peak_bytes,
+            self.structure_bytes,
+            self.tests
+        )
     }
-    a
 }
 
-fn scene(name: &str) -> Scene {
+fn scene(name: &str) -> Result<Scene, String> {
     let path = find_model(name)
-        .unwrap_or_else(|| panic!("{name} not found in {}: set WARPRAY_MODELS", models_dir().display()));
-    let mut s = load_obj(path, &ObjOptions::default()).unwrap();
+        .ok_or_else(|| format!("model {name} not found in {}: set WARPRAY_MODELS", models_dir().display()))?;
+    let mut s = load_obj(path, &ObjOptions::default()).map_err(|e| e.to_string())?;
     if name == "conference" {
         interior_camera(&mut s);
     }
-    s
+    Ok(s)
 }
 
 /// The paper's four batches, named, with whether they are shadow rays.
@@ -79,115 +103,168 @@ fn batches(s: &Scene, size: u32, ao: usize) -> Vec<(&'static str, Vec<Ray>, bool
     ]
 }
 
-struct Row {
-    scene: String,
-    caster: &'static str,
-    build_ms: f64,
-    /// (batch, rays, ms)
-    batches: Vec<(&'static str, usize, f64)>,
-    peak_mb: f64,
-}
-
-fn run_caster(c: &dyn RayCaster, build_ms: f64, scene_name: &str, batches: &[(&'static str, Vec<Ray>, bool)]) -> Row {
-    let mut row = Row { scene: scene_name.into(), caster: c.name(), build_ms, batches: Vec::new(), peak_mb: 0.0 };
-    let mut peak = 0usize;
-    for (name, rays, shadow) in batches {
-        let stats = if *shadow {
-            let mut out = vec![false; rays.len()];
-            c.occluded(rays, &mut out)
-        } else {
-            let mut out = vec![Hit::MISS; rays.len()];
-            c.closest(rays, &mut out)
-        };
-        peak = peak.max(stats.peak_working_bytes);
-        row.batches.push((name, rays.len(), stats.seconds * 1e3));
-    }
-    row.peak_mb = (peak + c.memory_bytes()) as f64 / 1e6;
-    row
-}
-
-/// The caster and its build time (only the BVH builds a structure; the others just
-/// copy the triangles).
-fn build(name: &str, s: &Scene) -> (Box<dyn RayCaster>, f64) {
-    let c: Box<dyn RayCaster> = match name {
+/// The caster (only the BVH builds a structure; the others copy the triangles).
+fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
+    Ok(match name {
         "bvh" => Box::new(BvhCaster::new(s)),
         "dacrt" => Box::new(Dacrt::new(s)),
         "pdacrt" => Box::new(Pdacrt::new(s)),
-        other => panic!("unknown caster {other}"),
-    };
-    let ms = c.build_seconds() * 1e3;
-    (c, ms)
+        other => return Err(format!("unknown caster {other} (known: bvh, dacrt, pdacrt)")),
+    })
+}
+
+fn cast(c: &dyn RayCaster, rays: &[Ray], shadow: bool) -> CastStats {
+    if shadow {
+        c.occluded(rays, &mut vec![false; rays.len()])
+    } else {
+        c.closest(rays, &mut vec![Hit::MISS; rays.len()])
+    }
+}
+
+/// Rows for one caster on the given batches; the BVH is rebuilt for each run, so its
+/// build time is measured as often as the traces.
+fn measure(
+    caster: &str,
+    s: &Scene,
+    scene_name: &str,
+    batches: &[(&'static str, Vec<Ray>, bool)],
+    repeat: u32,
+) -> Result<Vec<Row>, String> {
+    let threads = rayon::current_num_threads();
+    let mut rows: Vec<Row> = Vec::new();
+    for _ in 0..repeat {
+        let c = build(caster, s)?;
+        for (k, (name, rays, shadow)) in batches.iter().enumerate() {
+            let st = cast(c.as_ref(), rays, *shadow);
+            let row = Row {
+                scene: scene_name.into(),
+                batch: name,
+                caster: c.name(),
+                threads,
+                rays: rays.len(),
+                build_ms: c.build_seconds() * 1e3,
+                trace_ms: st.seconds * 1e3,
+                peak_bytes: st.peak_working_bytes + c.memory_bytes(),
+                structure_bytes: c.memory_bytes(),
+                tests: st.tests,
+            };
+            match rows.get_mut(k) {
+                Some(r) => {
+                    r.build_ms = r.build_ms.min(row.build_ms);
+                    r.trace_ms = r.trace_ms.min(row.trace_ms);
+                }
+                None => rows.push(row),
+            }
+        }
+    }
+    Ok(rows)
 }
 
 /// Primary-ray time over a grid of leaf sizes, for choosing the defaults.
 fn sweep(s: &Scene, primary: &[Ray]) {
-    println!("\n## Leaf-size sweep: primary rays, trace ms\n");
+    println!("\n## Leaf-size sweep: primary rays, trace ms (tests per ray)\n");
     println!("| leaf rays | leaf triangles | dacrt ms | pdacrt ms |");
     println!("|---:|---:|---:|---:|");
     let tris = s.triangle_vertices();
     for (lr, lt) in [(4, 4), (8, 8), (12, 12), (16, 16), (32, 8), (32, 16), (64, 16), (64, 32), (128, 32)] {
-        let mut hits = vec![Hit::MISS; primary.len()];
         let d = Dacrt::from_triangles(
             tris.clone(),
             DacrtParams { leaf_rays: lr, leaf_triangles: lt, ..Default::default() },
         );
-        let t_d = (0..3).map(|_| d.closest(primary, &mut hits).seconds).fold(f64::MAX, f64::min);
         let p = Pdacrt::from_triangles(
             &tris,
             PdacrtParams { leaf_rays: lr as u32, leaf_triangles: lt as u32, ..Default::default() },
         );
-        let t_p = (0..3).map(|_| p.closest(primary, &mut hits).seconds).fold(f64::MAX, f64::min);
-        println!("| {lr} | {lt} | {:.1} | {:.1} |", t_d * 1e3, t_p * 1e3);
+        let best = |c: &dyn RayCaster| {
+            let runs: Vec<CastStats> = (0..3).map(|_| cast(c, primary, false)).collect();
+            let ms = runs.iter().map(|r| r.seconds).fold(f64::MAX, f64::min) * 1e3;
+            format!("{ms:.1} ({:.0})", runs[0].tests_per_ray())
+        };
+        println!("| {lr} | {lt} | {} | {} |", best(&d), best(&p));
     }
 }
 
-fn print_tables(rows: &[Row], threads: usize) {
-    println!("\n## Table 1: primary rays ({threads} threads)\n");
-    println!("| scene | caster | build ms | trace ms | total ms | Mrays/s (trace) |");
-    println!("|---|---|---:|---:|---:|---:|");
-    for r in rows {
-        let (_, n, ms) = r.batches[0];
-        println!(
-            "| {} | {} | {:.1} | {:.1} | {:.1} | {:.2} |",
-            r.scene,
-            r.caster,
-            r.build_ms,
-            ms,
-            r.build_ms + ms,
-            n as f64 / ms / 1e3
-        );
+fn print_tables(rows: &[Row]) {
+    let threads = rows.first().map_or(0, |r| r.threads);
+    let find = |scene: &str, caster: &str, batch: &str| {
+        rows.iter().find(|r| r.scene == scene && r.caster == caster && r.batch == batch && r.threads == threads)
+    };
+    let mut keys: Vec<(String, &'static str)> = Vec::new();
+    for r in rows.iter().filter(|r| r.threads == threads) {
+        if !keys.iter().any(|k| k.0 == r.scene && k.1 == r.caster) {
+            keys.push((r.scene.clone(), r.caster));
+        }
     }
-    println!("\n## Table 2: secondary rays, trace ms (Mrays/s) ({threads} threads)\n");
+    println!("\n## Table 1: primary rays ({threads} threads)\n");
+    println!("| scene | caster | build ms | trace ms | total ms | Mrays/s (trace) | tests/ray |");
+    println!("|---|---|---:|---:|---:|---:|---:|");
+    for (s, c) in &keys {
+        if let Some(r) = find(s, c, "primary") {
+            println!(
+                "| {s} | {c} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} |",
+                r.build_ms,
+                r.trace_ms,
+                r.build_ms + r.trace_ms,
+                r.rays as f64 / r.trace_ms / 1e3,
+                r.tests as f64 / r.rays as f64
+            );
+        }
+    }
+    println!("\n## Table 2: secondary rays, trace ms (Mrays/s; tests/ray) ({threads} threads)\n");
     println!("| scene | caster | shadow | specular | ambient occlusion |");
     println!("|---|---|---:|---:|---:|");
-    for r in rows {
-        let cell = |k: usize| {
-            let (_, n, ms) = r.batches[k];
-            format!("{ms:.1} ({:.2})", n as f64 / ms / 1e3)
+    for (s, c) in &keys {
+        let cell = |b: &str| {
+            find(s, c, b).map_or("-".into(), |r| {
+                format!(
+                    "{:.1} ({:.2}; {:.1})",
+                    r.trace_ms,
+                    r.rays as f64 / r.trace_ms / 1e3,
+                    r.tests as f64 / r.rays.max(1) as f64
+                )
+            })
         };
-        println!("| {} | {} | {} | {} | {} |", r.scene, r.caster, cell(1), cell(2), cell(3));
+        println!("| {s} | {c} | {} | {} | {} |", cell("shadow"), cell("specular"), cell("ao"));
     }
-    println!("\n## Table 3: peak memory, MB (structure or working set, plus triangles)\n");
-    println!("| scene | caster | peak MB |");
-    println!("|---|---|---:|");
-    for r in rows {
-        println!("| {} | {} | {:.1} |", r.scene, r.caster, r.peak_mb);
+    println!("\n## Table 3: peak memory, MB (structure or working set, plus triangles), and bytes per ray\n");
+    println!("| scene | caster | batch | rays | peak MB | working bytes/ray |");
+    println!("|---|---|---|---:|---:|---:|");
+    for r in rows.iter().filter(|r| r.threads == threads) {
+        println!(
+            "| {} | {} | {} | {} | {:.1} | {:.1} |",
+            r.scene,
+            r.caster,
+            r.batch,
+            r.rays,
+            r.peak_bytes as f64 / 1e6,
+            (r.peak_bytes - r.structure_bytes) as f64 / r.rays.max(1) as f64
+        );
     }
 }
 
-fn main() {
-    let a = parse();
+fn run(a: Args) -> Result<(), String> {
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(t) = a.threads {
-        pool = pool.num_threads(t);
+        pool = pool.num_threads(t as usize);
     }
-    let pool = pool.build().unwrap();
-    let threads = pool.current_num_threads();
-    println!("# DACRT tables: {}x{} primary rays, {} AO rays per hit, {threads} threads", a.size, a.size, a.ao);
+    let pool = pool.build().map_err(|e| e.to_string())?;
+    // Check every name before any work starts.
+    if let Some(c) = a.casters.iter().find(|c| !["bvh", "dacrt", "pdacrt"].contains(&c.as_str())) {
+        return Err(format!("unknown caster {c} (known: bvh, dacrt, pdacrt)"));
+    }
+    if !a.json {
+        println!(
+            "# DACRT tables: {}x{} primary rays, {} AO rays per hit, {} threads",
+            a.size,
+            a.size,
+            a.ao,
+            pool.current_num_threads()
+        );
+    }
     let mut rows = Vec::new();
     for name in &a.scenes {
-        let s = scene(name);
-        let b = batches(&s, a.size, a.ao);
+        let s = scene(name)?;
+        let b = batches(&s, a.size, a.ao as usize);
         if a.sweep {
             pool.install(|| sweep(&s, &b[0].1));
         }
@@ -197,33 +274,54 @@ fn main() {
             b.iter().map(|x| format!("{} {}", x.0, x.1.len())).collect::<Vec<_>>().join(", ")
         );
         for c in &a.casters {
-            let row = pool.install(|| {
-                let (caster, build_ms) = build(c, &s);
-                run_caster(caster.as_ref(), build_ms, name, &b)
-            });
-            eprintln!("  {} done", row.caster);
-            rows.push(row);
+            let new = pool.install(|| measure(c, &s, name, &b, a.repeat))?;
+            eprintln!("  {c} done");
+            rows.extend(new);
         }
-        if !a.scaling.is_empty() {
+        for &t in &a.scaling {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().map_err(|e| e.to_string())?;
+            for c in &a.casters {
+                rows.extend(pool.install(|| measure(c, &s, name, &b[..2], a.repeat))?);
+            }
+            eprintln!("  {t} threads done");
+        }
+        if !a.json && !a.scaling.is_empty() {
             println!("\n## Thread scaling on {name}: primary + shadow rays, Mrays/s (BVH includes its build)\n");
             println!("| threads | {} |", a.casters.join(" | "));
             println!("|---:|{}|", a.casters.iter().map(|_| "---:").collect::<Vec<_>>().join("|"));
             for &t in &a.scaling {
-                let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().unwrap();
-                let mut cells = Vec::new();
-                for c in &a.casters {
-                    let mrays = pool.install(|| {
-                        let (caster, build_ms) = build(c, &s);
-                        let row = run_caster(caster.as_ref(), build_ms, name, &b[..2]);
-                        let rays: usize = row.batches.iter().map(|x| x.1).sum();
-                        let ms: f64 = row.batches.iter().map(|x| x.2).sum::<f64>() + row.build_ms;
-                        rays as f64 / ms / 1e3
-                    });
-                    cells.push(format!("{mrays:.2}"));
-                }
+                let cells: Vec<String> = a
+                    .casters
+                    .iter()
+                    .map(|c| {
+                        let mine: Vec<&Row> = rows
+                            .iter()
+                            .filter(|r| r.scene == *name && r.caster == c && r.threads == t)
+                            .take(2)
+                            .collect();
+                        let rays: usize = mine.iter().map(|r| r.rays).sum();
+                        let ms: f64 =
+                            mine.iter().map(|r| r.trace_ms).sum::<f64>() + mine.first().map_or(0.0, |r| r.build_ms);
+                        format!("{:.2}", rays as f64 / ms / 1e3)
+                    })
+                    .collect();
                 println!("| {t} | {} |", cells.join(" | "));
             }
         }
     }
-    print_tables(&rows, threads);
+    if a.json {
+        for r in &rows {
+            println!("{}", r.json());
+        }
+    } else {
+        print_tables(&rows);
+    }
+    Ok(())
+}
+
+fn main() {
+    if let Err(e) = run(Args::parse()) {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
 }

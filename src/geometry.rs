@@ -77,6 +77,7 @@ impl Default for Hit {
 
 /// An axis-aligned box. The empty box has `min > max`.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Aabb {
     pub min: Vec3,
     pub max: Vec3,
@@ -84,6 +85,12 @@ pub struct Aabb {
 
 /// 1 + 2·γ(3) with γ(n) = nε/(1−nε): the widening that makes the slab test conservative.
 const SLAB_WIDEN: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+
+impl Default for Aabb {
+    fn default() -> Self {
+        Aabb::EMPTY
+    }
+}
 
 impl Aabb {
     pub const EMPTY: Aabb = Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
@@ -122,6 +129,39 @@ impl Aabb {
         } else {
             2
         }
+    }
+
+    /// The common part of two boxes (empty when they do not overlap).
+    pub fn intersection(self, o: Aabb) -> Aabb {
+        Aabb { min: self.min.max(o.min), max: self.max.min(o.max) }
+    }
+
+    /// True when the closed boxes share at least one point.
+    #[inline]
+    pub fn overlaps(&self, o: &Aabb) -> bool {
+        self.min.cmple(o.max).all() && self.max.cmpge(o.min).all()
+    }
+
+    /// The axes ordered by decreasing extent (ties keep x before y before z).
+    pub fn axes_by_extent(&self) -> [usize; 3] {
+        let e = self.extent();
+        let mut axes = [0, 1, 2];
+        axes.sort_by(|&a, &b| e[b].total_cmp(&e[a]));
+        axes
+    }
+
+    /// The two halves of the box on either side of the plane `axis = pos`.
+    pub fn split(&self, axis: usize, pos: f32) -> (Aabb, Aabb) {
+        let (mut lo, mut hi) = (*self, *self);
+        lo.max[axis] = pos;
+        hi.min[axis] = pos;
+        (lo, hi)
+    }
+
+    /// Surface area (0 for an empty box).
+    pub fn surface_area(&self) -> f32 {
+        let e = self.extent();
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
     }
 
     /// Slab test against a ray given with its reciprocal direction. Returns the
@@ -270,9 +310,11 @@ pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
     out
 }
 
-// SAFETY: #[repr(C)] structs of 4-byte fields, no padding: they travel in device buffers.
+// SAFETY: #[repr(C)] structs of 4-byte fields (glam's `Vec3` is three `f32`), no
+// padding: they travel in device buffers as they are.
 unsafe impl simt::DeviceCopy for Ray {}
 unsafe impl simt::DeviceCopy for Hit {}
+unsafe impl simt::DeviceCopy for Aabb {}
 
 #[cfg(test)]
 mod tests {

@@ -260,7 +260,7 @@ fn pdacrt_level_records_add_up_and_depth_is_bounded() {
     // The device's statistics name the brute-force kernel with its shared memory.
     let k = p.device().kernel_stats();
     let bf = k.iter().find(|k| k.name == "pdacrt::brute_force").expect("terminal nodes were solved");
-    assert_eq!(bf.shared_bytes, warpray::pdacrt::kernels::STAGE * 36);
+    assert_eq!(bf.shared_bytes, warpray::pdacrt::BRUTE_FORCE_SHARED_BYTES);
 }
 
 #[test]

@@ -99,7 +99,10 @@ impl MemCounter {
 /// accounting. The host reads and writes it between launches; kernels reach it through
 /// [`Global`] and [`GlobalMut`] views.
 pub struct DeviceBuffer<T: DeviceCopy> {
+    /// The allocation; its length is the buffer's high-water mark.
     data: Vec<T>,
+    /// Elements in use (`<= data.len()`).
+    len: usize,
     vbase: u64,
     mem: Arc<MemCounter>,
 }
@@ -108,49 +111,71 @@ impl<T: DeviceCopy> DeviceBuffer<T> {
     pub(crate) fn from_vec(mem: Arc<MemCounter>, data: Vec<T>) -> Self {
         let _ = const { words::<T>() };
         let vbase = mem.alloc(data.len() * std::mem::size_of::<T>());
-        DeviceBuffer { data, vbase, mem }
+        DeviceBuffer { len: data.len(), data, vbase, mem }
     }
 
     pub fn len(&self) -> usize {
-        self.data.len()
+        self.len
     }
 
     pub fn is_empty(&self) -> bool {
-        self.data.is_empty()
+        self.len == 0
     }
 
-    /// Bytes this buffer holds.
+    /// Bytes of the elements in use.
     pub fn bytes(&self) -> usize {
+        self.len * std::mem::size_of::<T>()
+    }
+
+    /// Bytes the allocation holds (what the device's accounting counts).
+    pub fn held_bytes(&self) -> usize {
         self.data.len() * std::mem::size_of::<T>()
+    }
+
+    /// Sets the length to `n`, reusing the allocation when it is large enough, as a
+    /// pooled device allocator would: nothing is zero-filled, and elements that were
+    /// there keep their (stale) contents. Only growth past the high-water mark
+    /// allocates (and fills the new part with defaults); the accounting follows the
+    /// bytes held, which never shrink until the buffer is dropped.
+    pub fn resize(&mut self, n: usize)
+    where
+        T: Default,
+    {
+        if n > self.data.len() {
+            self.mem.free(self.held_bytes());
+            self.data.resize(n, T::default());
+            self.vbase = self.mem.alloc(self.held_bytes());
+        }
+        self.len = n;
     }
 
     /// The contents, for the host.
     pub fn as_slice(&self) -> &[T] {
-        &self.data
+        &self.data[..self.len]
     }
 
     /// The contents, for the host to change between launches.
     pub fn as_mut_slice(&mut self) -> &mut [T] {
-        &mut self.data
+        &mut self.data[..self.len]
     }
 
     pub fn to_vec(&self) -> Vec<T> {
-        self.data.clone()
+        self.as_slice().to_vec()
     }
 
     /// A read-only view for kernels.
     pub fn view(&self) -> Global<'_, T> {
-        Global { ptr: self.data.as_ptr(), len: self.data.len(), vbase: self.vbase, _life: PhantomData }
+        Global { ptr: self.data.as_ptr(), len: self.len, vbase: self.vbase, _life: PhantomData }
     }
 
     /// A read-write view for kernels. While it lives the host cannot touch the buffer.
     pub fn view_mut(&mut self) -> GlobalMut<'_, T> {
-        GlobalMut { ptr: self.data.as_mut_ptr(), len: self.data.len(), vbase: self.vbase, _life: PhantomData }
+        GlobalMut { ptr: self.data.as_mut_ptr(), len: self.len, vbase: self.vbase, _life: PhantomData }
     }
 
     /// A view of elements `start..start + len`.
     pub fn slice(&self, start: usize, len: usize) -> Global<'_, T> {
-        assert!(start + len <= self.data.len(), "slice {start}..{} of a buffer of {}", start + len, self.data.len());
+        assert!(start + len <= self.len, "slice {start}..{} of a buffer of {}", start + len, self.len);
         let size = std::mem::size_of::<T>() as u64;
         Global { ptr: self.data[start..].as_ptr(), len, vbase: self.vbase + start as u64 * size, _life: PhantomData }
     }
@@ -158,7 +183,7 @@ impl<T: DeviceCopy> DeviceBuffer<T> {
 
 impl<T: DeviceCopy> Drop for DeviceBuffer<T> {
     fn drop(&mut self) {
-        self.mem.free(self.bytes());
+        self.mem.free(self.held_bytes());
     }
 }
 

@@ -29,12 +29,18 @@ impl RayCaster for BruteForce {
         assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
         let n = self.tris.len() as u32;
         timed(rays.len(), 0, || {
-            rays.par_iter().zip(hits.par_iter_mut()).with_min_len(16).for_each(|(ray, hit)| {
-                *hit = Hit::MISS;
-                if ray.is_valid() {
+            rays.par_iter()
+                .zip(hits.par_iter_mut())
+                .with_min_len(16)
+                .map(|(ray, hit)| {
+                    *hit = Hit::MISS;
+                    if !ray.is_valid() {
+                        return 0;
+                    }
                     intersect_ids(&self.tris, 0..n, ray, &RayShear::new(ray.dir), hit);
-                }
-            })
+                    n as u64
+                })
+                .sum()
         })
     }
 
@@ -42,9 +48,19 @@ impl RayCaster for BruteForce {
         assert_eq!(rays.len(), out.len(), "one result slot per ray");
         let n = self.tris.len() as u32;
         timed(rays.len(), 0, || {
-            rays.par_iter().zip(out.par_iter_mut()).with_min_len(16).for_each(|(ray, o)| {
-                *o = ray.is_valid() && any_hit_ids(&self.tris, 0..n, ray, &RayShear::new(ray.dir));
-            })
+            rays.par_iter()
+                .zip(out.par_iter_mut())
+                .with_min_len(16)
+                .map(|(ray, o)| {
+                    let (hit, tests) = if ray.is_valid() {
+                        any_hit_ids(&self.tris, 0..n, ray, &RayShear::new(ray.dir))
+                    } else {
+                        (false, 0)
+                    };
+                    *o = hit;
+                    tests
+                })
+                .sum()
         })
     }
 

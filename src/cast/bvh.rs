@@ -50,11 +50,14 @@ impl BvhCaster {
         obvhs::ray::Ray::new(Vec3A::from(origin), Vec3A::from(ray.dir), ray.t_min + s, ray.t_max + s)
     }
 
-    fn closest_one(&self, bvh: &CwBvh, ray: &Ray) -> Hit {
+    /// Closest hit of one ray, and the triangles it tested.
+    fn closest_one(&self, bvh: &CwBvh, ray: &Ray) -> (Hit, u64) {
         let shear = RayShear::new(ray.dir);
         let mut best = Hit::MISS;
+        let mut tests = 0u64;
         let mut obvhs_hit = obvhs::ray::RayHit::none();
         bvh.ray_traverse(Self::obvhs_ray(ray), &mut obvhs_hit, |_, id| {
+            tests += 1;
             let prim = bvh.primitive_indices[id];
             let [a, b, c] = self.tris[prim as usize];
             match intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, best.t.min(ray.t_max)) {
@@ -65,7 +68,7 @@ impl BvhCaster {
                 None => f32::INFINITY,
             }
         });
-        best
+        (best, tests)
     }
 }
 
@@ -77,32 +80,45 @@ impl RayCaster for BvhCaster {
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
         assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
         timed(rays.len(), 0, || {
-            rays.par_iter().zip(hits.par_iter_mut()).with_min_len(64).for_each(|(ray, hit)| {
-                *hit = match &self.bvh {
-                    Some(bvh) if ray.is_valid() => self.closest_one(bvh, ray),
-                    _ => Hit::MISS,
-                };
-            })
+            rays.par_iter()
+                .zip(hits.par_iter_mut())
+                .with_min_len(64)
+                .map(|(ray, hit)| {
+                    let (h, tests) = match &self.bvh {
+                        Some(bvh) if ray.is_valid() => self.closest_one(bvh, ray),
+                        _ => (Hit::MISS, 0),
+                    };
+                    *hit = h;
+                    tests
+                })
+                .sum()
         })
     }
 
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
         assert_eq!(rays.len(), out.len(), "one result slot per ray");
         timed(rays.len(), 0, || {
-            rays.par_iter().zip(out.par_iter_mut()).with_min_len(64).for_each(|(ray, o)| {
-                *o = match &self.bvh {
-                    Some(bvh) if ray.is_valid() => {
-                        let shear = RayShear::new(ray.dir);
-                        !bvh.ray_traverse_miss(Self::obvhs_ray(ray), |_, id| {
-                            let [a, b, c] = self.tris[bvh.primitive_indices[id] as usize];
-                            // Any hit in the real interval counts; report it inside obvhs'.
-                            intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, ray.t_max)
-                                .map_or(f32::INFINITY, |_| ray.t_min + NODE_EPSILON_SHIFT)
-                        })
-                    }
-                    _ => false,
-                };
-            })
+            rays.par_iter()
+                .zip(out.par_iter_mut())
+                .with_min_len(64)
+                .map(|(ray, o)| {
+                    let mut tests = 0u64;
+                    *o = match &self.bvh {
+                        Some(bvh) if ray.is_valid() => {
+                            let shear = RayShear::new(ray.dir);
+                            !bvh.ray_traverse_miss(Self::obvhs_ray(ray), |_, id| {
+                                tests += 1;
+                                let [a, b, c] = self.tris[bvh.primitive_indices[id] as usize];
+                                // Any hit in the real interval counts; report it inside obvhs'.
+                                intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, ray.t_max)
+                                    .map_or(f32::INFINITY, |_| ray.t_min + NODE_EPSILON_SHIFT)
+                            })
+                        }
+                        _ => false,
+                    };
+                    tests
+                })
+                .sum()
         })
     }
 

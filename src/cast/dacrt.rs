@@ -1,16 +1,33 @@
-//! Serial divide-and-conquer ray tracing (Mora 2011): no stored structure. The recursion
-//! carries a box, a list of ray ids and a list of triangle ids. Each step splits the box
-//! at the spatial median of its longest axis, partitions both id lists *in place* so the
-//! child's triangles (boxes overlapping the child) and rays (entering the child before
-//! their current closest hit: early termination) form a prefix, and recurses into the
-//! near child first. Small lists go to a brute-force leaf.
+//! Divide-and-conquer ray tracing (Mora 2011): no stored structure. The recursion
+//! carries a box, a list of ray ids and a list of triangle ids. Each step picks a split
+//! plane, partitions both id lists *in place* so the child's triangles (boxes
+//! overlapping the child) and rays (entering the child before their current closest
+//! hit: early termination) form a prefix, and recurses into the near child first.
+//! Small lists go to a brute-force leaf.
 //!
-//! Guards: a child that keeps all of its parent's rays and triangles goes to the leaf
-//! (coincident or huge triangles cannot be split), and the depth is capped.
+//! * **Tight boxes.** A child's box is shrunk to the union of its triangles' boxes, so
+//!   geometry that fills only part of a node never wastes a level, and rays that miss
+//!   the geometry's box leave early.
+//! * **Split choice.** Nodes with at least [`DacrtParams::sah_min_triangles`]
+//!   triangles take the plane of a binned SAH over a subsample of their triangles
+//!   (Mora's choice near the root); smaller ones the spatial median of the longest
+//!   axis. A plane that leaves some child with all of the node's rays and triangles
+//!   separates nothing: then the other axes are tried, then the median of the
+//!   triangle centroids. Only when no plane of any kind helps (coincident or huge
+//!   triangles) does the node become a leaf. The depth is capped.
+//! * **Leaf rule.** A node is solved by brute force when it has few triangles, or few
+//!   rays *and* few ray–triangle pairs (a handful of rays against thousands of
+//!   triangles is cheaper to keep splitting), or at the depth cap.
+//! * **Cores.** The top levels' triangle partitions do not depend on the rays, so each
+//!   call computes them once, in parallel, down to cells of
+//!   [`DacrtParams::top_cell_triangles`] triangles. With more than one thread the
+//!   batch's rays are then ordered by a coherence key (a Morton code over origin and
+//!   direction) and cut into groups; each group walks the shared top levels near child
+//!   first and runs its own DACRT inside the cells it reaches, serially, so early
+//!   termination is kept. With one thread there is one group. Nothing is kept between
+//!   calls.
 //!
-//! "CPU DACRT" in the tables: the top levels fork with `rayon::join` (the far child
-//! works on a copy of the id lists), so both children run at once; closest hits are
-//! shared through 64-bit atomic minima of (distance bits, triangle id).
+//! Every call counts its ray–triangle tests ([`CastStats::tests`]).
 
 use super::{CastStats, RayCaster, Triangles, triangles_bytes};
 use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir};
@@ -30,29 +47,45 @@ pub struct DacrtParams {
     pub leaf_triangles: usize,
     /// Recursion depth cap.
     pub max_depth: u32,
-    /// Levels at which the two children run in parallel (0: serial).
-    pub parallel_depth: u32,
-    /// Nodes with fewer rays than this never fork.
-    pub parallel_min_rays: usize,
+    /// Nodes with at least this many triangles split by binned SAH on a subsample
+    /// (`usize::MAX`: spatial median everywhere).
+    pub sah_min_triangles: usize,
+    /// Smallest ray group traced on its own when several threads run.
+    pub min_group_rays: usize,
+    /// The shared top levels stop splitting at cells of at most this many triangles
+    /// (0: no shared top; every group starts from the root).
+    pub top_cell_triangles: usize,
+    /// Ray groups per thread (load balance); 0 traces the batch as one group.
+    pub groups_per_thread: usize,
 }
 
 impl Default for DacrtParams {
     fn default() -> Self {
-        DacrtParams { leaf_rays: 12, leaf_triangles: 12, max_depth: 48, parallel_depth: 6, parallel_min_rays: 2048 }
+        DacrtParams {
+            leaf_rays: 12,
+            leaf_triangles: 12,
+            max_depth: 48,
+            sah_min_triangles: 10_000,
+            min_group_rays: 1024,
+            top_cell_triangles: 4096,
+            groups_per_thread: 8,
+        }
     }
 }
 
 impl DacrtParams {
-    /// One thread's recursion: no forking.
+    /// One recursion over the whole batch, whatever the thread count.
     pub fn serial() -> Self {
-        DacrtParams { parallel_depth: 0, ..Default::default() }
+        DacrtParams { groups_per_thread: 0, ..Default::default() }
     }
 }
 
+/// Divide-and-conquer ray tracing over a triangle soup (see the module docs).
 pub struct Dacrt {
     tris: Triangles,
     boxes: Vec<Aabb>,
     scene_box: Aabb,
+    /// Tunables; may be changed between calls.
     pub params: DacrtParams,
 }
 
@@ -60,6 +93,12 @@ pub struct Dacrt {
 const NONE: u64 = u64::MAX;
 /// Key of an occluded shadow ray.
 const BLOCKED: u64 = 0;
+/// A node with few rays is a leaf only while it has at most this many times
+/// `leaf_rays · leaf_triangles` ray–triangle pairs.
+pub(crate) const LEAF_PAIRS_FACTOR: u64 = 4;
+/// SAH bins per axis, and triangles sampled per SAH decision.
+const SAH_BINS: usize = 16;
+const SAH_SAMPLES: usize = 2048;
 
 #[inline]
 fn pack(t: f32, prim: u32) -> u64 {
@@ -79,9 +118,23 @@ struct Trace<'a> {
     any_hit: bool,
     bytes: AtomicUsize,
     peak: AtomicUsize,
+    tests: AtomicU64,
 }
 
 impl Trace<'_> {
+    /// A trace with no rays (the shared top levels choose planes from triangles alone).
+    fn empty() -> Trace<'static> {
+        Trace {
+            rays: &[],
+            inv: Vec::new(),
+            keys: Vec::new(),
+            any_hit: false,
+            bytes: AtomicUsize::new(0),
+            peak: AtomicUsize::new(0),
+            tests: AtomicU64::new(0),
+        }
+    }
+
     fn alloc(&self, bytes: usize) {
         let now = self.bytes.fetch_add(bytes, Relaxed) + bytes;
         self.peak.fetch_max(now, Relaxed);
@@ -120,23 +173,74 @@ fn partition(ids: &mut [u32], mut keep: impl FnMut(u32) -> bool) -> usize {
     n
 }
 
+/// A Morton-style key that puts rays with nearby origins and directions next to each
+/// other: 10 bits per component of the origin (in `bounds`) and the unit direction,
+/// interleaved (direction bits first at every level).
+fn coherence_key(ray: &Ray, bounds: &Aabb) -> u64 {
+    let q = |x: f32| (x.clamp(0.0, 1.0) * 1023.0) as u64;
+    let o = (ray.origin - bounds.min) / bounds.extent().max(Vec3::splat(1e-30));
+    let d = ray.dir.normalize_or_zero() * 0.5 + 0.5;
+    let comps = [q(d.x), q(d.y), q(d.z), q(o.x), q(o.y), q(o.z)];
+    let mut key = 0u64;
+    for bit in (0..10).rev() {
+        for c in comps {
+            key = key << 1 | (c >> bit & 1);
+        }
+    }
+    key
+}
+
+/// The top levels of the recursion, whose triangle partitions do not depend on the
+/// rays: computed once per call and shared by every ray group.
+enum Top {
+    /// A node below which each group runs its own DACRT on a copy of `tris`.
+    Cell {
+        bounds: Aabb,
+        tris: Vec<u32>,
+    },
+    Split {
+        bounds: Aabb,
+        axis: usize,
+        kids: Box<[Top; 2]>,
+    },
+}
+
+impl Top {
+    fn bounds(&self) -> &Aabb {
+        match self {
+            Top::Cell { bounds, .. } | Top::Split { bounds, .. } => bounds,
+        }
+    }
+
+    fn bytes(&self) -> usize {
+        match self {
+            Top::Cell { tris, .. } => tris.len() * 4,
+            Top::Split { kids, .. } => kids[0].bytes() + kids[1].bytes(),
+        }
+    }
+}
+
 impl Dacrt {
+    /// A caster over the scene's triangles with the default parameters.
     pub fn new(scene: &Scene) -> Self {
         Self::from_triangles(scene.triangle_vertices(), DacrtParams::default())
     }
 
+    /// A caster over a triangle list.
     pub fn from_triangles(tris: Triangles, params: DacrtParams) -> Self {
         let boxes: Vec<Aabb> = tris.iter().map(|t| Aabb::from_points(t)).collect();
         let scene_box = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(*b));
         Dacrt { tris, boxes, scene_box, params }
     }
 
+    /// The same caster with other parameters.
     pub fn with_params(mut self, params: DacrtParams) -> Self {
         self.params = params;
         self
     }
 
     fn leaf(&self, tr: &Trace, rays: &[u32], tris: &[u32]) {
+        let mut tests = 0u64;
         for &r in rays {
             let ray = &tr.rays[r as usize];
             let key = &tr.keys[r as usize];
@@ -145,10 +249,15 @@ impl Dacrt {
                 if key.load(Relaxed) == BLOCKED {
                     continue;
                 }
-                let hit = tris.iter().any(|&t| {
+                let mut hit = false;
+                for &t in tris {
+                    tests += 1;
                     let [a, b, c] = self.tris[t as usize];
-                    intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, ray.t_max).is_some()
-                });
+                    if intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, ray.t_max).is_some() {
+                        hit = true;
+                        break;
+                    }
+                }
                 if hit {
                     key.store(BLOCKED, Relaxed);
                 }
@@ -156,6 +265,7 @@ impl Dacrt {
             }
             let mut best = key.load(Relaxed);
             let mut t_far = tr.t_far(r);
+            tests += tris.len() as u64;
             for &t in tris {
                 let [a, b, c] = self.tris[t as usize];
                 // `<=` keeps a tie at equal distance so the smaller id wins below.
@@ -169,68 +279,257 @@ impl Dacrt {
             }
             key.fetch_min(best, Relaxed);
         }
+        tr.tests.fetch_add(tests, Relaxed);
     }
 
     fn recurse(&self, tr: &Trace, bounds: Aabb, rays: &mut [u32], tris: &mut [u32], depth: u32) {
         if rays.is_empty() || tris.is_empty() {
             return;
         }
-        let p = &self.params;
-        if rays.len() <= p.leaf_rays || tris.len() <= p.leaf_triangles || depth >= p.max_depth {
+        if self.is_leaf(rays.len(), tris.len(), depth) {
             return self.leaf(tr, rays, tris);
         }
-        let axis = bounds.longest_axis();
-        let mid = bounds.center()[axis];
-        let (mut lo, mut hi) = (bounds, bounds);
-        lo.max[axis] = mid;
-        hi.min[axis] = mid;
+        let Some((axis, pos)) = self.choose_split(tr, &bounds, rays, tris) else {
+            return self.leaf(tr, rays, tris);
+        };
+        let (lo, hi) = bounds.split(axis, pos);
         // Near child first, judged by the rays' mean direction along the split axis.
         let toward_hi: f32 = rays.iter().map(|&r| tr.rays[r as usize].dir[axis].signum()).sum();
         let (near, far) = if toward_hi >= 0.0 { (lo, hi) } else { (hi, lo) };
-
-        if depth < p.parallel_depth && rays.len() >= p.parallel_min_rays {
-            let bytes = (rays.len() + tris.len()) * 4;
-            tr.alloc(bytes);
-            let (mut far_rays, mut far_tris) = (rays.to_vec(), tris.to_vec());
-            rayon::join(
-                || self.child(tr, near, rays, tris, depth),
-                || self.child(tr, far, &mut far_rays, &mut far_tris, depth),
-            );
-            tr.free(bytes);
-        } else {
-            self.child(tr, near, rays, tris, depth);
-            self.child(tr, far, rays, tris, depth);
-        }
+        self.child(tr, near, rays, tris, depth);
+        self.child(tr, far, rays, tris, depth);
     }
 
-    /// Partitions the parent's lists for `child` and recurses (or solves a node that
-    /// would make no progress by brute force).
+    /// The leaf rule: few triangles, or few rays *and* few ray–triangle pairs (a node
+    /// with a handful of rays but thousands of triangles is cheaper to split on), or
+    /// the depth cap.
+    fn is_leaf(&self, rays: usize, tris: usize, depth: u32) -> bool {
+        let p = &self.params;
+        tris <= p.leaf_triangles
+            || (rays <= p.leaf_rays
+                && (rays * tris) as u64 <= LEAF_PAIRS_FACTOR * (p.leaf_rays * p.leaf_triangles) as u64)
+            || depth >= p.max_depth
+    }
+
+    /// The first candidate plane after which neither child keeps every ray and every
+    /// triangle of the node; `None` when no candidate separates anything.
+    fn choose_split(&self, tr: &Trace, bounds: &Aabb, rays: &[u32], tris: &[u32]) -> Option<(usize, f32)> {
+        let axes = bounds.axes_by_extent();
+        let ext = bounds.extent();
+        let centre = bounds.center();
+        let mut candidates: [Option<(usize, f32)>; 5] = [None; 5];
+        if tris.len() >= self.params.sah_min_triangles {
+            candidates[0] = self.sah_plane(bounds, tris);
+        }
+        for (k, &a) in axes.iter().enumerate() {
+            candidates[1 + k] = (ext[a] > 0.0).then_some((a, centre[a]));
+        }
+        candidates[4] = self.centroid_median(tris, axes[0]);
+        candidates.into_iter().flatten().find(|&(axis, pos)| {
+            let (lo, hi) = bounds.split(axis, pos);
+            !self.keeps_all(tr, &lo, rays, tris) && !self.keeps_all(tr, &hi, rays, tris)
+        })
+    }
+
+    /// True when every triangle overlaps `child` and every ray enters it (stops at the
+    /// first element that does not).
+    fn keeps_all(&self, tr: &Trace, child: &Aabb, rays: &[u32], tris: &[u32]) -> bool {
+        tris.iter().all(|&t| self.boxes[t as usize].overlaps(child)) && rays.iter().all(|&r| tr.enters(r, child))
+    }
+
+    /// Binned SAH over a subsample of the triangles (their boxes clipped to the node):
+    /// cost of a plane = area(left)·n(left) + area(right)·n(right).
+    fn sah_plane(&self, bounds: &Aabb, tris: &[u32]) -> Option<(usize, f32)> {
+        let step = tris.len().div_ceil(SAH_SAMPLES).max(1);
+        let (ext, min) = (bounds.extent(), bounds.min);
+        let mut best: Option<(f32, usize, f32)> = None;
+        for axis in 0..3 {
+            if ext[axis] <= 0.0 {
+                continue;
+            }
+            let bin = |x: f32| (((x - min[axis]) / ext[axis] * SAH_BINS as f32) as usize).min(SAH_BINS - 1);
+            let (mut starts, mut ends) = ([0u32; SAH_BINS], [0u32; SAH_BINS]);
+            for &t in tris.iter().step_by(step) {
+                let b = self.boxes[t as usize].intersection(*bounds);
+                starts[bin(b.min[axis])] += 1;
+                ends[bin(b.max[axis])] += 1;
+            }
+            for k in 1..SAH_BINS {
+                let pos = min[axis] + ext[axis] * k as f32 / SAH_BINS as f32;
+                let n_lo: u32 = starts[..k].iter().sum();
+                let n_hi: u32 = ends[k..].iter().sum();
+                let (lo, hi) = bounds.split(axis, pos);
+                let cost = lo.surface_area() * n_lo as f32 + hi.surface_area() * n_hi as f32;
+                if best.is_none_or(|b| cost < b.0) {
+                    best = Some((cost, axis, pos));
+                }
+            }
+        }
+        best.map(|(_, a, p)| (a, p))
+    }
+
+    /// The median of (a subsample of) the triangle centroids along `axis`.
+    fn centroid_median(&self, tris: &[u32], axis: usize) -> Option<(usize, f32)> {
+        let step = tris.len().div_ceil(SAH_SAMPLES).max(1);
+        let mut c: Vec<f32> = tris.iter().step_by(step).map(|&t| self.boxes[t as usize].center()[axis]).collect();
+        if c.is_empty() {
+            return None;
+        }
+        let mid = c.len() / 2;
+        let (_, m, _) = c.select_nth_unstable_by(mid, f32::total_cmp);
+        Some((axis, *m))
+    }
+
+    /// Partitions the parent's lists for `child`, shrinks its box to its triangles,
+    /// and recurses.
     fn child(&self, tr: &Trace, child: Aabb, rays: &mut [u32], tris: &mut [u32], depth: u32) {
+        let mut union = Aabb::EMPTY;
         let nt = partition(tris, |t| {
             let b = &self.boxes[t as usize];
-            b.min.cmple(child.max).all() && b.max.cmpge(child.min).all()
+            let keep = b.overlaps(&child);
+            if keep {
+                union = union.union(*b);
+            }
+            keep
         });
-        let nr = partition(rays, |r| tr.enters(r, &child));
-        if nt == tris.len() && nr == rays.len() {
-            return self.leaf(tr, &rays[..nr], &tris[..nt]);
+        if nt == 0 {
+            return;
         }
-        self.recurse(tr, child, &mut rays[..nr], &mut tris[..nt], depth + 1)
+        let tight = child.intersection(union);
+        let nr = partition(rays, |r| tr.enters(r, &tight));
+        self.recurse(tr, tight, &mut rays[..nr], &mut tris[..nt], depth + 1)
     }
 
-    /// Runs the recursion for one batch; returns the per-ray keys and the peak bytes.
-    fn trace(&self, rays: &[Ray], any_hit: bool) -> (Vec<AtomicU64>, usize) {
+    /// The shared top levels over `tris` (ids into the scene), split in parallel.
+    fn build_top(&self, bounds: Aabb, tris: Vec<u32>, depth: u32) -> Top {
+        let p = &self.params;
+        if p.top_cell_triangles == 0 || tris.len() <= p.top_cell_triangles || depth >= p.max_depth {
+            return Top::Cell { bounds, tris };
+        }
+        // Triangles alone decide the plane (no rays yet): the first candidate after
+        // which neither side keeps every triangle.
+        let no_rays = Trace::empty();
+        let Some((axis, pos)) = self.choose_split(&no_rays, &bounds, &[], &tris) else {
+            return Top::Cell { bounds, tris };
+        };
+        let (lo, hi) = bounds.split(axis, pos);
+        // One pass per side: the ids that overlap it and the union of their boxes.
+        let side = |child: Aabb| -> (Vec<u32>, Aabb) {
+            let keep = |(mut v, b): (Vec<u32>, Aabb), &t: &u32| {
+                let tb = self.boxes[t as usize];
+                if tb.overlaps(&child) {
+                    v.push(t);
+                    (v, b.union(tb))
+                } else {
+                    (v, b)
+                }
+            };
+            let (ids, union) = if tris.len() < 1 << 16 {
+                tris.iter().fold((Vec::new(), Aabb::EMPTY), keep)
+            } else {
+                tris.par_iter().fold(|| (Vec::new(), Aabb::EMPTY), keep).reduce(
+                    || (Vec::new(), Aabb::EMPTY),
+                    |(mut a, ab), (b, bb)| {
+                        a.extend(b);
+                        (a, ab.union(bb))
+                    },
+                )
+            };
+            (ids, child.intersection(union))
+        };
+        let ((lo_ids, lo_box), (hi_ids, hi_box)) = (side(lo), side(hi));
+        drop(tris);
+        let (a, b) =
+            rayon::join(|| self.build_top(lo_box, lo_ids, depth + 1), || self.build_top(hi_box, hi_ids, depth + 1));
+        Top::Split { bounds, axis, kids: Box::new([a, b]) }
+    }
+
+    /// One ray group through the shared top levels, near child first; in each cell it
+    /// reaches, the group's DACRT continues on a copy of the cell's triangles.
+    fn trace_top(&self, tr: &Trace, node: &Top, rays: &mut [u32], scratch: &mut Vec<u32>, depth: u32) {
+        if rays.is_empty() {
+            return;
+        }
+        match node {
+            Top::Cell { bounds, tris } => {
+                if tris.is_empty() {
+                    return;
+                }
+                scratch.clear();
+                scratch.extend_from_slice(tris);
+                tr.alloc(tris.len() * 4);
+                self.recurse(tr, *bounds, rays, scratch, depth);
+                tr.free(tris.len() * 4);
+            }
+            Top::Split { axis, kids, .. } => {
+                let toward_hi: f32 = rays.iter().map(|&r| tr.rays[r as usize].dir[*axis].signum()).sum();
+                let order = if toward_hi >= 0.0 { [0, 1] } else { [1, 0] };
+                for k in order {
+                    let child = &kids[k];
+                    let b = *child.bounds();
+                    let nr = partition(rays, |r| tr.enters(r, &b));
+                    self.trace_top(tr, child, &mut rays[..nr], scratch, depth + 1);
+                }
+            }
+        }
+    }
+
+    /// How many independent ray groups a batch of `n` rays is traced in.
+    fn group_count(&self, n: usize) -> usize {
+        let p = &self.params;
+        let threads = rayon::current_num_threads();
+        if threads <= 1 || p.groups_per_thread == 0 {
+            return 1;
+        }
+        (threads * p.groups_per_thread).min(n / p.min_group_rays.max(1)).max(1)
+    }
+
+    /// Runs the recursion for one batch; returns the per-ray keys, the peak bytes and
+    /// the ray–triangle tests made.
+    fn trace(&self, rays: &[Ray], any_hit: bool) -> (Vec<AtomicU64>, usize, u64) {
         let n = rays.len();
         let inv: Vec<Vec3> = rays.par_iter().map(|r| inv_dir(r.dir)).collect();
         let keys: Vec<AtomicU64> = (0..n).map(|_| AtomicU64::new(NONE)).collect();
-        let tr = Trace { rays, inv, keys, any_hit, bytes: AtomicUsize::new(0), peak: AtomicUsize::new(0) };
-        let mut ray_ids: Vec<u32> = (0..n as u32).filter(|&i| rays[i as usize].is_valid()).collect();
-        let mut tri_ids: Vec<u32> = (0..self.tris.len() as u32).collect();
+        let tr = Trace {
+            rays,
+            inv,
+            keys,
+            any_hit,
+            bytes: AtomicUsize::new(0),
+            peak: AtomicUsize::new(0),
+            tests: AtomicU64::new(0),
+        };
         // ids, keys and reciprocal directions
-        tr.alloc(ray_ids.len() * 4 + tri_ids.len() * 4 + n * (8 + 12));
-        let nr = partition(&mut ray_ids, |r| tr.enters(r, &self.scene_box));
-        self.recurse(&tr, self.scene_box, &mut ray_ids[..nr], &mut tri_ids, 0);
-        let peak = tr.peak.load(Relaxed);
-        (tr.keys, peak)
+        tr.alloc(n * (4 + 8 + 12));
+        let scene_box = self.scene_box;
+        let mut ray_ids: Vec<u32> = (0..n as u32)
+            .into_par_iter()
+            .filter(|&i| rays[i as usize].is_valid() && tr.enters(i, &scene_box))
+            .collect();
+        if ray_ids.is_empty() || self.tris.is_empty() {
+            let (peak, tests) = (tr.peak.load(Relaxed), tr.tests.load(Relaxed));
+            return (tr.keys, peak, tests);
+        }
+        let top = self.build_top(scene_box, (0..self.tris.len() as u32).collect(), 0);
+        tr.alloc(top.bytes());
+        let groups = self.group_count(ray_ids.len());
+        if groups <= 1 {
+            self.trace_top(&tr, &top, &mut ray_ids, &mut Vec::new(), 0);
+        } else {
+            // Coherent groups: sort by key (ties by id, so the order is deterministic).
+            tr.alloc(ray_ids.len() * 12);
+            let mut keyed: Vec<(u64, u32)> =
+                ray_ids.par_iter().map(|&i| (coherence_key(&rays[i as usize], &scene_box), i)).collect();
+            keyed.par_sort_unstable();
+            ray_ids.par_iter_mut().zip(&keyed).for_each(|(id, &(_, i))| *id = i);
+            drop(keyed);
+            let size = ray_ids.len().div_ceil(groups);
+            ray_ids.par_chunks_mut(size).for_each_init(Vec::new, |scratch, group| {
+                self.trace_top(&tr, &top, group, scratch, 0);
+            });
+        }
+        let (peak, tests) = (tr.peak.load(Relaxed), tr.tests.load(Relaxed));
+        (tr.keys, peak, tests)
     }
 }
 
@@ -242,7 +541,7 @@ impl RayCaster for Dacrt {
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
         assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
         let start = Instant::now();
-        let (keys, peak) = self.trace(rays, false);
+        let (keys, peak, tests) = self.trace(rays, false);
         hits.par_iter_mut().zip(keys).zip(rays).for_each(|((h, k), ray)| {
             let k = k.into_inner();
             *h = if k == NONE {
@@ -256,15 +555,15 @@ impl RayCaster for Dacrt {
                     .map_or(Hit { t, prim, u: 0.0, v: 0.0 }, |(t, u, v)| Hit { t, prim, u, v })
             };
         });
-        CastStats { rays: rays.len(), seconds: start.elapsed().as_secs_f64(), peak_working_bytes: peak }
+        CastStats { rays: rays.len(), seconds: start.elapsed().as_secs_f64(), peak_working_bytes: peak, tests }
     }
 
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
         assert_eq!(rays.len(), out.len(), "one result slot per ray");
         let start = Instant::now();
-        let (keys, peak) = self.trace(rays, true);
+        let (keys, peak, tests) = self.trace(rays, true);
         out.par_iter_mut().zip(keys).for_each(|(o, k)| *o = k.into_inner() == BLOCKED);
-        CastStats { rays: rays.len(), seconds: start.elapsed().as_secs_f64(), peak_working_bytes: peak }
+        CastStats { rays: rays.len(), seconds: start.elapsed().as_secs_f64(), peak_working_bytes: peak, tests }
     }
 
     fn memory_bytes(&self) -> usize {

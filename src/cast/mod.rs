@@ -16,11 +16,13 @@ mod dacrt;
 
 pub use brute::BruteForce;
 pub use bvh::BvhCaster;
+pub(crate) use dacrt::LEAF_PAIRS_FACTOR;
 pub use dacrt::{Dacrt, DacrtParams};
 
 use crate::geometry::{Hit, Ray, RayShear, intersect_triangle};
 use crate::scene::Scene;
 use glam::Vec3;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::time::Instant;
 
 /// What one batch call did.
@@ -33,6 +35,9 @@ pub struct CastStats {
     /// Peak bytes the caster allocated for this call beyond its own structure
     /// (id lists, queues); 0 for casters that work in per-thread stack space.
     pub peak_working_bytes: usize,
+    /// Ray–triangle intersection tests made: the algorithm's cost, independent of the
+    /// machine.
+    pub tests: u64,
 }
 
 impl CastStats {
@@ -41,12 +46,23 @@ impl CastStats {
         if self.seconds > 0.0 { self.rays as f64 / self.seconds } else { 0.0 }
     }
 
+    /// Ray–triangle tests per ray.
+    pub fn tests_per_ray(&self) -> f64 {
+        if self.rays > 0 { self.tests as f64 / self.rays as f64 } else { 0.0 }
+    }
+
+    /// Peak working bytes per ray of the call.
+    pub fn bytes_per_ray(&self) -> f64 {
+        if self.rays > 0 { self.peak_working_bytes as f64 / self.rays as f64 } else { 0.0 }
+    }
+
     /// Sums two calls (peak memory is the larger of the two).
     pub fn merge(self, o: CastStats) -> CastStats {
         CastStats {
             rays: self.rays + o.rays,
             seconds: self.seconds + o.seconds,
             peak_working_bytes: self.peak_working_bytes.max(o.peak_working_bytes),
+            tests: self.tests + o.tests,
         }
     }
 }
@@ -99,11 +115,71 @@ pub(crate) fn triangles_bytes(tris: &Triangles) -> usize {
     tris.len() * std::mem::size_of::<[Vec3; 3]>()
 }
 
-/// Runs `f` timing it, and fills in the ray count.
-pub(crate) fn timed(rays: usize, peak_working_bytes: usize, f: impl FnOnce()) -> CastStats {
+/// Runs `f` timing it, and fills in the ray count; `f` returns the tests it made.
+pub(crate) fn timed(rays: usize, peak_working_bytes: usize, f: impl FnOnce() -> u64) -> CastStats {
     let start = Instant::now();
-    f();
-    CastStats { rays, seconds: start.elapsed().as_secs_f64(), peak_working_bytes }
+    let tests = f();
+    CastStats { rays, seconds: start.elapsed().as_secs_f64(), peak_working_bytes, tests }
+}
+
+/// Wraps a caster and adds up every call made through it, from any thread: what a
+/// render reports as rays cast, seconds inside the caster (summed over calls, so calls
+/// made in parallel each count their own wall time), tests and peak working bytes.
+pub struct CountingCaster<'a> {
+    inner: &'a dyn RayCaster,
+    rays: AtomicU64,
+    tests: AtomicU64,
+    nanos: AtomicU64,
+    peak: AtomicUsize,
+}
+
+impl<'a> CountingCaster<'a> {
+    /// A counter around `inner`, starting at zero.
+    pub fn new(inner: &'a dyn RayCaster) -> Self {
+        CountingCaster {
+            inner,
+            rays: AtomicU64::new(0),
+            tests: AtomicU64::new(0),
+            nanos: AtomicU64::new(0),
+            peak: AtomicUsize::new(0),
+        }
+    }
+
+    /// Everything counted so far.
+    pub fn stats(&self) -> CastStats {
+        CastStats {
+            rays: self.rays.load(Relaxed) as usize,
+            seconds: self.nanos.load(Relaxed) as f64 * 1e-9,
+            peak_working_bytes: self.peak.load(Relaxed),
+            tests: self.tests.load(Relaxed),
+        }
+    }
+
+    fn add(&self, s: CastStats) -> CastStats {
+        self.rays.fetch_add(s.rays as u64, Relaxed);
+        self.tests.fetch_add(s.tests, Relaxed);
+        self.nanos.fetch_add((s.seconds * 1e9) as u64, Relaxed);
+        self.peak.fetch_max(s.peak_working_bytes, Relaxed);
+        s
+    }
+}
+
+impl RayCaster for CountingCaster<'_> {
+    fn name(&self) -> &'static str {
+        self.inner.name()
+    }
+    fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
+        self.add(self.inner.closest(rays, hits))
+    }
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
+        self.add(self.inner.occluded(rays, out))
+    }
+    fn memory_bytes(&self) -> usize {
+        self.inner.memory_bytes()
+    }
+    fn build_seconds(&self) -> f64 {
+        self.inner.build_seconds()
+    }
 }
 
 /// Tests one ray against a list of triangle ids, shrinking `best` to the closest hit.
@@ -124,11 +200,17 @@ pub fn intersect_ids(
     }
 }
 
-/// True when any of the listed triangles lies on the ray within its interval.
+/// Whether any of the listed triangles lies on the ray within its interval, and how
+/// many were tested before the answer was known.
 #[inline]
-pub fn any_hit_ids(tris: &[[Vec3; 3]], ids: impl IntoIterator<Item = u32>, ray: &Ray, shear: &RayShear) -> bool {
-    ids.into_iter().any(|id| {
+pub fn any_hit_ids(tris: &[[Vec3; 3]], ids: impl IntoIterator<Item = u32>, ray: &Ray, shear: &RayShear) -> (bool, u64) {
+    let mut tests = 0;
+    for id in ids {
+        tests += 1;
         let [a, b, c] = tris[id as usize];
-        intersect_triangle(ray.origin, shear, a, b, c, ray.t_min, ray.t_max).is_some()
-    })
+        if intersect_triangle(ray.origin, shear, a, b, c, ray.t_min, ray.t_max).is_some() {
+            return (true, tests);
+        }
+    }
+    (false, tests)
 }

@@ -265,7 +265,7 @@ impl CisLbdpt {
         }
         let est: Vec<glam::Vec3> = estimates.as_slice().iter().map(|&e| glam::Vec3::from_array(e)).collect();
         film.add_pass(&est);
-        CastStats { rays, seconds: 0.0, peak_working_bytes: dev.memory().peak }
+        CastStats { rays, peak_working_bytes: dev.memory().peak, ..Default::default() }
     }
 }
 

@@ -591,7 +591,7 @@ impl Job {
         let rays = crate::cast::batches::primary_rays(&scene.camera, w, h);
         let pd = Pdacrt::from_triangles(
             &scene.triangle_vertices(),
-            PdacrtParams { measure: true, ..PdacrtParams::default() },
+            PdacrtParams { measure: true, inspect: true, ..PdacrtParams::default() },
         );
         let mut hits = vec![Hit::MISS; rays.len()];
         pd.closest(&rays, &mut hits);

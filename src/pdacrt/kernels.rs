@@ -1,61 +1,51 @@
 //! PDACRT's kernels. Each takes a thread and plain `Copy` data (views and work items);
 //! none allocates, forks or launches. The host code in `mod.rs` launches them.
 
-use crate::geometry::{Aabb, RayShear, intersect_triangle};
+use crate::cast::LEAF_PAIRS_FACTOR;
+use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir};
 use glam::Vec3;
 use simt::{Block, DeviceCopy, Global, GlobalMut, Readable, Thread};
 
 /// Triangle and ray codes, packed under the node id: `node << 2 | code`. Sorted by this
-/// key, each node's elements come as L, B, R, N, so the left child's elements (L, B)
-/// and the right child's (B, R) are both contiguous.
-pub const LEFT: u32 = 0;
-pub const BOTH: u32 = 1;
-pub const RIGHT: u32 = 2;
-pub const NEITHER: u32 = 3;
+/// key, each node's elements come as L, B, R, N, so the left child's elements (L, B),
+/// the right child's (B, R) and all that enter either (L, B, R) are contiguous.
+pub(crate) const LEFT: u32 = 0;
+pub(crate) const BOTH: u32 = 1;
+pub(crate) const RIGHT: u32 = 2;
+pub(crate) const NEITHER: u32 = 3;
 
 /// Key of "no hit yet"; shadow rays that are blocked get [`BLOCKED`].
-pub const NO_HIT: u64 = u64::MAX;
-pub const BLOCKED: u64 = 0;
+pub(crate) const NO_HIT: u64 = u64::MAX;
+pub(crate) const BLOCKED: u64 = 0;
 
 /// Child kinds.
-pub const DROPPED: u32 = 0;
-pub const INNER: u32 = 1;
-pub const TERMINAL: u32 = 2;
+pub(crate) const DROPPED: u32 = 0;
+pub(crate) const INNER: u32 = 1;
+pub(crate) const TERMINAL: u32 = 2;
 
+/// Split attempts (one per axis, longest first) before a node that no plane separates
+/// becomes terminal.
+pub(crate) const MAX_TRIES: u32 = 3;
+
+/// A node of a level: its box, its ranges in the level's id arrays, and how many
+/// split planes already failed to separate its elements.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C)]
-pub struct RayData {
-    pub origin: [f32; 3],
-    pub dir: [f32; 3],
-    pub inv_dir: [f32; 3],
-    pub t_min: f32,
-    pub t_max: f32,
-    pub _pad: f32,
-}
-
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[repr(C)]
-pub struct BoxData {
-    pub min: [f32; 3],
-    pub max: [f32; 3],
-}
-
-/// A node of a level: its box and its ranges in the level's id arrays.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[repr(C)]
-pub struct NodeData {
-    pub bounds: BoxData,
+pub(crate) struct NodeData {
+    pub bounds: Aabb,
     pub ray_start: u32,
     pub ray_count: u32,
     pub tri_start: u32,
     pub tri_count: u32,
+    pub tries: u32,
 }
 
 /// What becomes of one child: its kind, sizes, where its elements come from in the
-/// parent's sorted arrays, and where they go.
+/// parent's sorted arrays, and where they go. `whole` marks the retry of a node that
+/// no plane separated: it takes every element that enters the node (L, B and R).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C)]
-pub struct ChildData {
+pub(crate) struct ChildData {
     pub kind: u32,
     pub rays: u32,
     pub tris: u32,
@@ -64,64 +54,110 @@ pub struct ChildData {
     pub dest_node: u32,
     pub dest_ray: u32,
     pub dest_tri: u32,
+    pub whole: u32,
 }
 
 /// Per child, what the scans count: (1 if chosen, its rays, its triangles).
-pub type Triple = [u32; 3];
+pub(crate) type Triple = [u32; 3];
 
-/// Closest-hit result per ray: distance, triangle, barycentrics.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[repr(C)]
-pub struct HitData {
-    pub t: f32,
-    pub prim: u32,
-    pub u: f32,
-    pub v: f32,
-}
-
-// SAFETY: all of these are #[repr(C)] structs of 4-byte fields without padding.
-unsafe impl DeviceCopy for RayData {}
-unsafe impl DeviceCopy for BoxData {}
+// SAFETY: #[repr(C)] structs of 4-byte fields without padding.
 unsafe impl DeviceCopy for NodeData {}
 unsafe impl DeviceCopy for ChildData {}
-unsafe impl DeviceCopy for HitData {}
-
-impl BoxData {
-    pub fn from_aabb(b: Aabb) -> Self {
-        BoxData { min: b.min.to_array(), max: b.max.to_array() }
-    }
-    pub fn aabb(&self) -> Aabb {
-        Aabb { min: Vec3::from_array(self.min), max: Vec3::from_array(self.max) }
-    }
-}
 
 #[inline]
-pub fn pack_hit(t: f32, prim: u32) -> u64 {
+pub(crate) fn pack_hit(t: f32, prim: u32) -> u64 {
     (t.to_bits() as u64) << 32 | prim as u64
 }
 
 #[inline]
-fn key_t(key: u64) -> f32 {
+pub(crate) fn key_t(key: u64) -> f32 {
     f32::from_bits((key >> 32) as u32)
 }
 
 /// The ray's interval end: its closest hit so far, or its own `t_max`.
 #[inline]
-fn t_far(ray: &RayData, key: u64) -> f32 {
+fn t_far(ray: &Ray, key: u64) -> f32 {
     if key == NO_HIT { ray.t_max } else { key_t(key).min(ray.t_max) }
 }
 
-/// `pdacrt::split_nodes`: children `2n` and `2n + 1` of node `n`, split at the spatial
-/// median of the longest axis.
-pub fn split_node(t: &Thread, nodes: &Global<NodeData>, children: &GlobalMut<BoxData>, n: usize) {
-    let b = t.load(nodes, n).bounds.aabb();
-    let axis = b.longest_axis();
-    let mid = b.center()[axis];
-    let (mut lo, mut hi) = (b, b);
-    lo.max[axis] = mid;
-    hi.min[axis] = mid;
-    t.store(children, 2 * n, BoxData::from_aabb(lo));
-    t.store(children, 2 * n + 1, BoxData::from_aabb(hi));
+/// A triangle's corners from its flat device record.
+#[inline]
+pub(crate) fn corners(v: [f32; 9]) -> [Vec3; 3] {
+    [Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]), Vec3::new(v[6], v[7], v[8])]
+}
+
+/// `f32` to `u32` with the same order, so boxes can grow by integer atomics.
+#[inline]
+pub(crate) fn ordered(x: f32) -> u32 {
+    let b = x.to_bits();
+    if b >> 31 == 1 { !b } else { b | 0x8000_0000 }
+}
+
+#[inline]
+pub(crate) fn unordered(u: u32) -> f32 {
+    f32::from_bits(if u >> 31 == 1 { u & 0x7fff_ffff } else { !u })
+}
+
+/// The empty box in the ordered encoding (min words at their largest, max at their
+/// smallest): the starting value of [`node_bounds`]' atomics.
+pub(crate) const EMPTY_ORDERED: [u32; 6] = [u32::MAX, u32::MAX, u32::MAX, 0, 0, 0];
+
+/// Triangle references one thread of [`node_bounds`] walks.
+pub(crate) const BOUNDS_RUN: usize = 32;
+
+/// `pdacrt::node_bounds`: thread `k` grows its nodes' boxes by the triangle references
+/// `k·RUN .. (k+1)·RUN` (grouped by node), one atomic min/max per word whenever the
+/// node changes: afterwards `bounds[6n..6n+6]` holds the union of node `n`'s triangle
+/// boxes (ordered encoding).
+pub(crate) fn node_bounds(
+    t: &Thread,
+    tri_ids: &Global<u32>,
+    tri_node: &Global<u32>,
+    tris: &Global<[f32; 9]>,
+    bounds: &GlobalMut<u32>,
+    k: usize,
+) {
+    let (first, end) = (k * BOUNDS_RUN, ((k + 1) * BOUNDS_RUN).min(tri_ids.len()));
+    let flush = |node: u32, b: Aabb| {
+        let base = node as usize * 6;
+        for a in 0..3 {
+            t.atomic_min(bounds, base + a, ordered(b.min[a]));
+            t.atomic_max(bounds, base + 3 + a, ordered(b.max[a]));
+        }
+    };
+    let mut current = t.load(tri_node, first);
+    let mut acc = Aabb::EMPTY;
+    for i in first..end {
+        let node = t.load(tri_node, i);
+        if node != current {
+            flush(current, acc);
+            current = node;
+            acc = Aabb::EMPTY;
+        }
+        acc = acc.union(Aabb::from_points(&corners(t.load(tris, t.load(tri_ids, i) as usize))));
+    }
+    flush(current, acc);
+}
+
+/// `pdacrt::split_nodes`: shrinks node `n`'s box to its triangles (stored back into the
+/// node) and writes children `2n` and `2n + 1`: the halves at the spatial median of the
+/// box's axis number `tries` by decreasing extent.
+pub(crate) fn split_node(
+    t: &Thread,
+    nodes: &GlobalMut<NodeData>,
+    tight: &Global<u32>,
+    children: &GlobalMut<Aabb>,
+    n: usize,
+) {
+    let mut node = t.load(&nodes.as_global(), n);
+    let w = |a: usize| unordered(t.load(tight, n * 6 + a));
+    let union = Aabb { min: Vec3::new(w(0), w(1), w(2)), max: Vec3::new(w(3), w(4), w(5)) };
+    node.bounds = node.bounds.intersection(union);
+    t.store(nodes, n, node);
+    let axis = node.bounds.axes_by_extent()[(node.tries % MAX_TRIES) as usize];
+    let (lo, hi) = node.bounds.split(axis, node.bounds.center()[axis]);
+    t.store(children, 2 * n, lo);
+    t.store(children, 2 * n + 1, hi);
 }
 
 #[inline]
@@ -135,23 +171,18 @@ fn code_of(left: bool, right: bool) -> u32 {
 }
 
 /// `pdacrt::filter_triangles`: L/B/R/N for triangle reference `i` by box overlap.
-pub fn filter_triangle(
+pub(crate) fn filter_triangle(
     t: &Thread,
     tri_ids: &Global<u32>,
     tri_node: &Global<u32>,
     tris: &Global<[f32; 9]>,
-    children: &Global<BoxData>,
+    children: &Global<Aabb>,
     codes: &GlobalMut<u32>,
     i: usize,
 ) {
     let node = t.load(tri_node, i);
-    let v = t.load(tris, t.load(tri_ids, i) as usize);
-    let (a, b, c) = (Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]), Vec3::new(v[6], v[7], v[8]));
-    let (tmin, tmax) = (a.min(b).min(c), a.max(b).max(c));
-    let overlaps = |k: usize| {
-        let cb = t.load(children, k).aabb();
-        tmin.cmple(cb.max).all() && tmax.cmpge(cb.min).all()
-    };
+    let b = Aabb::from_points(&corners(t.load(tris, t.load(tri_ids, i) as usize)));
+    let overlaps = |k: usize| b.overlaps(&t.load(children, k));
     let code = code_of(overlaps(2 * node as usize), overlaps(2 * node as usize + 1));
     t.store(codes, i, node << 2 | code);
 }
@@ -159,13 +190,13 @@ pub fn filter_triangle(
 /// `pdacrt::filter_rays`: L/B/R/N for ray reference `i`: does the ray enter each child
 /// before its closest hit so far (early termination)?
 #[allow(clippy::too_many_arguments)]
-pub fn filter_ray(
+pub(crate) fn filter_ray(
     t: &Thread,
     ray_ids: &Global<u32>,
     ray_node: &Global<u32>,
-    rays: &Global<RayData>,
+    rays: &Global<Ray>,
     keys: &Global<u64>,
-    children: &Global<BoxData>,
+    children: &Global<Aabb>,
     any_hit: bool,
     codes: &GlobalMut<u32>,
     i: usize,
@@ -177,24 +208,31 @@ pub fn filter_ray(
         NEITHER
     } else {
         let r = t.load(rays, id);
-        let (o, inv) = (Vec3::from_array(r.origin), Vec3::from_array(r.inv_dir));
+        let inv = inv_dir(r.dir);
         let far = t_far(&r, key);
-        let enters = |k: usize| t.load(children, k).aabb().intersect(o, inv, r.t_min, far).is_some();
+        let enters = |k: usize| t.load(children, k).intersect(r.origin, inv, r.t_min, far).is_some();
         code_of(enters(2 * node as usize), enters(2 * node as usize + 1))
     };
     t.store(codes, i, node << 2 | code);
 }
 
-/// `pdacrt::count_codes`: run `k` of the reduce-by-key output into the table
-/// `counts[node * 4 + code]`.
-pub fn scatter_count(t: &Thread, run_keys: &Global<u32>, run_counts: &Global<u32>, counts: &GlobalMut<u32>, k: usize) {
-    let key = t.load(run_keys, k);
-    t.store(counts, key as usize, t.load(run_counts, k));
+/// `pdacrt::count_codes`: the run lengths of the sorted codes into the table
+/// `counts[node * 4 + code]` (what `reduce_by_key` of a constant 1 computes). Only the
+/// first and last element of each run write: the head subtracts its index, the tail
+/// adds its index + 1, so no per-element temporaries are needed.
+pub(crate) fn count_code_runs(t: &Thread, sorted_codes: &Global<u32>, counts: &GlobalMut<u32>, i: usize) {
+    let key = t.load(sorted_codes, i);
+    if i == 0 || t.load(sorted_codes, i - 1) != key {
+        t.atomic_add(counts, key as usize, (i as u32).wrapping_neg());
+    }
+    if i + 1 == sorted_codes.len() || t.load(sorted_codes, i + 1) != key {
+        t.atomic_add(counts, key as usize, i as u32 + 1);
+    }
 }
 
 /// Limits that make a child terminal.
 #[derive(Clone, Copy, Debug)]
-pub struct LeafRule {
+pub(crate) struct LeafRule {
     pub leaf_rays: u32,
     pub leaf_tris: u32,
     /// True when the children being made are at the depth cap.
@@ -203,9 +241,12 @@ pub struct LeafRule {
 
 /// `pdacrt::classify_children`: child `c` of node `c / 2`: sizes, source ranges, and
 /// whether it is dropped (no rays or no triangles), terminal, or an inner node of the
-/// next level. Writes the counting triples for the scans.
+/// next level. A split after which either child keeps every ray and triangle of the
+/// node separated nothing: then child 0 carries the whole node (every element that
+/// enters it) to the next level for another axis, or, when every axis has failed, to
+/// the terminal stage; child 1 is dropped. Writes the counting triples for the scans.
 #[allow(clippy::too_many_arguments)]
-pub fn classify_child(
+pub(crate) fn classify_child(
     t: &Thread,
     nodes: &Global<NodeData>,
     ray_counts: &Global<u32>,
@@ -221,31 +262,54 @@ pub fn classify_child(
     let node = t.load(nodes, n);
     let rc = |code: u32| t.load(ray_counts, n * 4 + code as usize);
     let tc = |code: u32| t.load(tri_counts, n * 4 + code as usize);
-    let (rays, tris, ray_src, tri_src) = if right {
-        (rc(BOTH) + rc(RIGHT), tc(BOTH) + tc(RIGHT), node.ray_start + rc(LEFT), node.tri_start + tc(LEFT))
-    } else {
-        (rc(LEFT) + rc(BOTH), tc(LEFT) + tc(BOTH), node.ray_start, node.tri_start)
+    let (left_rays, left_tris) = (rc(LEFT) + rc(BOTH), tc(LEFT) + tc(BOTH));
+    let (right_rays, right_tris) = (rc(BOTH) + rc(RIGHT), tc(BOTH) + tc(RIGHT));
+    let keeps_all = |r: u32, tr: u32| r == node.ray_count && tr == node.tri_count;
+    let stuck = keeps_all(left_rays, left_tris) || keeps_all(right_rays, right_tris);
+    // Few triangles, or few rays *and* few pairs (as DACRT's leaf rule), or the cap.
+    let pairs = LEAF_PAIRS_FACTOR * rule.leaf_rays as u64 * rule.leaf_tris as u64;
+    let small = |r: u32, tr: u32| {
+        tr <= rule.leaf_tris || (r <= rule.leaf_rays && r as u64 * tr as u64 <= pairs) || rule.at_max_depth
     };
-    let no_progress = rays == node.ray_count && tris == node.tri_count;
-    let kind = if rays == 0 || tris == 0 {
-        DROPPED
-    } else if rays <= rule.leaf_rays || tris <= rule.leaf_tris || rule.at_max_depth || no_progress {
-        TERMINAL
+    let (kind, rays, tris, whole) = if stuck {
+        let (r, tr) = (left_rays + rc(RIGHT), left_tris + tc(RIGHT));
+        let kind = if right || r == 0 || tr == 0 {
+            DROPPED
+        } else if small(r, tr) || node.tries + 1 >= MAX_TRIES {
+            TERMINAL
+        } else {
+            INNER
+        };
+        (kind, r, tr, 1)
     } else {
-        INNER
+        let (r, tr) = if right { (right_rays, right_tris) } else { (left_rays, left_tris) };
+        let kind = if r == 0 || tr == 0 {
+            DROPPED
+        } else if small(r, tr) {
+            TERMINAL
+        } else {
+            INNER
+        };
+        (kind, r, tr, 0)
+    };
+    let (ray_src, tri_src) = if right && whole == 0 {
+        (node.ray_start + rc(LEFT), node.tri_start + tc(LEFT))
+    } else {
+        (node.ray_start, node.tri_start)
     };
     let triple = |k| if kind == k { [1, rays, tris] } else { [0, 0, 0] };
     t.store(inner, c, triple(INNER));
     t.store(terminal, c, triple(TERMINAL));
-    t.store(children, c, ChildData { kind, rays, tris, ray_src, tri_src, ..Default::default() });
+    t.store(children, c, ChildData { kind, rays, tris, ray_src, tri_src, whole, ..Default::default() });
 }
 
 /// `pdacrt::emit_children`: with the scans done, child `c` gets its place in the next
 /// level (or the terminal buffer) and writes its node there.
 #[allow(clippy::too_many_arguments)]
-pub fn emit_child(
+pub(crate) fn emit_child(
     t: &Thread,
-    child_boxes: &Global<BoxData>,
+    nodes: &Global<NodeData>,
+    child_boxes: &Global<Aabb>,
     inner_scan: &Global<Triple>,
     terminal_scan: &Global<Triple>,
     children: &GlobalMut<ChildData>,
@@ -253,7 +317,7 @@ pub fn emit_child(
     terminal_nodes: &GlobalMut<NodeData>,
     c: usize,
 ) {
-    let mut cd = t.load(children, c);
+    let mut cd = t.load(&children.as_global(), c);
     let (scan, out) = match cd.kind {
         INNER => (t.load(inner_scan, c), next_nodes),
         TERMINAL => (t.load(terminal_scan, c), terminal_nodes),
@@ -263,27 +327,35 @@ pub fn emit_child(
     cd.dest_ray = scan[1];
     cd.dest_tri = scan[2];
     t.store(children, c, cd);
+    let (bounds, tries) = if cd.whole == 1 {
+        let parent = t.load(nodes, c / 2);
+        (parent.bounds, parent.tries + 1)
+    } else {
+        (t.load(child_boxes, c), 0)
+    };
     let node = NodeData {
-        bounds: t.load(child_boxes, c),
+        bounds,
         ray_start: cd.dest_ray,
         ray_count: cd.rays,
         tri_start: cd.dest_tri,
         tri_count: cd.tris,
+        tries,
     };
     t.store(out, cd.dest_node as usize, node);
 }
 
 /// Where one level's sorted elements go.
 #[derive(Clone, Copy)]
-pub struct Destinations<'a> {
+pub(crate) struct Destinations<'a> {
     pub next_ids: GlobalMut<'a, u32>,
     pub next_node: GlobalMut<'a, u32>,
     pub terminal_ids: GlobalMut<'a, u32>,
 }
 
 /// `pdacrt::scatter_rays` / `pdacrt::scatter_triangles`: sorted element `i` (code
-/// L, B or R of its node) is copied into the children that take it; B goes to both.
-pub fn scatter_ref(
+/// L, B or R of its node) is copied into the children that take it; B goes to both,
+/// and a whole-node retry takes L, B and R.
+pub(crate) fn scatter_ref(
     t: &Thread,
     sorted_codes: &Global<u32>,
     sorted_ids: &Global<u32>,
@@ -299,41 +371,46 @@ pub fn scatter_ref(
     }
     let id = t.load(sorted_ids, i);
     for side in 0..2 {
-        let takes = if side == 0 { code != RIGHT } else { code != LEFT };
-        if !takes {
+        let cd = t.load(children, 2 * node + side);
+        let takes = cd.whole == 1 || if side == 0 { code != RIGHT } else { code != LEFT };
+        if !takes || cd.kind == DROPPED {
             continue;
         }
-        let cd = t.load(children, 2 * node + side);
         let (src, dst) = if rays { (cd.ray_src, cd.dest_ray) } else { (cd.tri_src, cd.dest_tri) };
         let pos = dst as usize + (i - src as usize);
-        match cd.kind {
-            INNER => {
-                t.store(&dest.next_ids, pos, id);
-                t.store(&dest.next_node, pos, cd.dest_node);
-            }
-            TERMINAL => t.store(&dest.terminal_ids, pos, id),
-            _ => {}
+        if cd.kind == INNER {
+            t.store(&dest.next_ids, pos, id);
+            t.store(&dest.next_node, pos, cd.dest_node);
+        } else {
+            t.store(&dest.terminal_ids, pos, id);
         }
     }
 }
 
 /// Triangles staged in shared memory per round of the brute-force kernel.
-pub const STAGE: usize = 128;
+pub(crate) const STAGE: usize = 128;
+
+/// Shared memory of one brute-force block: [`STAGE`] triangles (36 bytes) and their
+/// ids (4 bytes).
+pub const BRUTE_FORCE_SHARED_BYTES: usize = STAGE * 40;
 
 /// Inputs of the terminal brute-force kernel.
 #[derive(Clone, Copy)]
-pub struct BruteForceArgs<'a> {
+pub(crate) struct BruteForceArgs<'a> {
     pub terminals: Global<'a, NodeData>,
-    /// Exclusive scan of ray chunks per terminal node, and its total at the end.
+    /// Exclusive scan of ray chunks per terminal node.
     pub chunk_start: Global<'a, u32>,
     pub terminal_count: usize,
     pub ray_ids: Global<'a, u32>,
     pub tri_ids: Global<'a, u32>,
-    pub rays: Global<'a, RayData>,
+    pub rays: Global<'a, Ray>,
     pub tris: Global<'a, [f32; 9]>,
     pub keys: GlobalMut<'a, u64>,
-    /// Per ray: terminal nodes it was tested in (the inspector's work heat map).
-    pub visits: GlobalMut<'a, u32>,
+    /// Per ray: terminal nodes it was tested in (the inspector's work heat map), when
+    /// asked for.
+    pub visits: Option<GlobalMut<'a, u32>>,
+    /// Ray–triangle tests made (one counter).
+    pub tests: GlobalMut<'a, u64>,
     pub any_hit: bool,
 }
 
@@ -341,7 +418,7 @@ pub struct BruteForceArgs<'a> {
 /// terminal node; the node's triangles pass through shared memory [`STAGE`] at a
 /// time, every ray testing every staged triangle; closest hits land with a 64-bit
 /// atomic minimum of (distance, triangle id).
-pub fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
+pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
     let b = blk.block_idx();
     // The terminal node owning this chunk (binary search; the same in every thread).
     let (mut lo, mut hi) = (0usize, a.terminal_count);
@@ -352,9 +429,11 @@ pub fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
     let node = a.terminals.read(lo);
     let chunk = (b - a.chunk_start.read(lo)) as usize * blk.block_dim() as usize;
     let stage = blk.shared::<[f32; 9]>(STAGE);
+    let stage_ids = blk.shared::<u32>(STAGE);
     let best = blk.local::<u64>(NO_HIT);
-    let ray_reg = blk.local::<RayData>(RayData::default());
+    let ray_reg = blk.local::<Ray>(Ray::new(Vec3::ZERO, Vec3::ZERO));
     let ray_id = blk.local::<u32>(u32::MAX);
+    let tests = blk.local::<u64>(0);
     blk.for_each_thread(|t| {
         let k = chunk + t.thread_idx() as usize;
         if k < node.ray_count as usize {
@@ -369,10 +448,10 @@ pub fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
         let count = STAGE.min(node.tri_count as usize - first);
         blk.sync_threads();
         blk.for_each_thread(|t| {
-            let j = t.thread_idx() as usize;
-            let mut s = j;
+            let mut s = t.thread_idx() as usize;
             while s < count {
                 let tri = t.load(&a.tri_ids, node.tri_start as usize + first + s);
+                t.store_shared(stage_ids, s, tri);
                 t.store_shared(stage, s, t.load(&a.tris, tri as usize));
                 s += t.block_dim() as usize;
             }
@@ -388,28 +467,29 @@ pub fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
                 return;
             }
             let r = t.get(ray_reg);
-            let (o, d) = (Vec3::from_array(r.origin), Vec3::from_array(r.dir));
-            let shear = RayShear::new(d);
+            let shear = RayShear::new(r.dir);
             let mut far = t_far(&r, key);
-            t.work(0, 0, count as u32);
+            let mut done = 0u32;
             for s in 0..count {
-                let v = t.load_shared(stage, s);
-                let (p0, p1, p2) =
-                    (Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]), Vec3::new(v[6], v[7], v[8]));
-                let tri = t.load(&a.tri_ids, node.tri_start as usize + first + s);
+                done += 1;
+                let [p0, p1, p2] = corners(t.load_shared(stage, s));
                 if a.any_hit {
-                    if intersect_triangle(o, &shear, p0, p1, p2, r.t_min, r.t_max).is_some() {
+                    if intersect_triangle(r.origin, &shear, p0, p1, p2, r.t_min, r.t_max).is_some() {
                         key = BLOCKED;
                         break;
                     }
-                } else if let Some((th, _, _)) = intersect_triangle(o, &shear, p0, p1, p2, r.t_min, far.next_up()) {
-                    let candidate = pack_hit(th, tri);
+                } else if let Some((th, _, _)) =
+                    intersect_triangle(r.origin, &shear, p0, p1, p2, r.t_min, far.next_up())
+                {
+                    let candidate = pack_hit(th, t.load_shared(stage_ids, s));
                     if candidate < key {
                         key = candidate;
                         far = th;
                     }
                 }
             }
+            t.work(0, 0, done);
+            t.set(tests, t.get(tests) + done as u64);
             t.set(best, key);
         });
         first += count;
@@ -418,7 +498,10 @@ pub fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
     blk.for_each_thread(|t| {
         let id = t.get(ray_id);
         if id != u32::MAX {
-            t.atomic_add(&a.visits, id as usize, 1);
+            if let Some(v) = &a.visits {
+                t.atomic_add(v, id as usize, 1);
+            }
+            t.atomic_add_u64(&a.tests, 0, t.get(tests));
             if t.get(best) != NO_HIT {
                 t.atomic_min_u64(&a.keys, id as usize, t.get(best));
             }
@@ -426,28 +509,29 @@ pub fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
     });
 }
 
-/// `pdacrt::resolve_hits`: key of ray `i` into (t, triangle, barycentrics), with the
-/// barycentrics from the same watertight test.
-pub fn resolve_hit(
+/// The hit a key stands for, with barycentrics from the same watertight test
+/// (`tri` is the key's triangle; ignored for [`NO_HIT`]).
+pub(crate) fn hit_of_key(ray: &Ray, key: u64, tri: [f32; 9]) -> Hit {
+    if key == NO_HIT {
+        return Hit::MISS;
+    }
+    let prim = (key & 0xffff_ffff) as u32;
+    let t = key_t(key);
+    let [a, b, c] = corners(tri);
+    intersect_triangle(ray.origin, &RayShear::new(ray.dir), a, b, c, ray.t_min, t.next_up())
+        .map_or(Hit { t, prim, u: 0.0, v: 0.0 }, |(t, u, v)| Hit { t, prim, u, v })
+}
+
+/// `pdacrt::resolve_hits`: key of ray `i` into its [`Hit`].
+pub(crate) fn resolve_hit(
     t: &Thread,
-    rays: &Global<RayData>,
+    rays: &Global<Ray>,
     tris: &Global<[f32; 9]>,
     keys: &Global<u64>,
-    out: &GlobalMut<HitData>,
+    out: &GlobalMut<Hit>,
     i: usize,
 ) {
     let key = t.load(keys, i);
-    let miss = HitData { t: f32::INFINITY, prim: u32::MAX, u: 0.0, v: 0.0 };
-    if key == NO_HIT {
-        return t.store(out, i, miss);
-    }
-    let prim = (key & 0xffff_ffff) as u32;
-    let th = key_t(key);
-    let r = t.load(rays, i);
-    let v = t.load(tris, prim as usize);
-    let (p0, p1, p2) = (Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]), Vec3::new(v[6], v[7], v[8]));
-    let o = Vec3::from_array(r.origin);
-    let hit = intersect_triangle(o, &RayShear::new(Vec3::from_array(r.dir)), p0, p1, p2, r.t_min, th.next_up());
-    let (tt, u, v) = hit.unwrap_or((th, 0.0, 0.0));
-    t.store(out, i, HitData { t: tt, prim, u, v });
+    let tri = if key == NO_HIT { [0.0; 9] } else { t.load(tris, (key & 0xffff_ffff) as usize) };
+    t.store(out, i, hit_of_key(&t.load(rays, i), key, tri));
 }

@@ -413,7 +413,7 @@ impl LightTracer {
             rays += r;
         }
         film.end_pass();
-        CastStats { rays, seconds: 0.0, peak_working_bytes: 0 }
+        CastStats { rays, ..Default::default() }
     }
 }
 
@@ -447,7 +447,7 @@ impl Bdpt {
             rays += r;
         }
         film.add_pass(&estimates);
-        CastStats { rays, seconds: 0.0, peak_working_bytes: 0 }
+        CastStats { rays, ..Default::default() }
     }
 }
 

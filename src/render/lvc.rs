@@ -191,7 +191,7 @@ impl LvcBdpt {
         }
         film.add_pass(&estimates);
         self.last_cache = cache;
-        CastStats { rays, seconds: 0.0, peak_working_bytes: 0 }
+        CastStats { rays, ..Default::default() }
     }
 }
 

@@ -13,7 +13,7 @@ pub use bdpt::{Bdpt, LightTracer};
 pub use lvc::{LvcBdpt, LvcParams};
 pub use path::PathTracer;
 
-use crate::cast::{CastStats, RayCaster};
+use crate::cast::{CastStats, CountingCaster, RayCaster};
 use crate::error::{Error, Result};
 use crate::film::Film;
 use crate::lights::Lights;
@@ -66,7 +66,7 @@ impl std::str::FromStr for IntegratorKind {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
         <Self as clap::ValueEnum>::from_str(s, true)
-            .map_err(|_| Error::BadSetting(format!("unknown integrator '{s}' (known: path)")))
+            .map_err(|_| Error::BadSetting(format!("unknown integrator '{s}' (known: path, light, bdpt, lvc, cis)")))
     }
 }
 
@@ -115,8 +115,11 @@ pub struct RenderStats {
     pub seconds: f64,
     /// Rays cast (closest and shadow).
     pub rays: u64,
-    /// Seconds spent inside the caster.
+    /// Seconds spent inside the caster, summed over calls (calls made in parallel
+    /// each count their own wall time).
     pub cast_seconds: f64,
+    /// Ray–triangle tests the caster made.
+    pub tests: u64,
 }
 
 impl RenderStats {
@@ -198,15 +201,20 @@ impl<'a> Renderer<'a> {
     }
 
     /// Adds pass number `pass` (one sample per pixel) to `film`.
+    /// The returned statistics count every caster call the pass made, whichever
+    /// integrator made them and from whichever thread.
     pub fn pass(&mut self, pass: u32, film: &mut Film) -> CastStats {
-        let ctx = Context { scene: self.scene, lights: &self.lights, caster: self.caster, opts: &self.opts };
-        match &mut self.integrator {
+        let counter = CountingCaster::new(self.caster);
+        let ctx = Context { scene: self.scene, lights: &self.lights, caster: &counter, opts: &self.opts };
+        let own = match &mut self.integrator {
             Integrator::Path(i) => i.render_pass(&ctx, pass, film),
             Integrator::Light(i) => i.render_pass(&ctx, pass, film),
             Integrator::Bdpt(i) => i.render_pass(&ctx, pass, film),
             Integrator::Lvc(i) => i.render_pass(&ctx, pass, film),
             Integrator::Cis(i) => i.render_pass(&ctx, pass, film),
-        }
+        };
+        let counted = counter.stats();
+        CastStats { peak_working_bytes: counted.peak_working_bytes.max(own.peak_working_bytes), ..counted }
     }
 
     /// The CIS-LBDPT integrator, when that is the one running (queue records, device).
@@ -241,6 +249,7 @@ pub fn render(
         let pass = renderer.pass(stats.passes, &mut film);
         stats.rays += pass.rays as u64;
         stats.cast_seconds += pass.seconds;
+        stats.tests += pass.tests;
         stats.passes += 1;
         if !on_pass(stats.passes, &film) {
             break;
