@@ -63,6 +63,11 @@ pub struct Vertex {
 unsafe impl simt::DeviceCopy for Vertex {}
 
 impl Vertex {
+    /// A point light's vertex: a light with no surface (delta in position).
+    pub fn is_point_light(&self) -> bool {
+        self.kind == VertexKind::Light && self.n == Vec3::ZERO
+    }
+
     #[allow(clippy::too_many_arguments)]
     pub fn new(kind: VertexKind, p: Vec3, n: Vec3, tri: u32, beta: Vec3, delta: bool, le: Vec3) -> Vertex {
         Vertex { kind, p, n, tri, beta, le, delta, _pad: [0; 3] }
@@ -225,7 +230,12 @@ pub fn mis_weight_counts(ctx: &Context, path: &[Vertex], s: usize, count: impl F
         }
         if s == 0 {
             // Hitting the light needs no connection: possible for area lights only.
-            return path[0].n != Vec3::ZERO;
+            return !path[0].is_point_light();
+        }
+        if s == 1 && t == 1 && path[0].is_point_light() {
+            // A pinhole camera and a point light, both delta in position: see
+            // `connect_to_camera`.
+            return false;
         }
         let connectible = |v: &Vertex| v.kind != VertexKind::Surface || !v.delta;
         connectible(&path[s - 1]) && connectible(&path[s])
@@ -361,9 +371,15 @@ pub(crate) fn connectible(ctx: &Context, v: &Vertex) -> bool {
 pub(crate) type Pending = (Option<Ray>, Vec3, Option<u32>);
 
 /// The t = 1 strategy for light vertex `s - 1`: its contribution to the pixel it projects on.
+///
+/// A point light's own vertex (s = 1) is never connected: the pinhole camera and the
+/// light are both points, so that path has no area to integrate over (its value would
+/// be a Dirac spike on one pixel, growing with the resolution), and no other strategy
+/// can produce it. Point lights are invisible to the camera, as in the path tracer,
+/// pbrt and Mitsuba.
 pub(crate) fn connect_to_camera(ctx: &Context, light: &[Vertex], s: usize, cam_v: &Vertex) -> Option<(Vec3, u32, Ray)> {
     let v = &light[s - 1];
-    if !connectible(ctx, v) {
+    if !connectible(ctx, v) || (s == 1 && v.is_point_light()) {
         return None;
     }
     let d = v.p - cam_v.p;
@@ -459,7 +475,7 @@ pub(crate) fn full_path(light: &[Vertex], cam: &[Vertex], s: usize, t: usize, ou
     out.extend(&light[..s]);
     out.extend(cam[..t].iter().rev());
     if s > 0 {
-        out[s - 1].delta = out[s - 1].kind == VertexKind::Light && out[s - 1].n == Vec3::ZERO;
+        out[s - 1].delta = out[s - 1].is_point_light();
     }
     if t > 0 {
         out[s].delta = false;
