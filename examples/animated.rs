@@ -12,7 +12,7 @@
 use clap::Parser;
 use std::time::Instant;
 use warpray::cast::batches::primary_rays;
-use warpray::cast::{BvhCaster, Dacrt, RayCaster};
+use warpray::cast::{BvhCaster, Dacrt, RayCaster, Traversal};
 use warpray::geometry::{Hit, Ray, offset_ray_origin};
 use warpray::glam::Vec3;
 use warpray::pdacrt::Pdacrt;
@@ -88,7 +88,7 @@ struct Frame {
 
 fn build(name: &str, tris: Vec<[Vec3; 3]>) -> Result<Box<dyn RayCaster>, String> {
     Ok(match name {
-        "bvh" => Box::new(BvhCaster::from_triangles(tris)),
+        "bvh" => Box::new(BvhCaster::from_triangles(tris).with_traversal(Traversal::Fast)),
         "dacrt" => Box::new(Dacrt::from_triangles(tris, Default::default())),
         "pdacrt" => Box::new(Pdacrt::from_triangles(&tris, Default::default())),
         other => return Err(format!("unknown caster {other} (known: bvh, dacrt, pdacrt)")),

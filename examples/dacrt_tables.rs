@@ -15,7 +15,7 @@
 
 use clap::Parser;
 use warpray::cast::batches::interior_camera;
-use warpray::cast::{BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster};
+use warpray::cast::{BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster, Traversal};
 use warpray::geometry::{Hit, Ray};
 use warpray::pdacrt::{Pdacrt, PdacrtParams};
 use warpray::scene::{ObjOptions, Scene, find_model, load_obj, models_dir};
@@ -106,7 +106,7 @@ fn batches(s: &Scene, size: u32, ao: usize) -> Vec<(&'static str, Vec<Ray>, bool
 /// The caster (only the BVH builds a structure; the others copy the triangles).
 fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
     Ok(match name {
-        "bvh" => Box::new(BvhCaster::new(s)),
+        "bvh" => Box::new(BvhCaster::new(s).with_traversal(Traversal::Fast)),
         "dacrt" => Box::new(Dacrt::new(s)),
         "pdacrt" => Box::new(Pdacrt::new(s)),
         other => return Err(format!("unknown caster {other} (known: bvh, dacrt, pdacrt)")),

@@ -7,11 +7,20 @@
 //! test ignores `Ray::tmin`), which would lose hits closer than that. The ray handed
 //! to obvhs therefore starts [`NODE_EPSILON_SHIFT`] (in `t` units) behind the real
 //! origin; triangles are still tested from the real origin in real `t`.
+//!
+//! obvhs 0.4 also changes rays with a direction component of magnitude at most
+//! `f32::EPSILON`: its `safe_inverse` replaces the reciprocal by ±1/ε (so the traversal
+//! follows a slightly different ray, which leaves a box at once when the origin lies on
+//! the box's face), and a `-0.0` component gets a negative reciprocal while the node
+//! test picks near and far planes by `d < 0.0`, which inverts every slab (every such
+//! ray missed). Those rays are traversed here instead ([`BvhCaster::traverse_robust`]):
+//! over the same CWBVH nodes, child boxes decoded and rounded outward, tested with
+//! warpray's conservative slab test, which decides a zero component by position.
 
-use super::{CastStats, RayCaster, Triangles, timed, triangles_bytes};
-use crate::geometry::{Hit, Ray, RayShear, intersect_triangle};
+use super::{CastStats, RayCaster, Triangles, any_hit_ids, timed, triangles_bytes};
+use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir};
 use crate::scene::Scene;
-use glam::Vec3A;
+use glam::{Vec3, Vec3A};
 use obvhs::{BvhBuildParams, cwbvh::CwBvh, cwbvh::builder::build_cwbvh_from_tris, triangle::Triangle};
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
@@ -21,7 +30,15 @@ use std::time::{Duration, Instant};
 pub const NODE_EPSILON_SHIFT: f32 = 2e-4;
 
 pub struct BvhCaster {
+    /// How rays are traversed (see [`Traversal`]).
+    pub traversal: Traversal,
     tris: Triangles,
+    /// obvhs primitive index → scene triangle id (exact duplicates are built once,
+    /// under their smallest id; outliers are left out).
+    ids: Vec<u32>,
+    /// Triangles with a coordinate beyond [`OUTLIER_COORDINATE`] (or not finite), which
+    /// obvhs' build cannot take: tested against every ray.
+    outliers: Vec<u32>,
     /// `None` for a scene with no triangles (obvhs needs at least one).
     bvh: Option<CwBvh>,
     build_seconds: f64,
@@ -34,12 +51,55 @@ impl BvhCaster {
 
     pub fn from_triangles(tris: Triangles) -> Self {
         let start = Instant::now();
-        let bvh = (!tris.is_empty()).then(|| {
-            let obvhs_tris: Vec<Triangle> =
-                tris.iter().map(|t| Triangle { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() }).collect();
+        let regular = |t: &[Vec3; 3]| t.iter().all(|v| v.is_finite() && v.abs().max_element() <= OUTLIER_COORDINATE);
+        let outliers: Vec<u32> =
+            (0..tris.len() as u32).into_par_iter().filter(|&i| !regular(&tris[i as usize])).collect();
+        let ids = unique_regular_ids(&tris, regular);
+        let bvh = (!ids.is_empty()).then(|| {
+            let obvhs_tris: Vec<Triangle> = ids
+                .iter()
+                .map(|&i| {
+                    let t = &tris[i as usize];
+                    Triangle { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() }
+                })
+                .collect();
             build_cwbvh_from_tris(&obvhs_tris, BvhBuildParams::medium_build(), &mut Duration::default())
         });
-        BvhCaster { tris, bvh, build_seconds: start.elapsed().as_secs_f64() }
+        BvhCaster {
+            traversal: Traversal::default(),
+            tris,
+            ids,
+            outliers,
+            bvh,
+            build_seconds: start.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// The scene id of obvhs primitive slot `slot`.
+    #[inline]
+    fn prim(&self, bvh: &CwBvh, slot: usize) -> u32 {
+        self.ids[bvh.primitive_indices[slot] as usize]
+    }
+
+    /// Tests the outliers, shrinking `best` (ties: the smaller id).
+    fn closest_outliers(&self, ray: &Ray, best: &mut Hit) -> u64 {
+        let shear = RayShear::new(ray.dir);
+        for &prim in &self.outliers {
+            let [a, b, c] = self.tris[prim as usize];
+            let far = best.t.next_up().min(ray.t_max);
+            if let Some((t, u, v)) = intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, far) {
+                if t < best.t || (t == best.t && prim < best.prim) {
+                    *best = Hit { t, prim, u, v };
+                }
+            }
+        }
+        self.outliers.len() as u64
+    }
+
+    /// The same caster with another traversal mode.
+    pub fn with_traversal(mut self, traversal: Traversal) -> Self {
+        self.traversal = traversal;
+        self
     }
 
     /// The ray obvhs traverses: shifted back by [`NODE_EPSILON_SHIFT`], with `t` shifted
@@ -58,7 +118,7 @@ impl BvhCaster {
         let mut obvhs_hit = obvhs::ray::RayHit::none();
         bvh.ray_traverse(Self::obvhs_ray(ray), &mut obvhs_hit, |_, id| {
             tests += 1;
-            let prim = bvh.primitive_indices[id];
+            let prim = self.prim(bvh, id);
             let [a, b, c] = self.tris[prim as usize];
             match intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, best.t.min(ray.t_max)) {
                 Some((t, u, v)) => {
@@ -68,6 +128,126 @@ impl BvhCaster {
                 None => f32::INFINITY,
             }
         });
+        (best, tests)
+    }
+}
+
+/// How [`BvhCaster`] traverses its BVH. Every mode sends the rays obvhs cannot
+/// represent (a direction component of magnitude at most `f32::EPSILON`, `-0.0`
+/// included) through the robust traversal.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Traversal {
+    /// obvhs' SIMD traversal for every other ray: fastest; a ray through a shared
+    /// vertex can miss (the baseline of the DACRT tables).
+    Fast,
+    /// As `Fast`, and every miss or unblocked shadow ray is checked again by the
+    /// robust traversal: no ray escapes a closed mesh. The default.
+    #[default]
+    Checked,
+    /// Every ray through the robust traversal: never rejects a box the ray enters
+    /// (5–10× the trace time of `Fast`).
+    Robust,
+}
+
+/// Triangles with a coordinate of larger magnitude are kept out of obvhs' build (its
+/// SAH costs overflow `f32` near 1e19 and the build panics) and tested against every
+/// ray instead.
+pub const OUTLIER_COORDINATE: f32 = 1e15;
+
+/// The ids of the regular triangles, each exact duplicate (same nine coordinates,
+/// bit for bit) only once, under its smallest id, in increasing order. obvhs' build
+/// takes quadratic time on coincident triangles (20,000 copies: 25 s); brute force
+/// reports the smallest id of equally distant triangles, so the duplicates are never
+/// needed. Found by a parallel sort of per-triangle hashes.
+fn unique_regular_ids(tris: &Triangles, regular: impl Fn(&[Vec3; 3]) -> bool + Sync) -> Vec<u32> {
+    let bits = |t: &[Vec3; 3]| t.map(|v| v.to_array().map(f32::to_bits));
+    let hash = |t: &[Vec3; 3]| {
+        bits(t)
+            .iter()
+            .flatten()
+            .fold(0xcbf2_9ce4_8422_2325u64, |h, &w| (h ^ w as u64).wrapping_mul(0x0000_0100_0000_01b3))
+    };
+    let mut keyed: Vec<(u64, u32)> = (0..tris.len() as u32)
+        .into_par_iter()
+        .filter(|&i| regular(&tris[i as usize]))
+        .map(|i| (hash(&tris[i as usize]), i))
+        .collect();
+    keyed.par_sort_unstable();
+    // A triangle is dropped when an earlier member of its hash run is the same
+    // triangle; runs of one (almost all) need no comparison.
+    let mut duplicate = vec![false; tris.len()];
+    let mut run = 0;
+    for k in 1..keyed.len() {
+        if keyed[k].0 != keyed[k - 1].0 {
+            run = k;
+            continue;
+        }
+        let t = bits(&tris[keyed[k].1 as usize]);
+        if keyed[run..k].iter().any(|&(_, j)| bits(&tris[j as usize]) == t) {
+            duplicate[keyed[k].1 as usize] = true;
+        }
+    }
+    (0..tris.len() as u32).into_par_iter().filter(|&i| !duplicate[i as usize] && regular(&tris[i as usize])).collect()
+}
+
+/// True when obvhs' traversal would not follow this ray exactly (a direction component
+/// of magnitude at most `f32::EPSILON`, including `-0.0`).
+fn needs_robust_traversal(ray: &Ray) -> bool {
+    ray.dir.abs().min_element() <= f32::EPSILON
+}
+
+/// Most node indices a robust traversal holds at once (8 children per level).
+const STACK: usize = 256;
+
+impl BvhCaster {
+    /// Closest hit (or any hit, with `any_hit`) by a traversal of the CWBVH nodes that
+    /// never rejects a box the ray enters: child boxes decoded from their quantized
+    /// planes and rounded outward by one ulp, tested with [`Aabb::intersect`]. Returns
+    /// the hit and the triangles tested.
+    fn traverse_robust(&self, bvh: &CwBvh, ray: &Ray, any_hit: bool) -> (Hit, u64) {
+        let shear = RayShear::new(ray.dir);
+        let inv = inv_dir(ray.dir);
+        let mut best = Hit::MISS;
+        let mut tests = 0u64;
+        let mut stack = [0u32; STACK];
+        let mut len = 1;
+        while len > 0 {
+            len -= 1;
+            let node = &bvh.nodes[stack[len] as usize];
+            for child in 0..8 {
+                if node.is_child_empty(child) {
+                    continue;
+                }
+                let b = node.child_aabb(child);
+                let b = Aabb { min: Vec3::from(b.min).map(f32::next_down), max: Vec3::from(b.max).map(f32::next_up) };
+                let far = best.t.min(ray.t_max);
+                if b.intersect(ray.origin, inv, ray.t_min, far).is_none() {
+                    continue;
+                }
+                if !node.is_leaf(child) {
+                    assert!(len < STACK, "BVH deeper than the traversal stack");
+                    stack[len] = node.child_node_index(child);
+                    len += 1;
+                    continue;
+                }
+                let (first, count) = node.child_primitives(child);
+                for i in first..first + count {
+                    let prim = self.prim(bvh, i as usize);
+                    let [a, b, c] = self.tris[prim as usize];
+                    tests += 1;
+                    let far = if any_hit { ray.t_max } else { best.t.next_up().min(ray.t_max) };
+                    if let Some((t, u, v)) = intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, far) {
+                        // Equal distances: the smaller triangle id, as brute force keeps.
+                        if t < best.t || (t == best.t && prim < best.prim) {
+                            best = Hit { t, prim, u, v };
+                        }
+                        if any_hit {
+                            return (best, tests);
+                        }
+                    }
+                }
+            }
+        }
         (best, tests)
     }
 }
@@ -85,9 +265,27 @@ impl RayCaster for BvhCaster {
                 .with_min_len(64)
                 .map(|(ray, hit)| {
                     let (h, tests) = match &self.bvh {
-                        Some(bvh) if ray.is_valid() => self.closest_one(bvh, ray),
+                        Some(bvh)
+                            if ray.is_valid()
+                                && (self.traversal == Traversal::Robust || needs_robust_traversal(ray)) =>
+                        {
+                            self.traverse_robust(bvh, ray, false)
+                        }
+                        Some(bvh) if ray.is_valid() => match self.closest_one(bvh, ray) {
+                            // obvhs' node test can reject a box the ray enters exactly
+                            // at a corner (a ray through a shared vertex): check misses.
+                            (h, n) if !h.is_hit() && self.traversal == Traversal::Checked => {
+                                let (h, m) = self.traverse_robust(bvh, ray, false);
+                                (h, n + m)
+                            }
+                            found => found,
+                        },
                         _ => (Hit::MISS, 0),
                     };
+                    let (mut h, mut tests) = (h, tests);
+                    if ray.is_valid() && !self.outliers.is_empty() {
+                        tests += self.closest_outliers(ray, &mut h);
+                    }
                     *hit = h;
                     tests
                 })
@@ -104,18 +302,37 @@ impl RayCaster for BvhCaster {
                 .map(|(ray, o)| {
                     let mut tests = 0u64;
                     *o = match &self.bvh {
+                        Some(bvh)
+                            if ray.is_valid()
+                                && (self.traversal == Traversal::Robust || needs_robust_traversal(ray)) =>
+                        {
+                            let (hit, n) = self.traverse_robust(bvh, ray, true);
+                            tests = n;
+                            hit.is_hit()
+                        }
                         Some(bvh) if ray.is_valid() => {
                             let shear = RayShear::new(ray.dir);
-                            !bvh.ray_traverse_miss(Self::obvhs_ray(ray), |_, id| {
+                            let blocked = !bvh.ray_traverse_miss(Self::obvhs_ray(ray), |_, id| {
                                 tests += 1;
-                                let [a, b, c] = self.tris[bvh.primitive_indices[id] as usize];
+                                let [a, b, c] = self.tris[self.prim(bvh, id) as usize];
                                 // Any hit in the real interval counts; report it inside obvhs'.
                                 intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, ray.t_max)
                                     .map_or(f32::INFINITY, |_| ray.t_min + NODE_EPSILON_SHIFT)
-                            })
+                            });
+                            // As for closest hits: an unblocked answer is checked.
+                            blocked || self.traversal == Traversal::Fast || {
+                                let (hit, n) = self.traverse_robust(bvh, ray, true);
+                                tests += n;
+                                hit.is_hit()
+                            }
                         }
                         _ => false,
-                    };
+                    } || (ray.is_valid() && !self.outliers.is_empty() && {
+                        let (hit, n) =
+                            any_hit_ids(&self.tris, self.outliers.iter().copied(), ray, &RayShear::new(ray.dir));
+                        tests += n;
+                        hit
+                    });
                     tests
                 })
                 .sum()
@@ -126,7 +343,7 @@ impl RayCaster for BvhCaster {
         let bvh = self.bvh.as_ref().map_or(0, |b| {
             b.nodes.len() * std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>() + b.primitive_indices.len() * 4
         });
-        bvh + triangles_bytes(&self.tris)
+        bvh + triangles_bytes(&self.tris) + (self.ids.len() + self.outliers.len()) * 4
     }
 
     fn build_seconds(&self) -> f64 {

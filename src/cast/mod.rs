@@ -15,7 +15,7 @@ mod bvh;
 mod dacrt;
 
 pub use brute::BruteForce;
-pub use bvh::BvhCaster;
+pub use bvh::{BvhCaster, Traversal};
 pub(crate) use dacrt::LEAF_PAIRS_FACTOR;
 pub use dacrt::{Dacrt, DacrtParams};
 

@@ -1,0 +1,190 @@
+//! The BVH caster never misses a legal ray: signed zeros and axis-parallel directions,
+//! origins on node faces, rays from inside closed meshes, extreme coordinates and
+//! coincident triangles (each a case that obvhs 0.4's own traversal or build got wrong).
+
+mod common;
+
+use common::*;
+use warpray::cast::{BruteForce, BvhCaster, RayCaster};
+use warpray::geometry::{Hit, Ray};
+use warpray::glam::Vec3;
+use warpray::scene::cornell_box;
+
+/// Same hit or miss as brute force, the same distance, and the same occlusion.
+fn agree(tris: &[[Vec3; 3]], rays: &[Ray], what: &str) {
+    let brute = BruteForce::from_triangles(tris.to_vec());
+    let bvh = BvhCaster::from_triangles(tris.to_vec());
+    let (mut want, mut got) = (vec![Hit::MISS; rays.len()], vec![Hit::MISS; rays.len()]);
+    brute.closest(rays, &mut want);
+    bvh.closest(rays, &mut got);
+    let wrong: Vec<usize> = (0..rays.len())
+        .filter(|&i| want[i].is_hit() != got[i].is_hit() || (want[i].is_hit() && want[i].t != got[i].t))
+        .collect();
+    assert!(
+        wrong.is_empty(),
+        "{what}: {} of {} rays differ; first {:?}: brute {:?}, bvh {:?}",
+        wrong.len(),
+        rays.len(),
+        rays[wrong[0]],
+        want[wrong[0]],
+        got[wrong[0]]
+    );
+    let (mut want, mut got) = (vec![false; rays.len()], vec![false; rays.len()]);
+    brute.occluded(rays, &mut want);
+    bvh.occluded(rays, &mut got);
+    let wrong: Vec<usize> = (0..rays.len()).filter(|&i| want[i] != got[i]).collect();
+    assert!(
+        wrong.is_empty(),
+        "{what}: occlusion differs for {} of {} rays; first {:?}: brute {}, bvh {}",
+        wrong.len(),
+        rays.len(),
+        rays[wrong[0]],
+        want[wrong[0]],
+        got[wrong[0]]
+    );
+}
+
+/// The six axis directions with every combination of signed zeros.
+fn axis_directions() -> Vec<Vec3> {
+    let mut out = Vec::new();
+    for axis in 0..3 {
+        for sign in [1.0f32, -1.0] {
+            for zeros in 0..4 {
+                let mut d = [0.0f32; 3];
+                d[axis] = sign;
+                let (a, b) = ((axis + 1) % 3, (axis + 2) % 3);
+                d[a] = if zeros & 1 == 1 { -0.0 } else { 0.0 };
+                d[b] = if zeros & 2 == 2 { -0.0 } else { 0.0 };
+                out.push(Vec3::from_array(d));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn the_readme_ray_hits_the_cornell_box() {
+    let scene = cornell_box();
+    let bvh = BvhCaster::new(&scene);
+    let mut hit = [Hit::MISS];
+    bvh.closest(&[Ray::new(Vec3::new(0.5, 1.5, 3.0), -Vec3::Z)], &mut hit);
+    let mut want = [Hit::MISS];
+    BruteForce::new(&scene).closest(&[Ray::new(Vec3::new(0.5, 1.5, 3.0), -Vec3::Z)], &mut want);
+    assert!(want[0].is_hit() && hit[0].t == want[0].t, "bvh {:?}, brute force {:?}", hit[0], want[0]);
+}
+
+#[test]
+fn axis_parallel_rays_with_signed_zeros_against_brute_force() {
+    let scene = cornell_box();
+    let tris = scene.triangle_vertices();
+    let b = scene.bounds();
+    let mut r = rng(3);
+    let mut rays = Vec::new();
+    for _ in 0..300 {
+        let o = random_in_box(&mut r, b.min - Vec3::splat(0.5), b.max + Vec3::splat(0.5));
+        for d in axis_directions() {
+            rays.push(Ray::new(o, d));
+        }
+    }
+    agree(&tris, &rays, "cornell, axis-parallel");
+    let (v, f) = icosphere(3);
+    let sphere: Vec<[Vec3; 3]> = f.iter().map(|t| t.map(|i| v[i as usize])).collect();
+    let rays: Vec<Ray> = (0..400)
+        .flat_map(|_| {
+            let o = random_in_box(&mut r, Vec3::splat(-1.5), Vec3::splat(1.5));
+            axis_directions().into_iter().map(move |d| Ray::new(o, d))
+        })
+        .collect();
+    agree(&sphere, &rays, "icosphere, axis-parallel");
+}
+
+#[test]
+fn axis_parallel_rays_whose_origins_lie_on_node_faces() {
+    // A 16 × 16 grid of unit quads in z = 0; rays straight down from every point of a
+    // quarter-unit lattice over it, including the grid's own edges and corners.
+    let mut tris = Vec::new();
+    for i in 0..16 {
+        for j in 0..16 {
+            let (x, y) = (i as f32, j as f32);
+            let q = [
+                Vec3::new(x, y, 0.0),
+                Vec3::new(x + 1.0, y, 0.0),
+                Vec3::new(x + 1.0, y + 1.0, 0.0),
+                Vec3::new(x, y + 1.0, 0.0),
+            ];
+            tris.push([q[0], q[1], q[2]]);
+            tris.push([q[0], q[2], q[3]]);
+        }
+    }
+    let mut rays = Vec::new();
+    for i in 0..=64 {
+        for j in 0..=64 {
+            let o = Vec3::new(i as f32 * 0.25, j as f32 * 0.25, 3.0);
+            rays.push(Ray::new(o, Vec3::new(0.0, 0.0, -1.0)));
+            rays.push(Ray::new(o, Vec3::new(-0.0, -0.0, -1.0)));
+        }
+    }
+    agree(&tris, &rays, "grid, rays on node faces");
+}
+
+#[test]
+fn rays_from_inside_closed_spheres_never_escape() {
+    for sub in 3..=6 {
+        let (v, f) = icosphere(sub);
+        let tris: Vec<[Vec3; 3]> = f.iter().map(|t| t.map(|i| v[i as usize])).collect();
+        let bvh = BvhCaster::from_triangles(tris);
+        let mut r = rng(40 + sub as u64);
+        let mut rays: Vec<Ray> = (0..20_000)
+            .map(|_| Ray::new(random_in_box(&mut r, Vec3::splat(-0.5), Vec3::splat(0.5)), random_dir(&mut r)))
+            .collect();
+        // From the centre through every vertex: the rays most likely to slip between
+        // the triangles that share it.
+        rays.extend(v.iter().map(|&p| Ray::new(Vec3::ZERO, p)));
+        rays.extend(axis_directions().into_iter().map(|d| Ray::new(Vec3::ZERO, d)));
+        let mut hits = vec![Hit::MISS; rays.len()];
+        bvh.closest(&rays, &mut hits);
+        let escaped: Vec<&Ray> = rays.iter().zip(&hits).filter(|(_, h)| !h.is_hit()).map(|(r, _)| r).collect();
+        assert!(escaped.is_empty(), "subdivision {sub}: {} rays escaped, first {:?}", escaped.len(), escaped[0]);
+        let mut blocked = vec![false; rays.len()];
+        bvh.occluded(&rays, &mut blocked);
+        assert!(blocked.iter().all(|&b| b), "subdivision {sub}: an occlusion ray escaped");
+    }
+}
+
+#[test]
+fn every_traversal_mode_keeps_rays_inside_a_closed_sphere() {
+    use warpray::cast::Traversal;
+    let (v, f) = icosphere(4);
+    let tris: Vec<[Vec3; 3]> = f.iter().map(|t| t.map(|i| v[i as usize])).collect();
+    let rays: Vec<Ray> = v.iter().map(|&p| Ray::new(Vec3::ZERO, p)).collect();
+    for mode in [Traversal::Checked, Traversal::Robust] {
+        let bvh = BvhCaster::from_triangles(tris.clone()).with_traversal(mode);
+        let mut hits = vec![Hit::MISS; rays.len()];
+        bvh.closest(&rays, &mut hits);
+        assert!(hits.iter().all(|h| h.is_hit()), "{mode:?}: a ray through a vertex escaped");
+    }
+}
+
+#[test]
+fn extreme_coordinates_beside_a_unit_triangle() {
+    let unit = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+    let huge = [Vec3::new(-1e19, -1e19, 5.0), Vec3::new(1e19, -1e19, 5.0), Vec3::new(0.0, 1e19, 5.0)];
+    let tris = vec![unit, huge];
+    let rays: Vec<Ray> = (0..100)
+        .map(|i| Ray::new(Vec3::new(0.2 + i as f32 * 0.001, 0.3, 2.0), Vec3::new(0.0, 0.0, -1.0)))
+        .chain((0..100).map(|i| Ray::new(Vec3::new(0.2, 0.3 + i as f32 * 0.001, 2.0), Vec3::new(0.01, 0.0, 1.0))))
+        .collect();
+    agree(&tris, &rays, "±1e19 beside a unit triangle");
+}
+
+#[test]
+fn twenty_thousand_coincident_triangles() {
+    let t = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+    let mut tris = vec![t; 20_000];
+    tris.push([Vec3::new(-1.0, -1.0, 1.0), Vec3::new(1.0, -1.0, 1.0), Vec3::new(0.0, 1.0, 1.0)]);
+    let mut r = rng(9);
+    let rays: Vec<Ray> = (0..300)
+        .map(|_| Ray::new(random_in_box(&mut r, Vec3::new(-0.5, -0.5, 2.0), Vec3::new(0.5, 0.5, 3.0)), -Vec3::Z))
+        .collect();
+    agree(&tris, &rays, "coincident");
+}
