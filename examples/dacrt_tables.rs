@@ -48,6 +48,9 @@ struct Args {
     /// One JSON object per row instead of tables.
     #[arg(long)]
     json: bool,
+    /// PDACRT rays per chunk (default: PDACRT's own).
+    #[arg(long)]
+    pdacrt_chunk: Option<usize>,
 }
 
 /// One measured (scene, batch, caster, threads) cell.
@@ -108,10 +111,19 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
     Ok(match name {
         "bvh" => Box::new(BvhCaster::new(s).with_traversal(Traversal::Fast)),
         "dacrt" => Box::new(Dacrt::new(s)),
-        "pdacrt" => Box::new(Pdacrt::new(s)),
+        "pdacrt" => {
+            let mut p = Pdacrt::new(s);
+            if let Some(c) = PDACRT_CHUNK.get() {
+                p.params.chunk_rays = *c;
+            }
+            Box::new(p)
+        }
         other => return Err(format!("unknown caster {other} (known: bvh, dacrt, pdacrt)")),
     })
 }
+
+/// `--pdacrt-chunk`, when given.
+static PDACRT_CHUNK: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
 
 fn cast(c: &dyn RayCaster, rays: &[Ray], shadow: bool) -> CastStats {
     if shadow {
@@ -243,6 +255,9 @@ fn print_tables(rows: &[Row]) {
 }
 
 fn run(a: Args) -> Result<(), String> {
+    if let Some(c) = a.pdacrt_chunk {
+        PDACRT_CHUNK.set(c).map_err(|_| "--pdacrt-chunk given twice".to_string())?;
+    }
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(t) = a.threads {
         pool = pool.num_threads(t as usize);

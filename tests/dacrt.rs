@@ -249,7 +249,14 @@ fn pdacrt_level_records_add_up_and_depth_is_bounded() {
     for l in &levels {
         assert_eq!(l.id_bytes, (l.rays + l.triangle_refs) * 8);
         let names: Vec<&str> = l.kernels.iter().map(|k| k.name).collect();
-        for k in ["pdacrt::split_nodes", "pdacrt::filter_rays", "pdacrt::filter_triangles", "simt::radix_scatter"] {
+        for k in [
+            "pdacrt::split_nodes",
+            "pdacrt::filter_rays",
+            "pdacrt::filter_triangles",
+            "pdacrt::count_codes",
+            "simt::scan_tiles",
+            "pdacrt::scatter_rays",
+        ] {
             assert!(names.contains(&k), "level {} lacks {k}: {names:?}", l.level);
         }
         assert!(l.kernels.iter().all(|k| k.simd_efficiency.is_some_and(|e| e > 0.0 && e <= 1.0)));

@@ -13,7 +13,7 @@
 //!   efficiency (active lanes per issued warp step), warp-wide memory requests and the
 //!   32-byte sectors they touch when [`Device::set_measure`] is on.
 //! * **Primitives** with Thrust names, written as kernels: [`inclusive_scan`],
-//!   [`exclusive_scan`], [`reduce`], [`reduce_by_key`], [`sort_by_key`] (stable radix),
+//!   [`exclusive_scan`], [`transform_exclusive_scan`], [`reduce`], [`reduce_by_key`], [`sort_by_key`] (stable radix),
 //!   [`copy_if`], [`gather`], [`scatter`], [`fill`], [`sequence`], and [`WorkQueue`].
 //!   Each has a sequential twin in [`seq`].
 //!
@@ -58,7 +58,7 @@ pub use exec::{
 };
 pub use memory::{DeviceBuffer, DeviceCopy, Global, GlobalMut, Readable};
 pub use prims::queue::{QueuePusher, WorkQueue};
-pub use prims::scan::{exclusive_scan, inclusive_scan, reduce};
+pub use prims::scan::{exclusive_scan, inclusive_scan, reduce, transform_exclusive_scan};
 pub use prims::select::{Flagged, copy_if, copy_if_stencil, fill, gather, reduce_by_key, scatter, sequence};
 pub use prims::sort::{RadixKey, sort_by_key, sort_by_key_bits};
 pub use stats::{KernelSummary, LaunchRecord, RegionStats};

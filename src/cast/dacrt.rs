@@ -489,7 +489,7 @@ impl Dacrt {
     fn trace(&self, rays: &[Ray], any_hit: bool) -> (Vec<AtomicU64>, usize, u64) {
         let n = rays.len();
         let inv: Vec<Vec3> = rays.par_iter().map(|r| inv_dir(r.dir)).collect();
-        let keys: Vec<AtomicU64> = (0..n).map(|_| AtomicU64::new(NONE)).collect();
+        let keys: Vec<AtomicU64> = (0..n).into_par_iter().map(|_| AtomicU64::new(NONE)).collect();
         let tr = Trace {
             rays,
             inv,

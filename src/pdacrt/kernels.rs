@@ -6,9 +6,10 @@ use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir};
 use glam::Vec3;
 use simt::{Block, DeviceCopy, Global, GlobalMut, Readable, Thread};
 
-/// Triangle and ray codes, packed under the node id: `node << 2 | code`. Sorted by this
-/// key, each node's elements come as L, B, R, N, so the left child's elements (L, B),
-/// the right child's (B, R) and all that enter either (L, B, R) are contiguous.
+/// Triangle and ray codes, packed under the node id: `node << 2 | code`. In the order
+/// of a segmented sort by this key, each node's elements come as L, B, R, N, so the
+/// left child's elements (L, B), the right child's (B, R) and all that enter either
+/// (L, B, R) are contiguous; the scatter writes exactly that order.
 pub(crate) const LEFT: u32 = 0;
 pub(crate) const BOTH: u32 = 1;
 pub(crate) const RIGHT: u32 = 2;
@@ -40,8 +41,7 @@ pub(crate) struct NodeData {
     pub tries: u32,
 }
 
-/// What becomes of one child: its kind, sizes, where its elements come from in the
-/// parent's sorted arrays, and where they go. `whole` marks the retry of a node that
+/// What becomes of one child: its kind, its sizes, and where its elements go. `whole` marks the retry of a node that
 /// no plane separated: it takes every element that enters the node (L, B and R).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C)]
@@ -49,8 +49,6 @@ pub(crate) struct ChildData {
     pub kind: u32,
     pub rays: u32,
     pub tris: u32,
-    pub ray_src: u32,
-    pub tri_src: u32,
     pub dest_node: u32,
     pub dest_ray: u32,
     pub dest_tri: u32,
@@ -103,7 +101,7 @@ pub(crate) fn unordered(u: u32) -> f32 {
 pub(crate) const EMPTY_ORDERED: [u32; 6] = [u32::MAX, u32::MAX, u32::MAX, 0, 0, 0];
 
 /// Triangle references one thread of [`node_bounds`] walks.
-pub(crate) const BOUNDS_RUN: usize = 32;
+pub(crate) const BOUNDS_RUN: usize = 256;
 
 /// `pdacrt::node_bounds`: thread `k` grows its nodes' boxes by the triangle references
 /// `k·RUN .. (k+1)·RUN` (grouped by node), one atomic min/max per word whenever the
@@ -216,18 +214,56 @@ pub(crate) fn filter_ray(
     t.store(codes, i, node << 2 | code);
 }
 
-/// `pdacrt::count_codes`: the run lengths of the sorted codes into the table
-/// `counts[node * 4 + code]` (what `reduce_by_key` of a constant 1 computes). Only the
-/// first and last element of each run write: the head subtracts its index, the tail
-/// adds its index + 1, so no per-element temporaries are needed.
-pub(crate) fn count_code_runs(t: &Thread, sorted_codes: &Global<u32>, counts: &GlobalMut<u32>, i: usize) {
-    let key = t.load(sorted_codes, i);
-    if i == 0 || t.load(sorted_codes, i - 1) != key {
-        t.atomic_add(counts, key as usize, (i as u32).wrapping_neg());
+/// A status code as a one-hot vector over (L, B, R); N counts nowhere. The exclusive
+/// scan of these (`simt::transform_exclusive_scan`, so they are never stored) ranks
+/// every element among the elements of its code before it.
+#[inline]
+pub(crate) fn one_hot(code: u32) -> Triple {
+    let mut f = [0; 3];
+    if code & 3 != NEITHER {
+        f[(code & 3) as usize] = 1;
     }
-    if i + 1 == sorted_codes.len() || t.load(sorted_codes, i + 1) != key {
-        t.atomic_add(counts, key as usize, i as u32 + 1);
+    f
+}
+
+/// The exclusive-scan entry at `k`, where `k` may be one past the end (the total).
+#[inline]
+fn rank_at(t: &Thread, ranks: &Global<Triple>, codes: &Global<u32>, k: usize) -> Triple {
+    let n = ranks.len();
+    if k < n {
+        t.load(ranks, k)
+    } else {
+        let (r, f) = (t.load(ranks, n - 1), one_hot(t.load(codes, n - 1)));
+        [r[0] + f[0], r[1] + f[1], r[2] + f[2]]
     }
+}
+
+/// `pdacrt::count_codes`: node `n`'s L/B/R/N counts into `counts[n * 4 + code]` and the
+/// rank of its first element into `base[n]`, from the scan: a node's elements are
+/// contiguous, so its counts are the differences of the scan at its two ends (what
+/// `reduce_by_key` over the sorted codes computes, with no sort).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn count_node_codes(
+    t: &Thread,
+    nodes: &Global<NodeData>,
+    rays: bool,
+    ranks: &Global<Triple>,
+    codes: &Global<u32>,
+    counts: &GlobalMut<u32>,
+    base: &GlobalMut<Triple>,
+    n: usize,
+) {
+    let node = t.load(nodes, n);
+    let (start, count) = if rays { (node.ray_start, node.ray_count) } else { (node.tri_start, node.tri_count) };
+    let first = rank_at(t, ranks, codes, start as usize);
+    let end = rank_at(t, ranks, codes, (start + count) as usize);
+    let mut entering = 0;
+    for c in 0..3 {
+        t.store(counts, n * 4 + c, end[c] - first[c]);
+        entering += end[c] - first[c];
+    }
+    t.store(counts, n * 4 + 3, count - entering);
+    t.store(base, n, first);
 }
 
 /// Limits that make a child terminal.
@@ -292,15 +328,10 @@ pub(crate) fn classify_child(
         };
         (kind, r, tr, 0)
     };
-    let (ray_src, tri_src) = if right && whole == 0 {
-        (node.ray_start + rc(LEFT), node.tri_start + tc(LEFT))
-    } else {
-        (node.ray_start, node.tri_start)
-    };
     let triple = |k| if kind == k { [1, rays, tris] } else { [0, 0, 0] };
     t.store(inner, c, triple(INNER));
     t.store(terminal, c, triple(TERMINAL));
-    t.store(children, c, ChildData { kind, rays, tris, ray_src, tri_src, whole, ..Default::default() });
+    t.store(children, c, ChildData { kind, rays, tris, whole, ..Default::default() });
 }
 
 /// `pdacrt::emit_children`: with the scans done, child `c` gets its place in the next
@@ -344,7 +375,7 @@ pub(crate) fn emit_child(
     t.store(out, cd.dest_node as usize, node);
 }
 
-/// Where one level's sorted elements go.
+/// Where one level's elements go.
 #[derive(Clone, Copy)]
 pub(crate) struct Destinations<'a> {
     pub next_ids: GlobalMut<'a, u32>,
@@ -352,32 +383,48 @@ pub(crate) struct Destinations<'a> {
     pub terminal_ids: GlobalMut<'a, u32>,
 }
 
-/// `pdacrt::scatter_rays` / `pdacrt::scatter_triangles`: sorted element `i` (code
-/// L, B or R of its node) is copied into the children that take it; B goes to both,
-/// and a whole-node retry takes L, B and R.
+/// What the scatter reads besides the children: the elements, their nodes, codes and
+/// ranks, and per node the rank of its first element and its code counts.
+#[derive(Clone, Copy)]
+pub(crate) struct Split<'a> {
+    pub ids: Global<'a, u32>,
+    pub node_of: Global<'a, u32>,
+    pub codes: Global<'a, u32>,
+    pub ranks: Global<'a, Triple>,
+    pub base: Global<'a, Triple>,
+    pub counts: Global<'a, u32>,
+}
+
+/// `pdacrt::scatter_rays` / `pdacrt::scatter_triangles`: element `i` (code L, B or R of
+/// its node) goes to the children that take it, at its rank among its node's elements
+/// of the same code, after those of the smaller codes that the child also takes: the
+/// stable order of a segmented sort by code. A left child takes L then B, a right
+/// child B then R, a whole-node retry L, B, R.
 pub(crate) fn scatter_ref(
     t: &Thread,
-    sorted_codes: &Global<u32>,
-    sorted_ids: &Global<u32>,
+    sp: &Split,
     children: &Global<ChildData>,
     rays: bool,
     dest: &Destinations,
     i: usize,
 ) {
-    let key = t.load(sorted_codes, i);
-    let (node, code) = ((key >> 2) as usize, key & 3);
+    let code = t.load(&sp.codes, i) & 3;
     if code == NEITHER {
         return;
     }
-    let id = t.load(sorted_ids, i);
+    let node = t.load(&sp.node_of, i) as usize;
+    let rank = t.load(&sp.ranks, i)[code as usize] - t.load(&sp.base, node)[code as usize];
+    let id = t.load(&sp.ids, i);
     for side in 0..2 {
         let cd = t.load(children, 2 * node + side);
         let takes = cd.whole == 1 || if side == 0 { code != RIGHT } else { code != LEFT };
         if !takes || cd.kind == DROPPED {
             continue;
         }
-        let (src, dst) = if rays { (cd.ray_src, cd.dest_ray) } else { (cd.tri_src, cd.dest_tri) };
-        let pos = dst as usize + (i - src as usize);
+        let first_code = if cd.whole == 1 || side == 0 { LEFT } else { BOTH };
+        let before: u32 = (first_code..code).map(|c| t.load(&sp.counts, node * 4 + c as usize)).sum();
+        let dst = if rays { cd.dest_ray } else { cd.dest_tri };
+        let pos = (dst + before + rank) as usize;
         if cd.kind == INNER {
             t.store(&dest.next_ids, pos, id);
             t.store(&dest.next_node, pos, cd.dest_node);

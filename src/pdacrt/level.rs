@@ -25,11 +25,7 @@ impl Pdacrt {
         let boxes =
             if self.params.inspect { ws.cur.nodes.as_slice().iter().map(|n| n.bounds).collect() } else { vec![] };
         self.filter(ws, any_hit);
-        // Segmented sort: the node id in the high bits keeps each node's elements together.
-        let bits = 2 + (usize::BITS - (n_nodes - 1).leading_zeros());
-        simt::sort_by_key_bits(&self.dev, &mut ws.ray_codes, &mut ws.cur.ray_ids, 0, bits);
-        simt::sort_by_key_bits(&self.dev, &mut ws.tri_codes, &mut ws.cur.tri_ids, 0, bits);
-        self.count_codes(ws, n_nodes);
+        self.split_codes(ws, n_nodes);
         let terminal = self.place_children(ws, depth);
         self.scatter(ws);
         if terminal[0] > 0 {
@@ -102,14 +98,25 @@ impl Pdacrt {
         });
     }
 
-    /// `count_codes`: L/B/R/N counts per node, as tables `counts[node * 4 + code]`.
-    fn count_codes(&self, ws: &mut Workspace, n_nodes: usize) {
+    /// The segmented sort by status code, as a split: each node's elements are
+    /// contiguous, so one exclusive scan of one-hot (L, B, R) vectors ranks every
+    /// element within its node and code (a transform scan of their codes), and the same scan
+    /// gives every node's counts (`count_codes`). The scatter then writes the order a
+    /// stable segmented sort would give, without its radix passes.
+    fn split_codes(&self, ws: &mut Workspace, n_nodes: usize) {
         let dev = &self.dev;
-        for (codes, table) in [(&ws.ray_codes, &mut ws.ray_counts), (&ws.tri_codes, &mut ws.tri_counts)] {
-            table.resize(4 * n_nodes);
-            simt::fill(dev, table, 0);
-            let (cv, tv) = (codes.view(), table.view_mut());
-            dev.for_each("pdacrt::count_codes", cv.len(), |t, i| count_code_runs(t, &cv, &tv, i));
+        let sides = [
+            (true, &ws.ray_codes, &mut ws.ray_ranks, &mut ws.ray_counts, &mut ws.ray_base),
+            (false, &ws.tri_codes, &mut ws.tri_ranks, &mut ws.tri_counts, &mut ws.tri_base),
+        ];
+        for (rays, codes, ranks, counts, base) in sides {
+            ranks.resize(codes.len());
+            simt::transform_exclusive_scan(dev, codes, ranks, one_hot, [0; 3], [0; 3], add3);
+            counts.resize(4 * n_nodes);
+            base.resize(n_nodes);
+            let (nv, rv, cv, nc, bv) =
+                (ws.cur.nodes.view(), ranks.view(), codes.view(), counts.view_mut(), base.view_mut());
+            dev.for_each("pdacrt::count_codes", n_nodes, |t, k| count_node_codes(t, &nv, rays, &rv, &cv, &nc, &bv, k));
         }
     }
 
@@ -163,20 +170,34 @@ impl Pdacrt {
     fn scatter(&self, ws: &mut Workspace) {
         let dev = &self.dev;
         let cv = ws.children.view();
-        let (sc, si) = (ws.ray_codes.view(), ws.cur.ray_ids.view());
+        let split = Split {
+            ids: ws.cur.ray_ids.view(),
+            node_of: ws.cur.ray_node.view(),
+            codes: ws.ray_codes.view(),
+            ranks: ws.ray_ranks.view(),
+            base: ws.ray_base.view(),
+            counts: ws.ray_counts.view(),
+        };
         let dest = Destinations {
             next_ids: ws.next.ray_ids.view_mut(),
             next_node: ws.next.ray_node.view_mut(),
             terminal_ids: ws.term_ray_ids.view_mut(),
         };
-        dev.for_each("pdacrt::scatter_rays", sc.len(), |t, i| scatter_ref(t, &sc, &si, &cv, true, &dest, i));
-        let (sc, si) = (ws.tri_codes.view(), ws.cur.tri_ids.view());
+        dev.for_each("pdacrt::scatter_rays", split.ids.len(), |t, i| scatter_ref(t, &split, &cv, true, &dest, i));
+        let split = Split {
+            ids: ws.cur.tri_ids.view(),
+            node_of: ws.cur.tri_node.view(),
+            codes: ws.tri_codes.view(),
+            ranks: ws.tri_ranks.view(),
+            base: ws.tri_base.view(),
+            counts: ws.tri_counts.view(),
+        };
         let dest = Destinations {
             next_ids: ws.next.tri_ids.view_mut(),
             next_node: ws.next.tri_node.view_mut(),
             terminal_ids: ws.term_tri_ids.view_mut(),
         };
-        dev.for_each("pdacrt::scatter_triangles", sc.len(), |t, i| scatter_ref(t, &sc, &si, &cv, false, &dest, i));
+        dev.for_each("pdacrt::scatter_triangles", split.ids.len(), |t, i| scatter_ref(t, &split, &cv, false, &dest, i));
     }
 
     /// `count_chunks`, a scan and `brute_force`: the terminal buffer, solved.

@@ -7,16 +7,19 @@
 //! 2. `filter_triangles`, `filter_rays`: every element gets a status code, its node id
 //!    with L, B, R or N packed into a `u32` (rays test the child boxes up to their
 //!    closest hit so far: early termination);
-//! 3. a segmented `sort_by_key` of element ids by status code (the node id in the high
-//!    bits keeps segments apart; only the bits in use are sorted);
-//! 4. `count_codes`: the L/B/R/N counts of every node, as the run lengths of the sorted
-//!    codes (reduce-by-key of a constant 1, done from the run boundaries alone);
+//! 3. the segmented sort of element ids by status code, as a split: each node's
+//!    elements are contiguous, so one `transform_exclusive_scan` of one-hot (L, B, R)
+//!    vectors of the codes ranks every element within its node and code, which is all
+//!    a stable sort by a 2-bit key within segments computes;
+//! 4. `count_codes`: the L/B/R/N counts of every node (what reduce-by-key over the
+//!    sorted codes gives) are differences of that scan at the node's two ends;
 //! 5. `classify_children` and two scans place every child: dropped (no rays or no
 //!    triangles), terminal (small or at the depth cap), a node of the next level, or,
 //!    when the split separated nothing, the whole node again with the next axis
 //!    (terminal once every axis has failed);
-//! 6. `scatter_rays`, `scatter_triangles` build the next level's id arrays and the
-//!    terminal buffer (elements coded B go to both children);
+//! 6. `scatter_rays`, `scatter_triangles` write every element, in sorted order, into
+//!    the next level's id arrays or the terminal buffer (elements coded B go to both
+//!    children);
 //! 7. `brute_force` solves the terminal buffer: one block per chunk of a terminal node's
 //!    rays, its triangles staged through shared memory, closest hits merged with a
 //!    64-bit `atomic_min` of (distance bits, triangle id).
@@ -57,7 +60,9 @@ pub struct PdacrtParams {
     /// Measure SIMD efficiency and memory traffic (slower).
     pub measure: bool,
     /// Rays traced per pass of the pipeline (bounds the working set; 0: the whole
-    /// batch at once).
+    /// batch at once). The default, 196,608, keeps the dragon's 1024² primary rays
+    /// under 100 MB including triangles (`docs/dacrt.md`): about 34 MB of triangle-side
+    /// buffers plus 140 bytes per ray of the chunk.
     pub chunk_rays: usize,
     /// Batches with fewer rays than this are tested against every triangle on the
     /// host, without a launch.
@@ -70,12 +75,12 @@ pub struct PdacrtParams {
 impl Default for PdacrtParams {
     fn default() -> Self {
         PdacrtParams {
-            leaf_rays: 64,
-            leaf_triangles: 32,
+            leaf_rays: 32,
+            leaf_triangles: 16,
             max_depth: 40,
             brute_force_block: 128,
             measure: false,
-            chunk_rays: 1 << 18,
+            chunk_rays: 3 << 16,
             tiny_batch: 32,
             inspect: false,
         }
@@ -110,6 +115,11 @@ pub(crate) struct Workspace {
     pub child_boxes: DeviceBuffer<Aabb>,
     pub ray_counts: DeviceBuffer<u32>,
     pub tri_counts: DeviceBuffer<u32>,
+    /// Exclusive scans of the one-hot code vectors, and each node's first rank.
+    pub ray_ranks: DeviceBuffer<Triple>,
+    pub tri_ranks: DeviceBuffer<Triple>,
+    pub ray_base: DeviceBuffer<Triple>,
+    pub tri_base: DeviceBuffer<Triple>,
     pub children: DeviceBuffer<ChildData>,
     pub inner: DeviceBuffer<Triple>,
     pub terminal: DeviceBuffer<Triple>,
@@ -159,6 +169,10 @@ impl Workspace {
             child_boxes: dev.alloc(0),
             ray_counts: dev.alloc(0),
             tri_counts: dev.alloc(0),
+            ray_ranks: dev.alloc(0),
+            tri_ranks: dev.alloc(0),
+            ray_base: dev.alloc(0),
+            tri_base: dev.alloc(0),
             children: dev.alloc(0),
             inner: dev.alloc(0),
             terminal: dev.alloc(0),

@@ -7,18 +7,27 @@ use super::{BLOCK, ITEMS, TILE};
 use crate::device::{Device, LaunchConfig};
 use crate::memory::{DeviceBuffer, DeviceCopy};
 
+/// The identity map of the plain scans (a named function, so the recursion over
+/// block totals instantiates one type).
+fn same<T>(x: T) -> T {
+    x
+}
+
 /// Scans one tile per block. Writes the inclusive (or exclusive) scan of the tile into
 /// `output` and the tile's total into `block_totals`.
-fn scan_tiles<T, F>(
+fn scan_tiles<I, T, M, F>(
     dev: &Device,
-    input: &DeviceBuffer<T>,
+    input: &DeviceBuffer<I>,
+    map: M,
     output: &mut DeviceBuffer<T>,
     identity: T,
     op: F,
     exclusive: bool,
 ) -> DeviceBuffer<T>
 where
+    I: DeviceCopy,
     T: DeviceCopy,
+    M: Fn(I) -> T + Sync + Copy,
     F: Fn(T, T) -> T + Sync + Copy,
 {
     let n = input.len();
@@ -37,7 +46,7 @@ where
         blk.for_each_thread(|t| {
             for k in 0..ITEMS {
                 let j = k * BLOCK as usize + t.thread_idx() as usize;
-                let v = if j < valid { t.load(&inp, base + j) } else { identity };
+                let v = if j < valid { map(t.load(&inp, base + j)) } else { identity };
                 t.store_shared(tile, j, v);
             }
         });
@@ -150,9 +159,18 @@ fn add_block_offsets<T, F>(
     .expect("scan launch shape is valid");
 }
 
-fn scan<T, F>(dev: &Device, input: &DeviceBuffer<T>, output: &mut DeviceBuffer<T>, init: Option<T>, identity: T, op: F)
-where
+fn scan<I, T, M, F>(
+    dev: &Device,
+    input: &DeviceBuffer<I>,
+    map: M,
+    output: &mut DeviceBuffer<T>,
+    init: Option<T>,
+    identity: T,
+    op: F,
+) where
+    I: DeviceCopy,
     T: DeviceCopy,
+    M: Fn(I) -> T + Sync + Copy,
     F: Fn(T, T) -> T + Sync + Copy,
 {
     assert_eq!(input.len(), output.len(), "scan output must match its input");
@@ -160,11 +178,11 @@ where
         return;
     }
     let exclusive = init.is_some();
-    let mut totals = scan_tiles(dev, input, output, identity, op, exclusive);
+    let mut totals = scan_tiles(dev, input, map, output, identity, op, exclusive);
     if totals.len() > 1 || exclusive {
         let copy = dev.alloc_from(totals.as_slice());
         if totals.len() > 1 {
-            scan(dev, &copy, &mut totals, None, identity, op);
+            scan(dev, &copy, same, &mut totals, None, identity, op);
         }
         add_block_offsets(dev, output, &totals, init, op);
     }
@@ -185,7 +203,7 @@ where
     T: DeviceCopy,
     F: Fn(T, T) -> T + Sync + Copy,
 {
-    scan(dev, input, output, None, identity, op)
+    scan(dev, input, same, output, None, identity, op)
 }
 
 /// `output[0] = init`, `output[i] = init ⊕ input[0] ⊕ … ⊕ input[i-1]`.
@@ -208,7 +226,35 @@ pub fn exclusive_scan<T, F>(
     T: DeviceCopy,
     F: Fn(T, T) -> T + Sync + Copy,
 {
-    scan(dev, input, output, Some(init), identity, op)
+    scan(dev, input, same, output, Some(init), identity, op)
+}
+
+/// [`exclusive_scan`] of `map(input[i])` without storing the mapped values (Thrust's
+/// `transform_exclusive_scan`): `output[0] = init`, `output[i] = init ⊕ map(input[0]) ⊕
+/// … ⊕ map(input[i-1])`.
+///
+/// ```
+/// let dev = simt::Device::default();
+/// let input = dev.alloc_from(&[3u32, 0, 2, 3]);
+/// let mut out = dev.alloc::<u32>(4);
+/// simt::transform_exclusive_scan(&dev, &input, &mut out, |x| (x == 3) as u32, 0, 0, |a, b| a + b);
+/// assert_eq!(out.as_slice(), &[0, 1, 1, 1]);
+/// ```
+pub fn transform_exclusive_scan<I, T, M, F>(
+    dev: &Device,
+    input: &DeviceBuffer<I>,
+    output: &mut DeviceBuffer<T>,
+    map: M,
+    init: T,
+    identity: T,
+    op: F,
+) where
+    I: DeviceCopy,
+    T: DeviceCopy,
+    M: Fn(I) -> T + Sync + Copy,
+    F: Fn(T, T) -> T + Sync + Copy,
+{
+    scan(dev, input, map, output, Some(init), identity, op)
 }
 
 /// `init ⊕ input[0] ⊕ … ⊕ input[n-1]`, reduced block by block on the device.
