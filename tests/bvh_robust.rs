@@ -102,20 +102,7 @@ fn axis_parallel_rays_with_signed_zeros_against_brute_force() {
 fn axis_parallel_rays_whose_origins_lie_on_node_faces() {
     // A 16 × 16 grid of unit quads in z = 0; rays straight down from every point of a
     // quarter-unit lattice over it, including the grid's own edges and corners.
-    let mut tris = Vec::new();
-    for i in 0..16 {
-        for j in 0..16 {
-            let (x, y) = (i as f32, j as f32);
-            let q = [
-                Vec3::new(x, y, 0.0),
-                Vec3::new(x + 1.0, y, 0.0),
-                Vec3::new(x + 1.0, y + 1.0, 0.0),
-                Vec3::new(x, y + 1.0, 0.0),
-            ];
-            tris.push([q[0], q[1], q[2]]);
-            tris.push([q[0], q[2], q[3]]);
-        }
-    }
+    let tris = quad_grid(16);
     let mut rays = Vec::new();
     for i in 0..=64 {
         for j in 0..=64 {

@@ -152,20 +152,7 @@ fn ten_thousand_coincident_triangles() {
 fn axis_aligned_rays_split_planes_and_shared_edges() {
     // A 16x16 grid of unit quads in z = 0: every split plane of the recursion falls on
     // grid lines, where the quads' shared edges are.
-    let mut tris = Vec::new();
-    for i in 0..16 {
-        for j in 0..16 {
-            let (x, y) = (i as f32, j as f32);
-            let q = [
-                Vec3::new(x, y, 0.0),
-                Vec3::new(x + 1.0, y, 0.0),
-                Vec3::new(x + 1.0, y + 1.0, 0.0),
-                Vec3::new(x, y + 1.0, 0.0),
-            ];
-            tris.push([q[0], q[1], q[2]]);
-            tris.push([q[0], q[2], q[3]]);
-        }
-    }
+    let tris = quad_grid(16);
     let mut extra = Vec::new();
     for k in 0..=32 {
         let c = k as f32 * 0.5;

@@ -48,6 +48,26 @@ pub fn scene_from_triangles(tris: &[[Vec3; 3]]) -> Scene {
     s
 }
 
+/// An `n × n` grid of unit quads in z = 0 (two triangles each): split planes of the
+/// divide-and-conquer casters and BVH node faces fall on its grid lines.
+pub fn quad_grid(n: u32) -> Vec<[Vec3; 3]> {
+    let mut tris = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            let (x, y) = (i as f32, j as f32);
+            let q = [
+                Vec3::new(x, y, 0.0),
+                Vec3::new(x + 1.0, y, 0.0),
+                Vec3::new(x + 1.0, y + 1.0, 0.0),
+                Vec3::new(x, y + 1.0, 0.0),
+            ];
+            tris.push([q[0], q[1], q[2]]);
+            tris.push([q[0], q[2], q[3]]);
+        }
+    }
+    tris
+}
+
 /// An icosphere of radius 1 with shared (indexed) vertices: a closed mesh.
 pub fn icosphere(subdivisions: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let t = (1.0 + 5f32.sqrt()) / 2.0;
