@@ -140,3 +140,32 @@ fn chunks_groups_and_thread_counts_do_not_change_any_hit() {
         });
     }
 }
+
+#[test]
+fn tiny_batches_on_the_host_match_the_pipeline_and_brute_force() {
+    // Fewer rays than `tiny_batch` are answered on the host without a launch; the
+    // answers must be those of the pipeline (forced with `tiny_batch: 0`).
+    let (tris, rays) = corner_cluster(500);
+    let oracle = BruteForce::from_triangles(tris.clone());
+    let host = Pdacrt::from_triangles(&tris, PdacrtParams::default());
+    let pipeline = Pdacrt::from_triangles(&tris, PdacrtParams { tiny_batch: 0, ..Default::default() });
+    for n in [1, 2, 7, 31] {
+        let batch = &rays[..n];
+        let mut want = vec![Hit::MISS; n];
+        oracle.closest(batch, &mut want);
+        for (name, c) in [("host", &host), ("pipeline", &pipeline)] {
+            let mut got = vec![Hit::MISS; n];
+            let st = c.closest(batch, &mut got);
+            assert_eq!(got, want, "{name}, {n} rays");
+            assert!(st.tests > 0, "{name}: tests counted");
+            let (mut a, mut b) = (vec![false; n], vec![false; n]);
+            oracle.occluded(batch, &mut a);
+            c.occluded(batch, &mut b);
+            assert_eq!(a, b, "{name}, {n} rays, occlusion");
+        }
+    }
+    // The host path is the one taken below the threshold: no device memory used.
+    let mut h = vec![Hit::MISS; 31];
+    assert_eq!(host.closest(&rays[..31], &mut h).peak_working_bytes, 0);
+    assert!(pipeline.closest(&rays[..31], &mut h).peak_working_bytes > 0);
+}
