@@ -6,7 +6,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
-use warpray::cast::CasterKind;
+use warpray::cast::{BvhCaster, CasterKind, RayCaster, Traversal};
 use warpray::error::{Error, Result};
 use warpray::render::{Budget, IntegratorKind, RenderOptions, render};
 use warpray::scene::{SceneDesc, find_model, load_scene};
@@ -101,6 +101,11 @@ struct RenderArgs {
     /// Ray caster.
     #[arg(long, value_enum, default_value = "bvh")]
     caster: CasterKind,
+    /// How the BVH caster traverses: `checked` re-checks every miss and unblocked
+    /// shadow ray so no ray slips through a shared vertex (docs/bvh.md); `fast` is
+    /// obvhs' traversal alone; `robust` is the robust traversal for every ray.
+    #[arg(long, value_enum, default_value = "checked")]
+    bvh_traversal: Traversal,
     /// Output files; the extension (.png or .exr) picks the format. May be repeated.
     #[arg(short, long = "output", default_values = ["out.png", "out.exr"])]
     output: Vec<PathBuf>,
@@ -180,7 +185,10 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let threads = pool.current_num_threads();
 
     pool.install(|| {
-        let caster = args.caster.build(&desc.scene);
+        let caster: Box<dyn RayCaster> = match args.caster {
+            CasterKind::Bvh => Box::new(BvhCaster::new(&desc.scene).with_traversal(args.bvh_traversal)),
+            kind => kind.build(&desc.scene),
+        };
         let bar = if args.quiet { ProgressBar::hidden() } else { progress_bar(budget) };
         let start = std::time::Instant::now();
         let (film, stats) = render(&desc.scene, caster.as_ref(), &opts, |pass, _| {

@@ -175,3 +175,31 @@ fn twenty_thousand_coincident_triangles() {
         .collect();
     agree(&tris, &rays, "coincident");
 }
+
+#[test]
+fn every_traversal_mode_agrees_with_brute_force_on_ordinary_rays() {
+    use warpray::cast::Traversal;
+    let scene = cornell_box();
+    let tris = scene.triangle_vertices();
+    let b = scene.bounds();
+    let mut r = rng(21);
+    let rays: Vec<Ray> = (0..5000)
+        .map(|_| {
+            let o = random_in_box(&mut r, b.min, b.max);
+            Ray { t_max: r.uniform() * 3.0, ..Ray::new(o, random_dir(&mut r)) }
+        })
+        .collect();
+    let brute = BruteForce::from_triangles(tris.clone());
+    let (mut want_hit, mut want_occ) = (vec![Hit::MISS; rays.len()], vec![false; rays.len()]);
+    brute.closest(&rays, &mut want_hit);
+    brute.occluded(&rays, &mut want_occ);
+    assert!(want_occ.iter().any(|&o| o) && want_occ.iter().any(|&o| !o), "both answers occur");
+    for mode in [Traversal::Fast, Traversal::Checked, Traversal::Robust] {
+        let bvh = BvhCaster::from_triangles(tris.clone()).with_traversal(mode);
+        let (mut hit, mut occ) = (vec![Hit::MISS; rays.len()], vec![false; rays.len()]);
+        bvh.closest(&rays, &mut hit);
+        bvh.occluded(&rays, &mut occ);
+        assert!(hit.iter().zip(&want_hit).all(|(a, b)| a.t == b.t), "{mode:?}: closest hits");
+        assert_eq!(occ, want_occ, "{mode:?}: occlusion");
+    }
+}

@@ -135,7 +135,7 @@ impl BvhCaster {
 /// How [`BvhCaster`] traverses its BVH. Every mode sends the rays obvhs cannot
 /// represent (a direction component of magnitude at most `f32::EPSILON`, `-0.0`
 /// included) through the robust traversal.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Traversal {
     /// obvhs' SIMD traversal for every other ray: fastest; a ray through a shared
     /// vertex can miss (the baseline of the DACRT tables).
@@ -196,8 +196,12 @@ fn needs_robust_traversal(ray: &Ray) -> bool {
     ray.dir.abs().min_element() <= f32::EPSILON
 }
 
-/// Most node indices a robust traversal holds at once (8 children per level).
-const STACK: usize = 256;
+/// Node indices a robust traversal keeps on the thread's stack (8 children per level;
+/// deeper trees spill to the heap).
+const STACK: usize = 64;
+
+/// Relative outward widening of decoded child boxes: two ulps of `f32`.
+const WIDEN: f32 = 2.0 * f32::EPSILON;
 
 impl BvhCaster {
     /// Closest hit (or any hit, with `any_hit`) by a traversal of the CWBVH nodes that
@@ -209,25 +213,45 @@ impl BvhCaster {
         let inv = inv_dir(ray.dir);
         let mut best = Hit::MISS;
         let mut tests = 0u64;
+        // A small stack on the thread's stack, spilling to the heap for unusually deep
+        // trees (never a panic).
         let mut stack = [0u32; STACK];
+        let mut spill: Vec<u32> = Vec::new();
         let mut len = 1;
-        while len > 0 {
-            len -= 1;
-            let node = &bvh.nodes[stack[len] as usize];
+        loop {
+            let index = if let Some(i) = spill.pop() {
+                i
+            } else if len > 0 {
+                len -= 1;
+                stack[len]
+            } else {
+                break;
+            };
+            let node = &bvh.nodes[index as usize];
+            let (ext, p) = (Vec3::from(node.compute_extent()), node.p);
             for child in 0..8 {
                 if node.is_child_empty(child) {
                     continue;
                 }
-                let b = node.child_aabb(child);
-                let b = Aabb { min: Vec3::from(b.min).map(f32::next_down), max: Vec3::from(b.max).map(f32::next_up) };
+                // q · 2^e is exact; adding p rounds once, so one relative ulp outward
+                // (plus the smallest normal, for boxes at zero) keeps the box conservative.
+                let q = |v: [u8; 8]| v[child] as f32;
+                let lo = p + Vec3::new(q(node.child_min_x), q(node.child_min_y), q(node.child_min_z)) * ext;
+                let hi = p + Vec3::new(q(node.child_max_x), q(node.child_max_y), q(node.child_max_z)) * ext;
+                let pad = |v: Vec3| v.abs() * WIDEN + Vec3::splat(f32::MIN_POSITIVE);
+                let b = Aabb { min: lo - pad(lo), max: hi + pad(hi) };
                 let far = best.t.min(ray.t_max);
                 if b.intersect(ray.origin, inv, ray.t_min, far).is_none() {
                     continue;
                 }
                 if !node.is_leaf(child) {
-                    assert!(len < STACK, "BVH deeper than the traversal stack");
-                    stack[len] = node.child_node_index(child);
-                    len += 1;
+                    let next = node.child_node_index(child);
+                    if len < STACK {
+                        stack[len] = next;
+                        len += 1;
+                    } else {
+                        spill.push(next);
+                    }
                     continue;
                 }
                 let (first, count) = node.child_primitives(child);
@@ -320,11 +344,12 @@ impl RayCaster for BvhCaster {
                                     .map_or(f32::INFINITY, |_| ray.t_min + NODE_EPSILON_SHIFT)
                             });
                             // As for closest hits: an unblocked answer is checked.
-                            blocked || self.traversal == Traversal::Fast || {
-                                let (hit, n) = self.traverse_robust(bvh, ray, true);
-                                tests += n;
-                                hit.is_hit()
-                            }
+                            blocked
+                                || (self.traversal == Traversal::Checked && {
+                                    let (hit, n) = self.traverse_robust(bvh, ray, true);
+                                    tests += n;
+                                    hit.is_hit()
+                                })
                         }
                         _ => false,
                     } || (ray.is_valid() && !self.outliers.is_empty() && {
