@@ -117,7 +117,7 @@ fn sorting_by_material_raises_the_shading_kernels_simd_efficiency() {
     assert!(kinds.len() >= 4, "{kinds:?}");
     let lights = Lights::new(&scene);
     let caster = BvhCaster::new(&scene);
-    let mut efficiency = Vec::new();
+    let (mut efficiency, mut whole) = (Vec::new(), Vec::new());
     for sort in [false, true] {
         let p = CisParams { sort, measure: true, pool: 1024, ..CisParams::default() };
         let o = opts(IntegratorKind::Cis, 1, p, LvcParams::default());
@@ -131,7 +131,13 @@ fn sorting_by_material_raises_the_shading_kernels_simd_efficiency() {
         assert!(cis.records.iter().any(|r| r.queues.len() >= 3));
         assert!(cis.records.iter().all(|r| r.shade_simd.is_some()));
         efficiency.push(e);
+        whole.push(shade.simd_efficiency().unwrap());
     }
-    eprintln!("cis::shade SIMD efficiency: unsorted {:.3}, sorted {:.3}", efficiency[0], efficiency[1]);
+    eprintln!(
+        "cis::shade SIMD efficiency, dispatch region: unsorted {:.3}, sorted {:.3}",
+        efficiency[0], efficiency[1]
+    );
+    eprintln!("cis::shade SIMD efficiency, whole kernel: unsorted {:.3}, sorted {:.3}", whole[0], whole[1]);
     assert!(efficiency[1] > efficiency[0] + 0.1, "sorted {:.3} vs unsorted {:.3}", efficiency[1], efficiency[0]);
+    assert!(whole[1] > whole[0], "whole kernel: sorted {:.3} vs unsorted {:.3}", whole[1], whole[0]);
 }

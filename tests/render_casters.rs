@@ -3,6 +3,7 @@
 //! triangle, barycentrics), the images and ray counts are identical.
 
 use warpray::prelude::*;
+use warpray::render::Renderer;
 
 #[test]
 fn every_integrator_counts_the_same_rays_and_makes_the_same_image_with_every_caster() {
@@ -33,4 +34,35 @@ fn every_integrator_counts_the_same_rays_and_makes_the_same_image_with_every_cas
             }
         }
     }
+}
+
+#[test]
+fn one_device_holds_a_whole_render_of_pdacrt_and_cis() {
+    let scene = cornell_box();
+    let opts = RenderOptions {
+        width: 16,
+        height: 16,
+        budget: Budget::Samples(1),
+        integrator: IntegratorKind::Cis,
+        seed: 5,
+        ..Default::default()
+    };
+    let caster = CasterKind::Pdacrt.build(&scene);
+    let dev = caster.device().expect("PDACRT runs on a device").clone();
+    let mut renderer = Renderer::new(&scene, caster.as_ref(), &opts).unwrap();
+    let mut film = renderer.film().unwrap();
+    renderer.pass(0, &mut film);
+    let shared = renderer.device().expect("the render has a device");
+    let names: Vec<&str> = shared.kernel_stats().iter().map(|k| k.name).collect();
+    // The caster's kernels and the integrator's, in one table, on the caster's device.
+    assert!(names.iter().any(|n| n.starts_with("pdacrt::")), "{names:?}");
+    assert!(names.iter().any(|n| n.starts_with("cis::")), "{names:?}");
+    assert_eq!(dev.kernel_stats().len(), names.len());
+    // Its peak covers the scene's triangles and the integrator's pool together.
+    assert!(dev.memory().peak > dev.memory().current);
+    // Other casters have no device; the cis integrator then brings its own.
+    let bvh = CasterKind::Bvh.build(&scene);
+    assert!(bvh.device().is_none());
+    let r = Renderer::new(&scene, bvh.as_ref(), &opts).unwrap();
+    assert!(r.device().is_some());
 }

@@ -1,7 +1,8 @@
 //! The device: configuration, memory accounting, kernel launches and statistics.
 
-use crate::exec::{Block, Counters, MAX_REGIONS, Thread, Worker};
-use crate::memory::{DeviceBuffer, DeviceCopy, MemCounter};
+use crate::exec::{Block, MAX_REGIONS, Thread, Worker};
+use crate::memory::{DeviceBuffer, DeviceCopy, MemCounter, Scratch};
+use crate::meter::{Counters, Race};
 use crate::stats::{KernelSummary, LaunchRecord, RegionStats, Stats};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
@@ -64,6 +65,12 @@ pub enum LaunchError {
     BlockSize { kernel: &'static str, block: u32 },
     #[error("kernel '{kernel}' names {regions} regions; at most {MAX_REGIONS}")]
     Regions { kernel: &'static str, regions: usize },
+    /// Found in measured launches only (the kernel ran; its results are suspect).
+    #[error(
+        "kernel '{kernel}': shared-memory race ({}) on byte {} in block {}: threads {} and {} touch it with no sync_threads between them",
+        race.hazard, race.byte, race.block, race.first, race.second
+    )]
+    SharedRace { kernel: &'static str, race: Race },
 }
 
 struct Inner {
@@ -71,6 +78,16 @@ struct Inner {
     measure: AtomicBool,
     mem: Arc<MemCounter>,
     stats: Mutex<Stats>,
+    /// Host scratch the primitives' CPU backend reuses between calls (never zeroed).
+    pool: Mutex<Vec<u128>>,
+}
+
+/// The race in the lowest block, so that the report does not depend on scheduling.
+fn first_race(a: Option<Race>, b: Option<Race>) -> Option<Race> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(if (b.block, b.byte) < (a.block, a.byte) { b } else { a }),
+        (a, b) => a.or(b),
+    }
 }
 
 /// An emulated GPU. Cheap to clone (clones share memory accounting and statistics).
@@ -96,7 +113,8 @@ pub struct MemoryStats {
 impl Device {
     pub fn new(config: DeviceConfig) -> Device {
         let measure = AtomicBool::new(config.measure);
-        Device { inner: Arc::new(Inner { config, measure, mem: Arc::default(), stats: Mutex::new(Stats::default()) }) }
+        let (mem, stats, pool) = (Arc::default(), Mutex::new(Stats::default()), Mutex::new(Vec::new()));
+        Device { inner: Arc::new(Inner { config, measure, mem, stats, pool }) }
     }
 
     pub fn config(&self) -> &DeviceConfig {
@@ -134,6 +152,32 @@ impl Device {
         DeviceBuffer::from_vec(self.inner.mem.clone(), data)
     }
 
+    /// Counts `bytes` of host scratch as device memory until the guard drops.
+    pub(crate) fn scratch(&self, bytes: usize) -> Scratch {
+        Scratch::new(self.inner.mem.clone(), bytes)
+    }
+
+    /// Runs `f` with an uninitialised scratch vector of at least `bytes` (16-byte
+    /// aligned), taken from the device's pool and returned to it, so that large
+    /// temporaries are neither zero-filled nor faulted in again on every call. The
+    /// pool keeps the largest vector it has seen; its bytes count as device memory
+    /// while `f` runs.
+    pub(crate) fn with_pool<R>(&self, bytes: usize, f: impl FnOnce(&mut Vec<u128>) -> R) -> R {
+        let _counted = self.scratch(bytes);
+        let mut v = std::mem::take(&mut *self.inner.pool.lock().unwrap_or_else(|e| e.into_inner()));
+        let words = bytes.div_ceil(16);
+        if v.capacity() < words {
+            v = Vec::with_capacity(words);
+        }
+        v.clear();
+        let r = f(&mut v);
+        let mut pool = self.inner.pool.lock().unwrap_or_else(|e| e.into_inner());
+        if v.capacity() > pool.capacity() {
+            *pool = v;
+        }
+        r
+    }
+
     pub fn memory(&self) -> MemoryStats {
         MemoryStats { current: self.inner.mem.current(), peak: self.inner.mem.peak() }
     }
@@ -165,7 +209,7 @@ impl Device {
         let measure = self.measuring();
         let shared_words = cfg.shared_bytes.div_ceil(4);
         let start = Instant::now();
-        let counters = (0..cfg.grid)
+        let (counters, race) = (0..cfg.grid)
             .into_par_iter()
             .fold(
                 || Worker::new(shared_words),
@@ -175,8 +219,14 @@ impl Device {
                     w
                 },
             )
-            .map(|w| w.meter.into_inner().totals)
-            .reduce(Counters::default, Counters::merge);
+            .map(|w| {
+                let m = w.meter.into_inner();
+                (m.totals, m.race)
+            })
+            .reduce(|| (Counters::default(), None), |(a, ra), (b, rb)| (a.merge(b), first_race(ra, rb)));
+        if let Some(race) = race {
+            return Err(LaunchError::SharedRace { kernel: name, race });
+        }
         let seconds = start.elapsed().as_secs_f64();
         let record = LaunchRecord {
             name,
@@ -186,15 +236,16 @@ impl Device {
             seconds,
             measured: measure,
             threads: counters.threads,
-            body: RegionStats { name: "body", issued: counters.body_issued, active: counters.body_active },
+            ops: RegionStats { name: "ops", issued: counters.ops_issued, active: counters.ops_active },
             regions: cfg
                 .regions
                 .iter()
                 .enumerate()
                 .map(|(i, &n)| RegionStats { name: n, issued: counters.issued[i], active: counters.active[i] })
                 .collect(),
-            requests: counters.requests,
-            sectors: counters.sectors,
+            loads: counters.loads,
+            stores: counters.stores,
+            atomics: counters.atomics,
             barriers: counters.barriers,
         };
         self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).add(&record);
@@ -226,6 +277,30 @@ impl Device {
             })
         })
         .expect("a linear launch of 256-thread blocks is valid")
+    }
+
+    /// Runs `f` on the host (a primitive's CPU backend) and records it like a launch:
+    /// `name`, its time and the number of elements as threads; grid and block are 0.
+    pub(crate) fn host<R>(&self, name: &'static str, elements: usize, f: impl FnOnce() -> R) -> R {
+        let start = Instant::now();
+        let r = f();
+        let record = LaunchRecord {
+            name,
+            grid: 0,
+            block: 0,
+            shared_bytes: 0,
+            seconds: start.elapsed().as_secs_f64(),
+            measured: false,
+            threads: elements as u64,
+            ops: RegionStats { name: "ops", issued: 0, active: 0 },
+            regions: Vec::new(),
+            loads: Default::default(),
+            stores: Default::default(),
+            atomics: Default::default(),
+            barriers: 0,
+        };
+        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).add(&record);
+        r
     }
 
     // ---- statistics ---------------------------------------------------------------

@@ -8,18 +8,15 @@
 //! (and counts it). Warp intrinsics (`ballot`, `shfl_down`, …) are warp-level
 //! operations on per-lane values between lane phases, see [`Warp`].
 //!
-//! Measurement (when on) follows what a lockstep warp would issue:
-//! * SIMD efficiency: kernels report work with [`Thread::work`]`(region, path, units)`.
-//!   For each warp, each (region, path) issues as many steps as its busiest lane
-//!   needs; active lane-steps are the sum over lanes. Two paths of a branch are issued
-//!   one after the other, so a warp split evenly between two equal paths runs at 0.5.
-//!   Every lane phase also counts one step in the implicit `body` region (partial warps
-//!   lower it).
-//! * Memory: each load, store or atomic through a [`Thread`] is matched with the same
-//!   call site's same occurrence in the other lanes of the warp (one warp-wide request);
-//!   the distinct 32-byte sectors they touch are counted (coalescing).
+//! Measurement (when on) is described in [`crate::meter`]: every operation a lane
+//! performs is matched with the same operation of the other lanes into warp
+//! instructions (SIMD efficiency, memory requests and sectors), and shared-memory
+//! accesses are checked for races between barriers. With measurement off a lane phase
+//! runs a plain loop whose `Thread`s carry no meter, so after inlining the kernel's
+//! accesses are ordinary loads and stores.
 
-use crate::memory::{DeviceCopy, GlobalMut, Readable, read_words, words, write_words};
+use crate::memory::{DeviceCopy, GlobalMut, Readable, words};
+use crate::meter::{Kind, Meter};
 use std::cell::{Cell, RefCell};
 use std::marker::PhantomData;
 use std::panic::Location;
@@ -72,117 +69,6 @@ impl<T> Clone for Local<T> {
 }
 impl<T> Copy for Local<T> {}
 
-/// Counters of one launch (or of one worker's share of it).
-#[derive(Clone, Debug, Default)]
-pub(crate) struct Counters {
-    pub issued: [u64; MAX_REGIONS],
-    pub active: [u64; MAX_REGIONS],
-    pub body_issued: u64,
-    pub body_active: u64,
-    pub requests: u64,
-    pub sectors: u64,
-    pub barriers: u64,
-    pub threads: u64,
-}
-
-impl Counters {
-    pub fn merge(mut self, o: Counters) -> Counters {
-        for r in 0..MAX_REGIONS {
-            self.issued[r] += o.issued[r];
-            self.active[r] += o.active[r];
-        }
-        self.body_issued += o.body_issued;
-        self.body_active += o.body_active;
-        self.requests += o.requests;
-        self.sectors += o.sectors;
-        self.barriers += o.barriers;
-        self.threads += o.threads;
-        self
-    }
-}
-
-/// Per-worker measurement state.
-#[derive(Default)]
-pub(crate) struct Meter {
-    pub totals: Counters,
-    lane_units: [[u32; MAX_PATHS]; MAX_REGIONS],
-    lane_used: bool,
-    warp_max: [[u32; MAX_PATHS]; MAX_REGIONS],
-    warp_sum: [[u64; MAX_PATHS]; MAX_REGIONS],
-    /// (site, occurrence, sector) of every access in the current warp phase.
-    accesses: Vec<(usize, u32, u64)>,
-    /// Per-site occurrence counters of the current lane.
-    lane_sites: Vec<(usize, u32)>,
-}
-
-impl Meter {
-    fn begin_lane(&mut self) {
-        self.lane_sites.clear();
-    }
-
-    fn end_lane(&mut self) {
-        if !self.lane_used {
-            return;
-        }
-        for r in 0..MAX_REGIONS {
-            for p in 0..MAX_PATHS {
-                let u = self.lane_units[r][p];
-                if u > 0 {
-                    self.warp_max[r][p] = self.warp_max[r][p].max(u);
-                    self.warp_sum[r][p] += u as u64;
-                }
-            }
-        }
-        self.lane_units = Default::default();
-        self.lane_used = false;
-    }
-
-    fn end_warp(&mut self, lanes: u32) {
-        self.totals.body_issued += 1;
-        self.totals.body_active += lanes as u64;
-        for r in 0..MAX_REGIONS {
-            for p in 0..MAX_PATHS {
-                self.totals.issued[r] += self.warp_max[r][p] as u64;
-                self.totals.active[r] += self.warp_sum[r][p];
-            }
-        }
-        self.warp_max = Default::default();
-        self.warp_sum = Default::default();
-        if !self.accesses.is_empty() {
-            self.accesses.sort_unstable();
-            let mut last_req = None;
-            let mut last_sec = None;
-            for &(site, occ, sector) in &self.accesses {
-                if last_req != Some((site, occ)) {
-                    self.totals.requests += 1;
-                    last_req = Some((site, occ));
-                }
-                if last_sec != Some((site, occ, sector)) {
-                    self.totals.sectors += 1;
-                    last_sec = Some((site, occ, sector));
-                }
-            }
-            self.accesses.clear();
-        }
-    }
-
-    fn record(&mut self, site: usize, addr: u64, bytes: u64) {
-        let occ = match self.lane_sites.iter_mut().find(|(s, _)| *s == site) {
-            Some((_, n)) => {
-                *n += 1;
-                *n
-            }
-            None => {
-                self.lane_sites.push((site, 0));
-                0
-            }
-        };
-        for sector in addr / SECTOR_BYTES..=(addr + bytes.max(1) - 1) / SECTOR_BYTES {
-            self.accesses.push((site, occ, sector));
-        }
-    }
-}
-
 /// Scratch one rayon worker reuses for the blocks it runs.
 pub(crate) struct Worker {
     pub shared: Vec<Cell<u32>>,
@@ -220,6 +106,9 @@ impl<'w> Block<'w> {
         // Shared memory starts zeroed in every block, so results never depend on which
         // block ran before on this worker.
         worker.shared[..shared_words].iter().for_each(|c| c.set(0));
+        if measure {
+            worker.meter.get_mut().begin_block(block_idx, shared_words);
+        }
         Block { block_idx, block_dim, grid_dim, measure, worker, shared_words, shared_used: 0, regs_used: 0 }
     }
 
@@ -279,18 +168,39 @@ impl<'w> Block<'w> {
     /// A barrier between phases (`__syncthreads()`). Phases already run one after the
     /// other; this marks the point and counts it.
     pub fn sync_threads(&mut self) {
-        self.worker.meter.get_mut().totals.barriers += 1;
+        self.worker.meter.get_mut().barrier();
     }
 
     /// Runs `f` for every thread of the block, warp by warp.
     pub fn for_each_thread(&mut self, mut f: impl FnMut(&Thread)) {
-        self.for_each_warp(|w| w.for_each_lane(&mut f));
+        if self.measure {
+            return self.for_each_warp(|w| w.for_each_lane(&mut f));
+        }
+        // Unmeasured: one plain loop over the block's threads (the order is the same,
+        // warp by warp and lane by lane).
+        let shared = &self.worker.shared[..self.shared_words];
+        for thread_idx in 0..self.block_dim {
+            let t = Thread {
+                thread_idx,
+                block_idx: self.block_idx,
+                block_dim: self.block_dim,
+                grid_dim: self.grid_dim,
+                shared,
+                regs: &self.worker.regs,
+                meter: None,
+            };
+            f(&t);
+        }
+        self.worker.meter.get_mut().totals.threads += self.block_dim as u64;
     }
 
     /// Runs `f` for every warp of the block, in order.
     pub fn for_each_warp(&mut self, mut f: impl FnMut(&mut Warp)) {
         for warp_idx in 0..self.warp_count() {
             let lanes = (self.block_dim - warp_idx * WARP_SIZE).min(WARP_SIZE);
+            if self.measure {
+                self.worker.meter.get_mut().begin_warp_call();
+            }
             let mut w = Warp { warp_idx, lanes, block: self };
             f(&mut w);
         }
@@ -322,29 +232,37 @@ impl Warp<'_, '_> {
     pub fn for_each_lane(&mut self, mut f: impl FnMut(&Thread)) {
         let b = self.block;
         let meter = &b.worker.meter;
-        for lane in 0..self.lanes {
-            if b.measure {
-                meter.borrow_mut().begin_lane();
+        let shared = &b.worker.shared[..b.shared_words];
+        let thread = |lane: u32, meter| Thread {
+            thread_idx: self.warp_idx * WARP_SIZE + lane,
+            block_idx: b.block_idx,
+            block_dim: b.block_dim,
+            grid_dim: b.grid_dim,
+            shared,
+            regs: &b.worker.regs,
+            meter,
+        };
+        if b.measure {
+            meter.borrow_mut().begin_lane_phase();
+            for lane in 0..self.lanes {
+                let t = thread(lane, Some(meter));
+                meter.borrow_mut().begin_lane(t.thread_idx);
+                f(&t);
             }
-            let t = Thread {
-                thread_idx: self.warp_idx * WARP_SIZE + lane,
-                block_idx: b.block_idx,
-                block_dim: b.block_dim,
-                grid_dim: b.grid_dim,
-                measure: b.measure,
-                shared: &b.worker.shared[..b.shared_words],
-                regs: &b.worker.regs,
-                meter,
-            };
-            f(&t);
-            if b.measure {
-                meter.borrow_mut().end_lane();
+            meter.borrow_mut().end_warp_phase();
+        } else {
+            // The unmeasured loop: `meter` is a constant `None` here, so once `f` is
+            // inlined every measurement branch in it folds away.
+            for lane in 0..self.lanes {
+                f(&thread(lane, None));
             }
         }
-        let mut m = meter.borrow_mut();
-        m.totals.threads += self.lanes as u64;
-        if b.measure {
-            m.end_warp(self.lanes);
+        meter.borrow_mut().totals.threads += self.lanes as u64;
+    }
+
+    fn count_warp_op(&self) {
+        if self.block.measure {
+            self.block.worker.meter.borrow_mut().warp_op(self.lanes);
         }
     }
 
@@ -359,6 +277,7 @@ impl Warp<'_, '_> {
 
     /// `__ballot_sync`: bit `i` set when lane `i` is active and its predicate holds.
     pub fn ballot(&self, pred: &[bool; 32]) -> u32 {
+        self.count_warp_op();
         let mut m = 0u32;
         for (i, &p) in pred.iter().enumerate() {
             m |= (p as u32) << i;
@@ -379,6 +298,7 @@ impl Warp<'_, '_> {
     /// `__shfl_down_sync`: lane `i` gets lane `i + delta`'s value, or keeps its own
     /// when that lane is outside the warp or inactive.
     pub fn shfl_down<T: Copy>(&self, v: &[T; 32], delta: u32) -> [T; 32] {
+        self.count_warp_op();
         std::array::from_fn(|i| {
             let src = i as u32 + delta;
             if src < self.lanes { v[src as usize] } else { v[i] }
@@ -387,11 +307,13 @@ impl Warp<'_, '_> {
 
     /// `__shfl_up_sync`: lane `i` gets lane `i - delta`'s value, or keeps its own.
     pub fn shfl_up<T: Copy>(&self, v: &[T; 32], delta: u32) -> [T; 32] {
+        self.count_warp_op();
         std::array::from_fn(|i| if i as u32 >= delta { v[i - delta as usize] } else { v[i] })
     }
 
     /// `__shfl_xor_sync`: lane `i` gets lane `i ^ mask`'s value (its own if inactive).
     pub fn shfl_xor<T: Copy>(&self, v: &[T; 32], mask: u32) -> [T; 32] {
+        self.count_warp_op();
         std::array::from_fn(|i| {
             let src = (i as u32 ^ mask) & 31;
             if src < self.lanes { v[src as usize] } else { v[i] }
@@ -400,6 +322,7 @@ impl Warp<'_, '_> {
 
     /// `__shfl_sync`: every lane gets lane `src`'s value.
     pub fn shfl<T: Copy>(&self, v: &[T; 32], src: u32) -> [T; 32] {
+        self.count_warp_op();
         [v[(src & 31) as usize]; 32]
     }
 }
@@ -411,10 +334,56 @@ pub struct Thread<'a> {
     block_idx: u32,
     block_dim: u32,
     grid_dim: u32,
-    measure: bool,
     shared: &'a [Cell<u32>],
     regs: &'a [Cell<u32>],
-    meter: &'a RefCell<Meter>,
+    /// `None` when the launch is not measured.
+    meter: Option<&'a RefCell<Meter>>,
+}
+
+/// Bytes per hardware access for an element type: the widest vector (4, 8 or 16 bytes)
+/// that divides both its size and its alignment, as a compiler would emit.
+pub(crate) const fn access_width<T>() -> u64 {
+    let (size, align) = (std::mem::size_of::<T>(), std::mem::align_of::<T>());
+    let mut w = 16;
+    while w > 4 && (size % w != 0 || align % w != 0) {
+        w /= 2;
+    }
+    w as u64
+}
+
+// Measurement calls are kept out of line (and cold), so that the unmeasured kernel
+// code they sit in stays small enough to inline.
+#[cold]
+#[inline(never)]
+fn note_global(m: &RefCell<Meter>, site: usize, kind: Kind, addr: u64, size: u64, width: u64) {
+    m.borrow_mut().global(site, kind, addr, size, width);
+}
+
+#[cold]
+#[inline(never)]
+fn note_shared(m: &RefCell<Meter>, site: usize, word: usize, words: usize, write: bool) {
+    let mut m = m.borrow_mut();
+    m.op(site, Kind::Other, 1, 1);
+    m.shared(word, words, write);
+}
+
+#[cold]
+#[inline(never)]
+fn note_op(m: &RefCell<Meter>, site: usize) {
+    m.borrow_mut().op(site, Kind::Other, 1, 1);
+}
+
+#[cold]
+#[inline(never)]
+fn note_work(m: &RefCell<Meter>, site: usize, region: usize, path: usize, units: u32) {
+    m.borrow_mut().work(site, region, path, units);
+}
+
+/// The call site of the `#[track_caller]` function that calls this.
+#[inline(always)]
+#[track_caller]
+fn site() -> usize {
+    Location::caller() as *const Location as usize
 }
 
 impl Thread<'_> {
@@ -455,10 +424,11 @@ impl Thread<'_> {
 
     #[inline(always)]
     #[track_caller]
-    fn note(&self, addr: u64, bytes: usize) {
-        if self.measure {
-            let site = Location::caller() as *const Location as usize;
-            self.meter.borrow_mut().record(site, addr, bytes as u64);
+    fn note<T>(&self, kind: Kind, addr: u64) {
+        if let Some(m) = self.meter {
+            let size = std::mem::size_of::<T>() as u64;
+            let width = if kind == Kind::Atomic { size } else { access_width::<T>() };
+            note_global(m, site(), kind, addr, size, width);
         }
     }
 
@@ -466,7 +436,7 @@ impl Thread<'_> {
     #[inline(always)]
     #[track_caller]
     pub fn load<T: DeviceCopy, V: Readable<T>>(&self, v: &V, i: usize) -> T {
-        self.note(v.address(i), std::mem::size_of::<T>());
+        self.note::<T>(Kind::Load, v.address(i));
         v.read(i)
     }
 
@@ -474,21 +444,21 @@ impl Thread<'_> {
     #[inline(always)]
     #[track_caller]
     pub fn store<T: DeviceCopy>(&self, v: &GlobalMut<T>, i: usize, value: T) {
-        self.note(v.address(i), std::mem::size_of::<T>());
+        self.note::<T>(Kind::Store, v.address(i));
         v.write(i, value)
     }
 
     /// `atomicAdd` on a `u32`; returns the old value.
     #[track_caller]
     pub fn atomic_add(&self, v: &GlobalMut<u32>, i: usize, value: u32) -> u32 {
-        self.note(v.address(i), 4);
+        self.note::<u32>(Kind::Atomic, v.address(i));
         v.atomic_u32(i).fetch_add(value, Relaxed)
     }
 
     /// `atomicAdd` on an `f32` (a compare-and-swap loop, as on older GPUs).
     #[track_caller]
     pub fn atomic_add_f32(&self, v: &GlobalMut<f32>, i: usize, value: f32) -> f32 {
-        self.note(v.address(i), 4);
+        self.note::<f32>(Kind::Atomic, v.address(i));
         let a = v.atomic_u32(i);
         let old = a
             .fetch_update(Relaxed, Relaxed, |bits| Some((f32::from_bits(bits) + value).to_bits()))
@@ -499,21 +469,21 @@ impl Thread<'_> {
     /// `atomicMin` on a `u32`.
     #[track_caller]
     pub fn atomic_min(&self, v: &GlobalMut<u32>, i: usize, value: u32) -> u32 {
-        self.note(v.address(i), 4);
+        self.note::<u32>(Kind::Atomic, v.address(i));
         v.atomic_u32(i).fetch_min(value, Relaxed)
     }
 
     /// `atomicMax` on a `u32`.
     #[track_caller]
     pub fn atomic_max(&self, v: &GlobalMut<u32>, i: usize, value: u32) -> u32 {
-        self.note(v.address(i), 4);
+        self.note::<u32>(Kind::Atomic, v.address(i));
         v.atomic_u32(i).fetch_max(value, Relaxed)
     }
 
     /// `atomicCAS` on a `u32`: stores `new` if the element equals `expected`; returns the old value.
     #[track_caller]
     pub fn atomic_cas(&self, v: &GlobalMut<u32>, i: usize, expected: u32, new: u32) -> u32 {
-        self.note(v.address(i), 4);
+        self.note::<u32>(Kind::Atomic, v.address(i));
         v.atomic_u32(i).compare_exchange(expected, new, Relaxed, Relaxed).unwrap_or_else(|x| x)
     }
 
@@ -521,86 +491,106 @@ impl Thread<'_> {
     /// (distance bits << 32 | primitive id).
     #[track_caller]
     pub fn atomic_min_u64(&self, v: &GlobalMut<u64>, i: usize, value: u64) -> u64 {
-        self.note(v.address(i), 8);
+        self.note::<u64>(Kind::Atomic, v.address(i));
         v.atomic_u64(i).fetch_min(value, Relaxed)
     }
 
     /// `atomicMax` on a `u64`.
     #[track_caller]
     pub fn atomic_max_u64(&self, v: &GlobalMut<u64>, i: usize, value: u64) -> u64 {
-        self.note(v.address(i), 8);
+        self.note::<u64>(Kind::Atomic, v.address(i));
         v.atomic_u64(i).fetch_max(value, Relaxed)
     }
 
     /// `atomicAdd` on a `u64`.
     #[track_caller]
     pub fn atomic_add_u64(&self, v: &GlobalMut<u64>, i: usize, value: u64) -> u64 {
-        self.note(v.address(i), 8);
+        self.note::<u64>(Kind::Atomic, v.address(i));
         v.atomic_u64(i).fetch_add(value, Relaxed)
     }
 
     /// `atomicCAS` on a `u64`.
     #[track_caller]
     pub fn atomic_cas_u64(&self, v: &GlobalMut<u64>, i: usize, expected: u64, new: u64) -> u64 {
-        self.note(v.address(i), 8);
+        self.note::<u64>(Kind::Atomic, v.address(i));
         v.atomic_u64(i).compare_exchange(expected, new, Relaxed, Relaxed).unwrap_or_else(|x| x)
+    }
+
+    /// Words of element `i` of a shared array, checked against its length.
+    #[inline(always)]
+    #[track_caller]
+    fn shared_words<T: DeviceCopy>(&self, s: Shared<T>, i: usize, write: bool) -> *mut T {
+        assert!(i < s.len as usize, "shared {} {i} of {}", if write { "store" } else { "load" }, s.len);
+        let w = words::<T>();
+        let base = s.offset as usize + i * w;
+        if let Some(m) = self.meter {
+            note_shared(m, site(), base, w, write);
+        }
+        self.shared[base..base + w].as_ptr() as *mut T
     }
 
     /// Loads element `i` of a shared-memory array.
     #[inline(always)]
+    #[track_caller]
     pub fn load_shared<T: DeviceCopy>(&self, s: Shared<T>, i: usize) -> T {
-        assert!(i < s.len as usize, "shared load {i} of {}", s.len);
-        let w = words::<T>();
-        let base = s.offset as usize + i * w;
-        let cells = &self.shared[base..base + w];
-        // SAFETY: reads `w` whole words into a T made of whole words.
-        unsafe { read_words(cells.as_ptr() as *const T) }
+        // SAFETY: in bounds; the block's threads run on one OS thread; Cell<u32> has
+        // u32's layout; T is whole words (unaligned: shared arrays are word-aligned).
+        unsafe { self.shared_words(s, i, false).read_unaligned() }
     }
 
     /// Stores element `i` of a shared-memory array.
     #[inline(always)]
+    #[track_caller]
     pub fn store_shared<T: DeviceCopy>(&self, s: Shared<T>, i: usize, value: T) {
-        assert!(i < s.len as usize, "shared store {i} of {}", s.len);
-        let w = words::<T>();
-        let base = s.offset as usize + i * w;
-        let cells = &self.shared[base..base + w];
-        // SAFETY: Cell<u32> has u32's layout; the block's threads run on one OS thread.
-        unsafe { write_words(cells.as_ptr() as *mut T, value) }
+        // SAFETY: as for `load_shared`.
+        unsafe { self.shared_words(s, i, true).write_unaligned(value) }
     }
 
     /// `atomicAdd` on shared memory; returns the old value. (A block's threads run on
-    /// one OS thread, so a load and a store are already atomic here.)
+    /// one OS thread, so a load and a store are already atomic here; the race check
+    /// does not look at atomics.)
     #[inline(always)]
+    #[track_caller]
     pub fn atomic_add_shared(&self, s: Shared<u32>, i: usize, value: u32) -> u32 {
-        let old = self.load_shared(s, i);
-        self.store_shared(s, i, old.wrapping_add(value));
+        assert!(i < s.len as usize, "shared atomic {i} of {}", s.len);
+        if let Some(m) = self.meter {
+            note_op(m, site());
+        }
+        let cell = &self.shared[s.offset as usize + i];
+        let old = cell.get();
+        cell.set(old.wrapping_add(value));
         old
+    }
+
+    #[inline(always)]
+    fn register<T: DeviceCopy>(&self, l: Local<T>) -> *mut T {
+        let base = self.thread_idx as usize * REGISTER_WORDS_PER_THREAD + l.offset as usize;
+        self.regs[base..base + words::<T>()].as_ptr() as *mut T
     }
 
     /// This thread's value of a register.
     #[inline(always)]
     pub fn get<T: DeviceCopy>(&self, l: Local<T>) -> T {
-        let base = self.thread_idx as usize * REGISTER_WORDS_PER_THREAD + l.offset as usize;
-        let cells = &self.regs[base..base + words::<T>()];
-        unsafe { read_words(cells.as_ptr() as *const T) }
+        // SAFETY: the register's words, written as a T by `set` or `Block::local`.
+        unsafe { self.register(l).read_unaligned() }
     }
 
     /// Sets this thread's value of a register.
     #[inline(always)]
     pub fn set<T: DeviceCopy>(&self, l: Local<T>, value: T) {
-        let base = self.thread_idx as usize * REGISTER_WORDS_PER_THREAD + l.offset as usize;
-        let cells = &self.regs[base..base + words::<T>()];
-        unsafe { write_words(cells.as_ptr() as *mut T, value) }
+        // SAFETY: as for `get`; the block's threads run on one OS thread.
+        unsafe { self.register(l).write_unaligned(value) }
     }
 
-    /// Reports `units` steps of work on branch arm `path` of divergence point `region`
-    /// (indices below [`MAX_REGIONS`] and [`MAX_PATHS`]; names come from the launch).
+    /// Declares `units` instructions of arithmetic on branch arm `path` of region
+    /// `region` (indices below [`MAX_REGIONS`] and [`MAX_PATHS`]; names come from the
+    /// launch). Counted like any other instruction: lanes at the same call site, path
+    /// and occurrence share a warp instruction issued `max(units)` times.
     #[inline(always)]
+    #[track_caller]
     pub fn work(&self, region: usize, path: usize, units: u32) {
-        if self.measure {
-            let mut m = self.meter.borrow_mut();
-            m.lane_units[region][path] += units;
-            m.lane_used = true;
+        if let Some(m) = self.meter {
+            note_work(m, site(), region, path, units);
         }
     }
 }

@@ -48,6 +48,7 @@
 mod device;
 mod exec;
 mod memory;
+pub mod meter;
 pub mod prims;
 pub mod seq;
 pub mod stats;
@@ -57,6 +58,7 @@ pub use exec::{
     Block, Local, MAX_PATHS, MAX_REGIONS, REGISTER_WORDS_PER_THREAD, SECTOR_BYTES, Shared, Thread, WARP_SIZE, Warp,
 };
 pub use memory::{DeviceBuffer, DeviceCopy, Global, GlobalMut, Readable};
+pub use meter::{Race, Traffic};
 pub use prims::queue::{QueuePusher, WorkQueue};
 pub use prims::scan::{exclusive_scan, inclusive_scan, reduce, transform_exclusive_scan};
 pub use prims::select::{Flagged, copy_if, copy_if_stencil, fill, gather, reduce_by_key, scatter, sequence};

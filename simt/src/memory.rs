@@ -1,11 +1,14 @@
 //! Device memory: typed buffers with allocation accounting, and the views kernels
 //! read and write through.
 //!
-//! Every element is moved as whole 32-bit words with relaxed atomic operations. That
-//! costs nothing on x86 or ARM (a relaxed word load is a plain load) and makes racing
-//! stores from different threads defined behaviour in Rust — torn, as on a GPU, but
-//! never undefined. Element types therefore implement [`DeviceCopy`]: plain data whose
-//! size and alignment are multiples of 4 bytes.
+//! A read-only view ([`Global`]) borrows its buffer immutably, so nothing can write it
+//! while a kernel reads: its loads are plain whole-element loads, which the compiler
+//! may vectorise and merge. A read-write view ([`GlobalMut`]) may be stored to by any
+//! thread at any index, as a CUDA `T*` may, so its accesses are relaxed atomic word
+//! operations: a relaxed word load or store is an ordinary `mov` on x86 and ARM, and
+//! it makes racing stores defined behaviour in Rust (torn, as on a GPU, never
+//! undefined). Element types implement [`DeviceCopy`]: plain data whose size and
+//! alignment are multiples of 4 bytes.
 
 use std::marker::PhantomData;
 use std::sync::Arc;
@@ -30,7 +33,10 @@ unsafe impl<T: DeviceCopy, const N: usize> DeviceCopy for [T; N] {}
 
 /// Words in one `T` (checked at compile time to be a whole number).
 pub(crate) const fn words<T: DeviceCopy>() -> usize {
-    assert!(std::mem::size_of::<T>() % 4 == 0 && std::mem::align_of::<T>() % 4 == 0, "DeviceCopy needs 4-byte units");
+    assert!(
+        std::mem::size_of::<T>().is_multiple_of(4) && std::mem::align_of::<T>().is_multiple_of(4),
+        "DeviceCopy needs 4-byte units"
+    );
     std::mem::size_of::<T>() / 4
 }
 
@@ -92,6 +98,26 @@ impl MemCounter {
     }
     pub(crate) fn reset_peak(&self) {
         self.peak.store(self.current(), Relaxed);
+    }
+}
+
+/// Bytes a primitive's CPU backend holds as scratch, counted as device memory while
+/// the guard lives (the kernels would hold them on the device).
+pub(crate) struct Scratch {
+    bytes: usize,
+    mem: Arc<MemCounter>,
+}
+
+impl Scratch {
+    pub(crate) fn new(mem: Arc<MemCounter>, bytes: usize) -> Scratch {
+        mem.alloc(bytes);
+        Scratch { bytes, mem }
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        self.mem.free(self.bytes);
     }
 }
 
@@ -211,7 +237,8 @@ pub struct GlobalMut<'a, T: DeviceCopy> {
     _life: PhantomData<&'a [T]>,
 }
 
-// SAFETY: all access goes through relaxed atomic word operations.
+// SAFETY: a `Global` only reads memory that nothing writes while it lives (it borrows
+// the buffer immutably); a `GlobalMut` accesses through relaxed atomic word operations.
 unsafe impl<T: DeviceCopy> Send for Global<'_, T> {}
 unsafe impl<T: DeviceCopy> Sync for Global<'_, T> {}
 unsafe impl<T: DeviceCopy> Send for GlobalMut<'_, T> {}
@@ -240,22 +267,25 @@ impl<T: DeviceCopy> Readable<T> for Global<'_, T> {
     #[inline(always)]
     fn read(&self, i: usize) -> T {
         assert!(i < self.len, "load of element {i} from a buffer of {}", self.len);
-        unsafe { read_words(self.ptr.add(i)) }
+        // SAFETY: in bounds; the buffer is borrowed immutably for 'a, so no store races.
+        unsafe { self.ptr.add(i).read() }
     }
 }
 
-/// A read-write view reads exactly as its read-only view does.
+/// A read-write view reads word by word with relaxed atomic loads (another thread
+/// may be storing to the same element).
 impl<T: DeviceCopy> Readable<T> for GlobalMut<'_, T> {
     fn len(&self) -> usize {
         self.len
     }
     #[inline(always)]
     fn address(&self, i: usize) -> u64 {
-        self.as_global().address(i)
+        self.vbase + (i * std::mem::size_of::<T>()) as u64
     }
     #[inline(always)]
     fn read(&self, i: usize) -> T {
-        self.as_global().read(i)
+        assert!(i < self.len, "load of element {i} from a buffer of {}", self.len);
+        unsafe { read_words(self.ptr.add(i)) }
     }
 }
 
@@ -265,11 +295,6 @@ impl<'a, T: DeviceCopy> GlobalMut<'a, T> {
     pub fn write(&self, i: usize, v: T) {
         assert!(i < self.len, "store to element {i} of a buffer of {}", self.len);
         unsafe { write_words(self.ptr.add(i), v) }
-    }
-
-    /// The same memory, read-only.
-    pub fn as_global(&self) -> Global<'a, T> {
-        Global { ptr: self.ptr, len: self.len, vbase: self.vbase, _life: PhantomData }
     }
 
     pub(crate) fn atomic_u32(&self, i: usize) -> &AtomicU32 {

@@ -1,6 +1,7 @@
 //! Launch records and their aggregation per kernel name.
 
 use crate::exec::WARP_SIZE;
+pub use crate::meter::Traffic;
 use std::collections::{HashMap, VecDeque};
 use std::fmt::Write;
 
@@ -8,13 +9,14 @@ use std::fmt::Write;
 /// summaries keep counting).
 pub const LOG_CAPACITY: usize = 4096;
 
-/// Issued warp steps and active lane-steps of one region.
+/// Warp instructions issued and thread instructions executed, for one region.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct RegionStats {
     pub name: &'static str,
-    /// Warp steps issued (per warp, the busiest lane's units, summed over paths).
+    /// Warp instructions issued (Nsight: `smsp__inst_executed`).
     pub issued: u64,
-    /// Lane steps that did work.
+    /// Thread instructions executed: the lanes active in each issued instruction,
+    /// summed (Nsight: `smsp__thread_inst_executed`).
     pub active: u64,
 }
 
@@ -43,26 +45,27 @@ pub struct LaunchRecord {
     /// Whether SIMD efficiency and memory traffic were measured.
     pub measured: bool,
     pub threads: u64,
-    /// The implicit region: one step per lane phase.
-    pub body: RegionStats,
-    /// The regions the kernel named, in order.
+    /// Instructions of the operations lanes performed through `simt` (global and
+    /// shared accesses, atomics, warp intrinsics).
+    pub ops: RegionStats,
+    /// Work the kernel declared with `Thread::work`, per named region, in order.
     pub regions: Vec<RegionStats>,
-    /// Warp-wide memory requests (loads, stores, atomics).
-    pub requests: u64,
-    /// Distinct 32-byte sectors those requests touched.
-    pub sectors: u64,
+    /// Global loads, stores and atomics: warp-level requests and the sectors they touched.
+    pub loads: Traffic,
+    pub stores: Traffic,
+    pub atomics: Traffic,
     pub barriers: u64,
 }
 
 impl LaunchRecord {
-    /// The body and every named region together.
+    /// Every instruction counted: operations and declared work.
     pub fn all_regions(&self) -> RegionStats {
-        let mut all = self.body.clone();
+        let mut all = self.ops.clone();
         self.regions.iter().for_each(|r| all.add(r));
         all
     }
 
-    /// SIMD efficiency over the body and every named region.
+    /// SIMD efficiency over every counted instruction.
     pub fn simd_efficiency(&self) -> Option<f64> {
         self.all_regions().simd_efficiency()
     }
@@ -72,9 +75,9 @@ impl LaunchRecord {
         self.regions.iter().find(|r| r.name == name).and_then(RegionStats::simd_efficiency)
     }
 
-    /// Sectors per request: 4 for 32 coalesced 4-byte loads, 32 when fully scattered.
+    /// Sectors per global load request.
     pub fn sectors_per_request(&self) -> Option<f64> {
-        (self.requests > 0).then(|| self.sectors as f64 / self.requests as f64)
+        self.loads.sectors_per_request()
     }
 }
 
@@ -87,10 +90,11 @@ pub struct KernelSummary {
     pub threads: u64,
     /// Launches that were measured (the efficiency and traffic figures cover these).
     pub measured_launches: u64,
-    pub body: RegionStats,
+    pub ops: RegionStats,
     pub regions: Vec<RegionStats>,
-    pub requests: u64,
-    pub sectors: u64,
+    pub loads: Traffic,
+    pub stores: Traffic,
+    pub atomics: Traffic,
     /// Largest shared memory per block of any launch.
     pub shared_bytes: usize,
     pub barriers: u64,
@@ -98,13 +102,14 @@ pub struct KernelSummary {
 
 impl KernelSummary {
     pub fn simd_efficiency(&self) -> Option<f64> {
-        let mut all = self.body.clone();
+        let mut all = self.ops.clone();
         self.regions.iter().for_each(|r| all.add(r));
         all.simd_efficiency()
     }
 
+    /// Sectors per global load request.
     pub fn sectors_per_request(&self) -> Option<f64> {
-        (self.requests > 0).then(|| self.sectors as f64 / self.requests as f64)
+        self.loads.sectors_per_request()
     }
 
     fn add(&mut self, r: &LaunchRecord) {
@@ -113,16 +118,17 @@ impl KernelSummary {
         self.seconds += r.seconds;
         self.threads += r.threads;
         self.measured_launches += r.measured as u64;
-        self.body.name = "body";
-        self.body.add(&r.body);
+        self.ops.name = "ops";
+        self.ops.add(&r.ops);
         for reg in &r.regions {
             match self.regions.iter_mut().find(|x| x.name == reg.name) {
                 Some(x) => x.add(reg),
                 None => self.regions.push(reg.clone()),
             }
         }
-        self.requests += r.requests;
-        self.sectors += r.sectors;
+        self.loads.add(&r.loads);
+        self.stores.add(&r.stores);
+        self.atomics.add(&r.atomics);
         self.shared_bytes = self.shared_bytes.max(r.shared_bytes);
         self.barriers += r.barriers;
     }
@@ -174,19 +180,20 @@ pub fn format_table(rows: &[KernelSummary]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{:<32} {:>8} {:>10} {:>8} {:>9} {:>10}",
-        "kernel", "launches", "ms", "SIMD eff", "sect/req", "shared B"
+        "{:<32} {:>8} {:>10} {:>8} {:>9} {:>9} {:>10}",
+        "kernel", "launches", "ms", "SIMD eff", "ld s/req", "st s/req", "shared B"
     );
     let opt = |x: Option<f64>, digits: usize| x.map_or("-".to_string(), |v| format!("{v:.digits$}"));
     for r in rows {
         let _ = writeln!(
             s,
-            "{:<32} {:>8} {:>10.3} {:>8} {:>9} {:>10}",
+            "{:<32} {:>8} {:>10.3} {:>8} {:>9} {:>9} {:>10}",
             r.name,
             r.launches,
             r.seconds * 1e3,
             opt(r.simd_efficiency(), 3),
-            opt(r.sectors_per_request(), 2),
+            opt(r.loads.sectors_per_request(), 2),
+            opt(r.stores.sectors_per_request(), 2),
             r.shared_bytes
         );
     }

@@ -74,11 +74,97 @@ fn half_warp_branch_of_equal_length_runs_at_half_efficiency() {
         })
         .unwrap();
     assert_eq!(rec.region_efficiency("loop"), Some(528.0 / (32.0 * 32.0)));
-    // A partial warp lowers the body's efficiency: a block of 40 threads is one full
-    // warp and one of 8 lanes.
+    // A partial warp lowers efficiency: a block of 40 threads is one full warp and one
+    // of 8 lanes, each lane doing one load.
+    let data = dev.alloc::<u32>(40);
+    let v = data.view();
     let cfg = LaunchConfig { grid: 3, block: 40, shared_bytes: 0, regions: &[] };
-    let rec = dev.launch("partial", cfg, |blk| blk.for_each_thread(|_| {})).unwrap();
+    let rec = dev
+        .launch("partial", cfg, |blk| {
+            blk.for_each_thread(|t| {
+                std::hint::black_box(t.load(&v, t.thread_idx() as usize));
+            })
+        })
+        .unwrap();
     assert_eq!(rec.simd_efficiency(), Some(40.0 / 64.0));
+}
+
+#[test]
+fn an_early_break_is_measured_not_declared() {
+    // Each lane scans for its target and breaks when it finds it: lane l loads l + 1
+    // elements. Per warp 32 loads issue (the longest lane) and 1 + … + 32 = 528 lanes
+    // execute, whatever the kernel declares.
+    let dev = measured();
+    let data = dev.alloc_from(&(0..64u32).collect::<Vec<_>>());
+    let v = data.view();
+    let rec = dev.for_each("early_break", 64, |t, i| {
+        for k in 0..64 {
+            if t.load(&v, k) == (i % 32) as u32 {
+                break;
+            }
+        }
+    });
+    assert_eq!((rec.ops.issued, rec.ops.active), (2 * 32, 2 * 528));
+    assert_eq!(rec.simd_efficiency(), Some(528.0 / 1024.0));
+    // The same loop with no break runs at full efficiency: the metric can tell them apart.
+    let rec = dev.for_each("no_break", 64, |t, _| {
+        for k in 0..64 {
+            std::hint::black_box(t.load(&v, k));
+        }
+    });
+    assert_eq!(rec.simd_efficiency(), Some(1.0));
+}
+
+#[test]
+fn an_unannotated_branch_issues_both_arms() {
+    let dev = measured();
+    let (a, b) = (dev.alloc::<u32>(256), dev.alloc::<u32>(256));
+    let (av, bv) = (a.view(), b.view());
+    // Even lanes load from `a` three times, odd lanes from `b` three times: six warp
+    // instructions with 16 lanes each.
+    let rec = dev.for_each("branch", 256, |t, i| {
+        for _ in 0..3 {
+            if i % 2 == 0 {
+                std::hint::black_box(t.load(&av, i));
+            } else {
+                std::hint::black_box(t.load(&bv, i));
+            }
+        }
+    });
+    assert_eq!((rec.ops.issued, rec.ops.active), (8 * 6, 256 * 3));
+    assert_eq!(rec.simd_efficiency(), Some(0.5));
+}
+
+#[test]
+fn lanes_outside_the_launch_are_inactive() {
+    let dev = measured();
+    let data = dev.alloc::<u32>(40);
+    let v = data.view();
+    // 40 threads in one block of 256: warp 0 full, warp 1 with 8 lanes, warps 2–7 idle
+    // (they issue nothing).
+    let rec = dev.for_each("forty", 40, |t, i| {
+        std::hint::black_box(t.load(&v, i));
+    });
+    assert_eq!((rec.ops.issued, rec.ops.active), (2, 40));
+    assert_eq!(rec.simd_efficiency(), Some(40.0 / 64.0));
+}
+
+#[test]
+fn warp_intrinsics_and_shared_accesses_are_instructions() {
+    let dev = measured();
+    let cfg = LaunchConfig { grid: 1, block: 64, shared_bytes: 64 * 4, regions: &[] };
+    let rec = dev
+        .launch("intrinsic_count", cfg, |blk| {
+            let s = blk.shared::<u32>(64);
+            blk.for_each_warp(|w| {
+                w.for_each_lane(|t| t.store_shared(s, t.thread_idx() as usize, 1));
+                std::hint::black_box(w.ballot(&[true; 32]));
+                std::hint::black_box(w.shfl_down(&[1u32; 32], 1));
+            })
+        })
+        .unwrap();
+    // Per warp: one shared store, one ballot, one shuffle, all 32 lanes.
+    assert_eq!((rec.ops.issued, rec.ops.active), (2 * 3, 2 * 3 * 32));
 }
 
 #[test]
@@ -89,7 +175,7 @@ fn coalesced_loads_touch_4_sectors_and_strided_loads_32() {
     let rec = dev.for_each("contiguous", 1024, |t, i| {
         std::hint::black_box(t.load(&v, i));
     });
-    assert_eq!(rec.requests, 1024 / 32);
+    assert_eq!(rec.loads.requests, 1024 / 32);
     assert_eq!(rec.sectors_per_request(), Some(4.0));
     let rec = dev.for_each("stride32", 1024, |t, i| {
         std::hint::black_box(t.load(&v, i * 32));
@@ -107,13 +193,74 @@ fn coalesced_loads_touch_4_sectors_and_strided_loads_32() {
             std::hint::black_box(t.load(&v, i + 64 * k));
         }
     });
-    assert_eq!(rec.requests, 2 * (1 + 3));
+    assert_eq!(rec.loads.requests, 2 * (1 + 3));
+    // Random (distinct, far apart) words: 32 sectors per request.
+    let rec = dev.for_each("random", 1024, |t, i| {
+        std::hint::black_box(t.load(&v, (i * 7_919 * 8) % (32 * 32 * 64)));
+    });
+    assert_eq!(rec.sectors_per_request(), Some(32.0));
     // With measurement off nothing is counted.
     dev.set_measure(false);
     let rec = dev.for_each("unmeasured", 1024, |t, i| {
         std::hint::black_box(t.load(&v, i));
     });
-    assert_eq!((rec.requests, rec.sectors, rec.simd_efficiency()), (0, 0, None));
+    assert_eq!((rec.loads.requests, rec.loads.sectors, rec.simd_efficiency()), (0, 0, None));
+}
+
+#[derive(Clone, Copy, Default)]
+#[repr(C, align(16))]
+struct Vec4([f32; 4]);
+unsafe impl simt::DeviceCopy for Vec4 {}
+
+#[derive(Clone, Copy, Default)]
+#[repr(C, align(16))]
+struct Ray48([f32; 12]);
+unsafe impl simt::DeviceCopy for Ray48 {}
+
+/// Requests and sectors per warp of a contiguous load of one `T` per lane.
+fn contiguous<T: simt::DeviceCopy + Default>() -> (u64, u64) {
+    let dev = measured();
+    let data = dev.alloc::<T>(32);
+    let v = data.view();
+    let rec = dev.for_each("element", 32, |t, i| {
+        std::hint::black_box(t.load(&v, i));
+    });
+    (rec.loads.requests, rec.loads.sectors)
+}
+
+#[test]
+fn wide_elements_are_split_into_hardware_accesses() {
+    // 4 bytes: one request, 128 bytes = 4 sectors.
+    assert_eq!(contiguous::<u32>(), (1, 4));
+    // 8 bytes, 8-aligned: one 8-byte access per lane, 256 bytes.
+    assert_eq!(contiguous::<u64>(), (1, 8));
+    // 12 bytes, 4-aligned: three 4-byte accesses at stride 12, each spanning 384 bytes.
+    assert_eq!(contiguous::<[f32; 3]>(), (3, 3 * 12));
+    // 16 bytes, 4-aligned: four 4-byte accesses at stride 16.
+    assert_eq!(contiguous::<[u32; 4]>(), (4, 4 * 16));
+    // 16 bytes, 16-aligned: one vector access, 512 bytes.
+    assert_eq!(contiguous::<Vec4>(), (1, 16));
+    // 48 bytes, 16-aligned: three 16-byte accesses at stride 48, each touching 32 sectors.
+    assert_eq!(contiguous::<Ray48>(), (3, 3 * 32));
+}
+
+#[test]
+fn loads_stores_and_atomics_are_counted_apart() {
+    let dev = measured();
+    let x = dev.alloc::<u32>(64);
+    let mut y = dev.alloc::<u32>(128);
+    let mut c = dev.alloc::<u32>(1);
+    let (xv, yv, cv) = (x.view(), y.view_mut(), c.view_mut());
+    let rec = dev.for_each("mixed", 64, |t, i| {
+        let a = t.load(&xv, i);
+        t.store(&yv, 2 * i, a);
+        t.atomic_add(&cv, 0, 1);
+    });
+    assert_eq!((rec.loads.requests, rec.loads.sectors), (2, 2 * 4));
+    // Stride-2 stores: 256 bytes per warp.
+    assert_eq!((rec.stores.requests, rec.stores.sectors), (2, 2 * 8));
+    // Every lane on one word: one request, one sector per warp.
+    assert_eq!((rec.atomics.requests, rec.atomics.sectors), (2, 2));
 }
 
 #[test]
@@ -179,6 +326,86 @@ fn barriers_separate_phases_and_registers_survive_them() {
         .unwrap();
     assert_eq!(rec.barriers, rec.grid as u64);
     assert!(out.as_slice().iter().enumerate().all(|(i, &v)| v as usize == i));
+}
+
+/// A block that mirrors values through shared memory, with or without the barrier.
+fn mirror(dev: &Device, barrier: bool) -> Result<simt::LaunchRecord, LaunchError> {
+    dev.launch("mirror", LaunchConfig::linear(256, 128).with_shared(128 * 4), |blk| {
+        let s = blk.shared::<u32>(128);
+        blk.for_each_thread(|t| t.store_shared(s, t.thread_idx() as usize, t.thread_idx()));
+        if barrier {
+            blk.sync_threads();
+        }
+        blk.for_each_thread(|t| {
+            std::hint::black_box(t.load_shared(s, 127 - t.thread_idx() as usize));
+        });
+    })
+}
+
+#[test]
+fn a_missing_barrier_is_an_error_naming_the_kernel() {
+    let dev = measured();
+    assert!(mirror(&dev, true).is_ok());
+    let err = mirror(&dev, false).unwrap_err();
+    let LaunchError::SharedRace { kernel, race } = &err else { panic!("not a race: {err}") };
+    assert_eq!(*kernel, "mirror");
+    // Thread 0 reads word 127 first; thread 127 wrote it; block 0 is reported.
+    assert_eq!((race.block, race.byte, race.first, race.second, race.hazard), (0, 127 * 4, 127, 0, "read after write"));
+    assert!(err.to_string().contains("mirror") && err.to_string().contains("sync_threads"));
+    // Unmeasured launches do not check (and cost nothing for it).
+    assert!(mirror(&Device::default(), false).is_ok());
+}
+
+#[test]
+fn races_within_a_phase_and_warp_synchronous_exchanges() {
+    let dev = measured();
+    let cfg = || LaunchConfig { grid: 1, block: 64, shared_bytes: 64 * 4, regions: &[] };
+    // Lane 1 reads what lane 0 wrote in the same phase: a race.
+    let r = dev.launch("same_phase", cfg(), |blk| {
+        let s = blk.shared::<u32>(64);
+        blk.for_each_thread(|t| {
+            if t.thread_idx() == 0 {
+                t.store_shared(s, 0, 5);
+            } else if t.thread_idx() == 1 {
+                std::hint::black_box(t.load_shared(s, 0));
+            }
+        });
+    });
+    assert!(matches!(r, Err(LaunchError::SharedRace { kernel: "same_phase", .. })));
+    // Write then read by another lane after it: write after read is a race too.
+    let r = dev.launch("war", cfg(), |blk| {
+        let s = blk.shared::<u32>(64);
+        blk.for_each_thread(|t| {
+            if t.thread_idx() == 0 {
+                std::hint::black_box(t.load_shared(s, 3));
+            } else if t.thread_idx() == 40 {
+                t.store_shared(s, 3, 1);
+            }
+        });
+    });
+    assert!(matches!(r, Err(LaunchError::SharedRace { race: simt::Race { hazard: "write after read", .. }, .. })));
+    // Within one warp, two lane phases separated by a warp-level step exchange safely.
+    let r = dev.launch("warp_exchange", cfg(), |blk| {
+        let s = blk.shared::<u32>(64);
+        blk.for_each_warp(|w| {
+            w.for_each_lane(|t| t.store_shared(s, t.thread_idx() as usize, t.lane_id()));
+            w.for_each_lane(|t| {
+                std::hint::black_box(t.load_shared(s, (t.thread_idx() ^ 1) as usize));
+            });
+        });
+    });
+    assert!(r.is_ok());
+    // Across warps the same exchange needs a barrier.
+    let r = dev.launch("cross_warp", cfg(), |blk| {
+        let s = blk.shared::<u32>(64);
+        blk.for_each_warp(|w| {
+            w.for_each_lane(|t| t.store_shared(s, t.thread_idx() as usize, t.lane_id()));
+            w.for_each_lane(|t| {
+                std::hint::black_box(t.load_shared(s, (t.thread_idx() ^ 32) as usize));
+            });
+        });
+    });
+    assert!(matches!(r, Err(LaunchError::SharedRace { .. })));
 }
 
 #[test]

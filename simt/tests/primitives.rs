@@ -3,7 +3,12 @@
 //! edges), on random inputs; plus property tests on arbitrary inputs.
 
 use proptest::prelude::*;
-use simt::{Device, seq};
+use simt::{Device, DeviceConfig, seq};
+
+/// Both backends: unmeasured (the CPU backend) and measured (the GPU kernels).
+fn devices() -> [Device; 2] {
+    [false, true].map(|measure| Device::new(DeviceConfig { measure, ..Default::default() }))
+}
 
 const SIZES: [usize; 11] = [0, 1, 31, 32, 33, 1023, 1024, 1025, 2048, 2049, 1 << 20];
 
@@ -105,26 +110,33 @@ fn check_select(dev: &Device, data: &[u32]) {
 
 #[test]
 fn scans_and_reductions_match_the_sequential_oracle() {
-    let dev = Device::default();
-    for (s, &n) in SIZES.iter().enumerate() {
-        check_scans(&dev, &random(n, s as u64, 1 << 32));
+    for dev in devices() {
+        for (s, &n) in SIZES.iter().enumerate() {
+            check_scans(&dev, &random(n, s as u64, 1 << 32));
+        }
     }
 }
 
 #[test]
 fn radix_sort_matches_a_stable_sequential_sort() {
-    let dev = Device::default();
-    for (s, &n) in SIZES.iter().enumerate() {
-        // Few distinct keys make stability visible; full-width keys test every pass.
-        check_sort(&dev, &random(n, 100 + s as u64, 16), 0, 32);
-        check_sort(&dev, &random(n, 200 + s as u64, 1 << 32), 0, 32);
-        check_sort(&dev, &random(n, 300 + s as u64, 1 << 32), 4, 13);
+    for dev in devices() {
+        for (s, &n) in SIZES.iter().enumerate() {
+            // Few distinct keys make stability visible; full-width keys test every pass.
+            check_sort(&dev, &random(n, 100 + s as u64, 16), 0, 32);
+            check_sort(&dev, &random(n, 200 + s as u64, 1 << 32), 0, 32);
+            check_sort(&dev, &random(n, 300 + s as u64, 1 << 32), 4, 13);
+        }
     }
 }
 
 #[test]
 fn sort_by_64_bit_keys_and_segments_stay_segments() {
-    let dev = Device::default();
+    for dev in devices() {
+        sort_64(&dev);
+    }
+}
+
+fn sort_64(dev: &Device) {
     let n = 100_000;
     // PDACRT's use: the segment (node) id in the high bits, a code in the low bits.
     let seg = random(n, 7, 50);
@@ -132,7 +144,7 @@ fn sort_by_64_bit_keys_and_segments_stay_segments() {
     let keys: Vec<u64> = seg.iter().zip(&code).map(|(&s, &c)| (s as u64) << 32 | c as u64).collect();
     let vals: Vec<u32> = (0..n as u32).collect();
     let (mut k, mut v) = (dev.alloc_from(&keys), dev.alloc_from(&vals));
-    simt::sort_by_key(&dev, &mut k, &mut v);
+    simt::sort_by_key(dev, &mut k, &mut v);
     let (wk, wv) = seq::sort_by_key_bits(&keys, &vals, 0, 64);
     assert_eq!(k.as_slice(), wk.as_slice());
     assert_eq!(v.as_slice(), wv.as_slice());
@@ -149,21 +161,39 @@ fn sort_by_64_bit_keys_and_segments_stay_segments() {
 
 #[test]
 fn selection_and_reduce_by_key_match_the_sequential_oracle() {
+    for dev in devices() {
+        for (s, &n) in SIZES.iter().enumerate() {
+            check_select(&dev, &random(n, 400 + s as u64, 1000));
+        }
+    }
+    // Long runs that cross the CPU backend's chunks, and one run of everything.
     let dev = Device::default();
-    for (s, &n) in SIZES.iter().enumerate() {
-        check_select(&dev, &random(n, 400 + s as u64, 1000));
+    for modulus in [1, 3] {
+        let n = 300_000;
+        let keys: Vec<u32> = (0..n as u32).map(|i| (i / 100_003) % modulus).collect();
+        let vals = random(n, 9, 1000);
+        let (k, v) = (dev.alloc_from(&keys), dev.alloc_from(&vals));
+        let (mut ok, mut ov) = (dev.alloc::<u32>(n), dev.alloc::<u32>(n));
+        let runs = simt::reduce_by_key(&dev, &k, &v, &mut ok, &mut ov, 0, u32::wrapping_add);
+        let (wk, wv) = seq::reduce_by_key(&keys, &vals, u32::wrapping_add);
+        assert_eq!((&ok.as_slice()[..runs], &ov.as_slice()[..runs]), (wk.as_slice(), wv.as_slice()));
     }
 }
 
 #[test]
 fn primitives_free_their_temporaries() {
-    let dev = Device::default();
+    for dev in devices() {
+        free_temporaries(&dev);
+    }
+}
+
+fn free_temporaries(dev: &Device) {
     let data = random(50_000, 1, 1 << 32);
     let (mut k, mut v) = (dev.alloc_from(&data), dev.alloc_from(&data));
     let before = dev.memory().current;
-    simt::sort_by_key(&dev, &mut k, &mut v);
+    simt::sort_by_key(dev, &mut k, &mut v);
     let mut out = dev.alloc::<u32>(data.len());
-    simt::inclusive_scan(&dev, &k, &mut out, 0, |a, b| a ^ b);
+    simt::inclusive_scan(dev, &k, &mut out, 0, |a, b| a ^ b);
     drop(out);
     assert_eq!(dev.memory().current, before);
     assert!(dev.memory().peak > before, "temporaries are counted while they live");
@@ -174,9 +204,10 @@ proptest! {
 
     #[test]
     fn prop_scan_sort_select(data in proptest::collection::vec(any::<u32>(), 0..5000), bits in 1u32..32) {
-        let dev = Device::default();
-        check_scans(&dev, &data);
-        check_sort(&dev, &data, 0, bits);
-        check_select(&dev, &data);
+        for dev in devices() {
+            check_scans(&dev, &data);
+            check_sort(&dev, &data, 0, bits);
+            check_select(&dev, &data);
+        }
     }
 }

@@ -87,10 +87,10 @@ impl BvhCaster {
         for &prim in &self.outliers {
             let [a, b, c] = self.tris[prim as usize];
             let far = best.t.next_up().min(ray.t_max);
-            if let Some((t, u, v)) = intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, far) {
-                if t < best.t || (t == best.t && prim < best.prim) {
-                    *best = Hit { t, prim, u, v };
-                }
+            if let Some((t, u, v)) = intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, far)
+                && (t < best.t || (t == best.t && prim < best.prim))
+            {
+                *best = Hit { t, prim, u, v };
             }
         }
         self.outliers.len() as u64

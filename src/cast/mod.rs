@@ -81,6 +81,12 @@ pub trait RayCaster: Send + Sync {
     fn build_seconds(&self) -> f64 {
         0.0
     }
+    /// The emulated GPU the caster runs on, for casters that run on one (PDACRT). A
+    /// render hands it to integrators that stream on `simt` too, so that one device
+    /// holds the render's whole kernel table and memory peak.
+    fn device(&self) -> Option<&simt::Device> {
+        None
+    }
 }
 
 /// Which caster to build; parsed from the command line.

@@ -129,7 +129,7 @@ pub const SHADE_REGION: usize = 0;
 pub fn shade(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
     let i = t.load(&a.order, j) as usize;
     let slot_id = t.load(&a.active, i) as usize;
-    let mut slot = t.load(&a.slots.as_global(), slot_id);
+    let mut slot = t.load(&a.slots, slot_id);
     let base = slot_id * PENDING_PER_SLOT;
     for k in 0..PENDING_PER_SLOT {
         t.store(&a.pending, base + k, PendingData::default());
@@ -156,7 +156,7 @@ pub fn shade(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
     let depth = slot.depth as usize;
     let mut cam = VertexList::default();
     for k in 0..depth {
-        cam.push(t.load(&a.vertices.as_global(), vbase + k));
+        cam.push(t.load(&a.vertices, vbase + k));
     }
     cam.push(Vertex::new(VertexKind::Surface, p, n, hit.prim, slot.beta, false, scene.emission_of(hit.prim)));
     let t_len = depth + 1;
@@ -237,7 +237,7 @@ pub fn accumulate(
     slots: &GlobalMut<Slot>,
 ) {
     let slot_id = t.load(active, i) as usize;
-    let mut slot = t.load(&slots.as_global(), slot_id);
+    let mut slot = t.load(slots, slot_id);
     let base = slot_id * PENDING_PER_SLOT;
     for k in 0..PENDING_PER_SLOT {
         let p = t.load(pending, base + k);

@@ -79,8 +79,12 @@ pub struct QueueRecord {
     pub queues: Vec<(u32, u32)>,
     /// Active samples still alive after the bounce, over those that started it.
     pub survival: f32,
-    /// SIMD efficiency of `cis::shade` (when measuring).
+    /// SIMD efficiency of the whole `cis::shade` launch, from what its lanes executed
+    /// (memory operations of shading and connections, and the declared material arms;
+    /// when measuring).
     pub shade_simd: Option<f64>,
+    /// Efficiency of the declared material-dispatch region alone (when measuring).
+    pub shade_dispatch_simd: Option<f64>,
 }
 
 pub struct CisLbdpt {
@@ -90,12 +94,19 @@ pub struct CisLbdpt {
 }
 
 impl CisLbdpt {
+    /// The integrator on a device of its own.
     pub fn new(params: CisParams) -> Self {
-        CisLbdpt {
-            params,
-            dev: Device::new(DeviceConfig { measure: params.measure, ..Default::default() }),
-            records: Vec::new(),
+        Self::on_device(params, Device::new(DeviceConfig { measure: params.measure, ..Default::default() }))
+    }
+
+    /// The integrator on `dev` (a render passes the caster's device, so that one
+    /// device holds every kernel). `params.measure` turns the device's measurement
+    /// on; it never turns it off.
+    pub fn on_device(params: CisParams, dev: Device) -> Self {
+        if params.measure {
+            dev.set_measure(true);
         }
+        CisLbdpt { params, dev, records: Vec::new() }
     }
 
     /// The emulated device: kernel statistics and memory.
@@ -259,7 +270,8 @@ impl CisLbdpt {
                 active: n,
                 queues,
                 survival: survivors as f32 / n as f32,
-                shade_simd: shade_record.region_efficiency("shade"),
+                shade_simd: shade_record.simd_efficiency(),
+                shade_dispatch_simd: shade_record.region_efficiency("shade"),
             });
             bounce += 1;
         }

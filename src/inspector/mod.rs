@@ -303,20 +303,20 @@ impl Inspector {
                 Color32::WHITE,
             );
             let s = lock(&shared);
-            if let (Some(level), Some(cam)) = (selected, s.camera) {
-                if let Some(rec) = s.levels.get(level) {
-                    for b in rec.boxes.iter().take(4096) {
-                        if let Some(r) = project_box(&cam, b, s.width, s.height) {
-                            let scale = egui::vec2(rect.width() / s.width as f32, rect.height() / s.height as f32);
-                            let min = rect.min + egui::vec2(r.0.x * scale.x, r.0.y * scale.y);
-                            let max = rect.min + egui::vec2(r.1.x * scale.x, r.1.y * scale.y);
-                            ui.painter().rect_stroke(
-                                egui::Rect::from_min_max(min, max),
-                                0.0,
-                                egui::Stroke::new(1.0, Color32::from_rgb(255, 200, 0)),
-                                egui::StrokeKind::Middle,
-                            );
-                        }
+            if let (Some(level), Some(cam)) = (selected, s.camera)
+                && let Some(rec) = s.levels.get(level)
+            {
+                for b in rec.boxes.iter().take(4096) {
+                    if let Some(r) = project_box(&cam, b, s.width, s.height) {
+                        let scale = egui::vec2(rect.width() / s.width as f32, rect.height() / s.height as f32);
+                        let min = rect.min + egui::vec2(r.0.x * scale.x, r.0.y * scale.y);
+                        let max = rect.min + egui::vec2(r.1.x * scale.x, r.1.y * scale.y);
+                        ui.painter().rect_stroke(
+                            egui::Rect::from_min_max(min, max),
+                            0.0,
+                            egui::Stroke::new(1.0, Color32::from_rgb(255, 200, 0)),
+                            egui::StrokeKind::Middle,
+                        );
                     }
                 }
             }
@@ -576,7 +576,10 @@ impl Job {
             }
             if let Some(cis) = renderer.cis() {
                 s.queues = cis.records.clone();
-                merge_kernels(&mut s.kernels, cis.device().kernel_stats());
+            }
+            if let Some(dev) = renderer.device() {
+                // The render's own device: the caster's kernels and the integrator's.
+                merge_kernels(&mut s.kernels, dev.kernel_stats());
             }
         }
         set_status(format!("done in {:.2} s", start.elapsed().as_secs_f64()));
@@ -616,12 +619,8 @@ impl Job {
                 let mut f = crate::film::Film::new(32, 32)?;
                 cis.render_pass(&ctx, 0, &mut f);
                 let st = cis.device().kernel_stats();
-                eff[k] = st
-                    .iter()
-                    .find(|x| x.name == "cis::shade")
-                    .and_then(|x| x.regions.iter().find(|r| r.name == "shade"))
-                    .and_then(|r| r.simd_efficiency())
-                    .unwrap_or(0.0);
+                // Measured over everything the lanes executed, not the declared region.
+                eff[k] = st.iter().find(|x| x.name == "cis::shade").and_then(|x| x.simd_efficiency()).unwrap_or(0.0);
                 if sort {
                     merge_kernels(&mut kernels, st);
                 }

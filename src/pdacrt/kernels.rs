@@ -147,7 +147,7 @@ pub(crate) fn split_node(
     children: &GlobalMut<Aabb>,
     n: usize,
 ) {
-    let mut node = t.load(&nodes.as_global(), n);
+    let mut node = t.load(nodes, n);
     let w = |a: usize| unordered(t.load(tight, n * 6 + a));
     let union = Aabb { min: Vec3::new(w(0), w(1), w(2)), max: Vec3::new(w(3), w(4), w(5)) };
     node.bounds = node.bounds.intersection(union);
@@ -348,7 +348,7 @@ pub(crate) fn emit_child(
     terminal_nodes: &GlobalMut<NodeData>,
     c: usize,
 ) {
-    let mut cd = t.load(&children.as_global(), c);
+    let mut cd = t.load(children, c);
     let (scan, out) = match cd.kind {
         INNER => (t.load(inner_scan, c), next_nodes),
         TERMINAL => (t.load(terminal_scan, c), terminal_nodes),
@@ -487,7 +487,7 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
             let id = t.load(&a.ray_ids, node.ray_start as usize + k);
             t.set(ray_id, id);
             t.set(ray_reg, t.load(&a.rays, id as usize));
-            t.set(best, t.load(&a.keys.as_global(), id as usize));
+            t.set(best, t.load(&a.keys, id as usize));
         }
     });
     let mut first = 0usize;

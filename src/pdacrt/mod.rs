@@ -197,9 +197,17 @@ impl Pdacrt {
         Self::from_triangles(&scene.triangle_vertices(), PdacrtParams::default())
     }
 
-    /// A caster over a triangle list.
+    /// A caster over a triangle list, on a device of its own.
     pub fn from_triangles(tris: &[[glam::Vec3; 3]], params: PdacrtParams) -> Self {
-        let dev = Device::new(DeviceConfig { measure: params.measure, ..Default::default() });
+        Self::on_device(tris, params, Device::new(DeviceConfig { measure: params.measure, ..Default::default() }))
+    }
+
+    /// A caster over a triangle list on `dev` (shared with whatever else runs on it).
+    /// `params.measure` turns the device's measurement on; it never turns it off.
+    pub fn on_device(tris: &[[glam::Vec3; 3]], params: PdacrtParams, dev: Device) -> Self {
+        if params.measure {
+            dev.set_measure(true);
+        }
         let flat: Vec<[f32; 9]> = tris
             .iter()
             .map(|t| {
@@ -357,6 +365,10 @@ impl Pdacrt {
 impl RayCaster for Pdacrt {
     fn name(&self) -> &'static str {
         "pdacrt"
+    }
+
+    fn device(&self) -> Option<&Device> {
+        Some(&self.dev)
     }
 
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {

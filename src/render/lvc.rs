@@ -244,15 +244,15 @@ pub(crate) fn vertex_strategies(
 ) {
     let max_depth = ctx.opts.max_depth as usize;
     let count = |s: usize, t: usize| counts.count(s, t);
-    if t - 2 <= max_depth {
-        if let Some(l) = strategy_emitter(cam, t, &[], path) {
-            sink((None, l * mis_weight_counts(ctx, path, 0, count), None));
-        }
+    if t - 2 <= max_depth
+        && let Some(l) = strategy_emitter(cam, t, &[], path)
+    {
+        sink((None, l * mis_weight_counts(ctx, path, 0, count), None));
     }
-    if t - 1 <= max_depth {
-        if let Some((l, ray)) = strategy_light_sample(ctx, cam, t, rng, path) {
-            sink((Some(ray), l * mis_weight_counts(ctx, path, 1, count), None));
-        }
+    if t - 1 <= max_depth
+        && let Some((l, ray)) = strategy_light_sample(ctx, cam, t, rng, path)
+    {
+        sink((Some(ray), l * mis_weight_counts(ctx, path, 1, count), None));
     }
     if cache_len == 0 || connections.per_vertex() == 0 || t > max_depth {
         return;

@@ -151,10 +151,10 @@ impl<'a> Renderer<'a> {
     pub fn new(scene: &'a Scene, caster: &'a dyn RayCaster, opts: &RenderOptions) -> Result<Self> {
         scene.check_renderable()?;
         crate::film::check_size(opts.width, opts.height)?;
-        if let Budget::Seconds(s) = opts.budget {
-            if !(s > 0.0 && s.is_finite()) {
-                return Err(Error::BadSetting(format!("time budget {s} s must be positive")));
-            }
+        if let Budget::Seconds(s) = opts.budget
+            && !(s > 0.0 && s.is_finite())
+        {
+            return Err(Error::BadSetting(format!("time budget {s} s must be positive")));
         }
         if opts.max_depth > 1024 {
             return Err(Error::BadSetting(format!("max depth {} is absurd (at most 1024)", opts.max_depth)));
@@ -186,7 +186,10 @@ impl<'a> Renderer<'a> {
             IntegratorKind::Light => Integrator::Light(LightTracer),
             IntegratorKind::Bdpt => Integrator::Bdpt(Bdpt),
             IntegratorKind::Lvc => Integrator::Lvc(LvcBdpt::new(opts.lvc)),
-            IntegratorKind::Cis => Integrator::Cis(Box::new(crate::cis::CisLbdpt::new(opts.cis))),
+            IntegratorKind::Cis => Integrator::Cis(Box::new(match caster.device() {
+                Some(dev) => crate::cis::CisLbdpt::on_device(opts.cis, dev.clone()),
+                None => crate::cis::CisLbdpt::new(opts.cis),
+            })),
         };
         Ok(Renderer { scene, caster, opts: opts.clone(), lights, integrator })
     }
@@ -223,6 +226,13 @@ impl<'a> Renderer<'a> {
             Integrator::Cis(c) => Some(c),
             _ => None,
         }
+    }
+
+    /// The emulated device of the render, when anything in it runs on one: the
+    /// caster's (PDACRT), which a `cis` integrator shares, or the integrator's own.
+    /// Its kernel table and memory peak cover the whole render.
+    pub fn device(&self) -> Option<&simt::Device> {
+        self.cis().map(|c| c.device()).or_else(|| self.caster.device())
     }
 }
 

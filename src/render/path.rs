@@ -160,34 +160,34 @@ fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) {
     let mode = TransportMode::Radiance;
 
     // Next-event estimation.
-    if !material.is_delta() {
-        if let Some(ls) = ctx.lights.sample(scene, p.rng.uniform(), p.rng.uniform2()) {
-            let to_light = ls.position - pos;
-            let dist2 = to_light.length_squared();
-            let wi = to_light / dist2.sqrt();
-            let wi_local = frame.to_local(wi);
-            let f = material.f(wo_local, wi_local, mode);
-            let cos_surf = wi_local.z.abs();
-            let contribution = if f == Vec3::ZERO || dist2 == 0.0 {
+    if !material.is_delta()
+        && let Some(ls) = ctx.lights.sample(scene, p.rng.uniform(), p.rng.uniform2())
+    {
+        let to_light = ls.position - pos;
+        let dist2 = to_light.length_squared();
+        let wi = to_light / dist2.sqrt();
+        let wi_local = frame.to_local(wi);
+        let f = material.f(wo_local, wi_local, mode);
+        let cos_surf = wi_local.z.abs();
+        let contribution = if f == Vec3::ZERO || dist2 == 0.0 {
+            Vec3::ZERO
+        } else if ls.is_delta {
+            f * cos_surf * ls.emitted / (dist2 * ls.pdf)
+        } else {
+            let cos_light = ls.normal.dot(-wi);
+            if cos_light <= 0.0 {
                 Vec3::ZERO
-            } else if ls.is_delta {
-                f * cos_surf * ls.emitted / (dist2 * ls.pdf)
             } else {
-                let cos_light = ls.normal.dot(-wi);
-                if cos_light <= 0.0 {
-                    Vec3::ZERO
-                } else {
-                    let pdf_light = ls.pdf * dist2 / cos_light;
-                    let weight = power_heuristic(pdf_light, material.pdf(wo_local, wi_local));
-                    f * cos_surf * ls.emitted * weight / pdf_light
-                }
-            };
-            let contribution = p.throughput * contribution;
-            if contribution.max_element() > 0.0 && contribution.is_finite() {
-                let origin = offset_ray_origin(pos, if wi.dot(ng) > 0.0 { ng } else { -ng });
-                let target = if ls.is_delta { ls.position } else { offset_ray_origin(ls.position, ls.normal) };
-                p.shadow = Some((Ray::segment(origin, target - origin, 1.0 - 1e-4), contribution));
+                let pdf_light = ls.pdf * dist2 / cos_light;
+                let weight = power_heuristic(pdf_light, material.pdf(wo_local, wi_local));
+                f * cos_surf * ls.emitted * weight / pdf_light
             }
+        };
+        let contribution = p.throughput * contribution;
+        if contribution.max_element() > 0.0 && contribution.is_finite() {
+            let origin = offset_ray_origin(pos, if wi.dot(ng) > 0.0 { ng } else { -ng });
+            let target = if ls.is_delta { ls.position } else { offset_ray_origin(ls.position, ls.normal) };
+            p.shadow = Some((Ray::segment(origin, target - origin, 1.0 - 1e-4), contribution));
         }
     }
 

@@ -1,6 +1,10 @@
 //! Thrust/CUB-style primitives written as kernels on the emulator. Each has a plain
-//! sequential twin in [`crate::seq`] that the tests use as the oracle.
+//! sequential twin in [`crate::seq`] that the tests use as the oracle. With measurement
+//! off, scans, reductions, `copy_if`, `reduce_by_key` and the sorts run their CPU
+//! backend (`native`) instead of the kernels, as Thrust's CPU backends do; their
+//! records are named `simt::<primitive> [cpu]`.
 
+pub(crate) mod native;
 pub mod queue;
 pub mod scan;
 pub mod select;

@@ -177,6 +177,11 @@ fn scan<I, T, M, F>(
     if input.is_empty() {
         return;
     }
+    if !dev.measuring() {
+        return dev.host("simt::scan [cpu]", input.len(), || {
+            super::native::scan(input.as_slice(), map, output.as_mut_slice(), init, identity, op)
+        });
+    }
     let exclusive = init.is_some();
     let mut totals = scan_tiles(dev, input, map, output, identity, op, exclusive);
     if totals.len() > 1 || exclusive {
@@ -273,6 +278,9 @@ where
     let n = input.len();
     if n == 0 {
         return init;
+    }
+    if !dev.measuring() {
+        return dev.host("simt::reduce [cpu]", n, || super::native::reduce(input.as_slice(), init, identity, op));
     }
     let blocks = n.div_ceil(TILE);
     let mut partial = dev.alloc_filled(blocks, identity);

@@ -86,6 +86,11 @@ where
     if n == 0 {
         return 0;
     }
+    if !dev.measuring() {
+        return dev.host("simt::copy_if [cpu]", n, || {
+            super::native::copy_if_stencil(input.as_slice(), stencil.as_slice(), output.as_mut_slice(), pred)
+        });
+    }
     let mut flags = dev.alloc::<u32>(n);
     {
         let (st, fl) = (stencil.view(), flags.view_mut());
@@ -161,6 +166,17 @@ where
     assert!(out_keys.len() >= n && out_values.len() >= n, "reduce_by_key: outputs shorter than inputs");
     if n == 0 {
         return 0;
+    }
+    if !dev.measuring() {
+        return dev.host("simt::reduce_by_key [cpu]", n, || {
+            super::native::reduce_by_key(
+                keys.as_slice(),
+                values.as_slice(),
+                out_keys.as_mut_slice(),
+                out_values.as_mut_slice(),
+                op,
+            )
+        });
     }
     let mut heads = dev.alloc::<u32>(n);
     let mut pairs = dev.alloc_filled(n, Flagged { flag: 0, value: identity });

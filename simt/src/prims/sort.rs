@@ -18,8 +18,10 @@ const WARPS: usize = BLOCK as usize / 32;
 /// Keys the radix sort understands: unsigned integers.
 pub trait RadixKey: DeviceCopy + Ord + Default {
     const BITS: u32;
-    /// Bits `shift..shift + 8` of the key (fewer when `width < 8`).
+    /// Bits `shift..shift + width` of the key (`width` at most 16).
     fn digit(self, shift: u32, width: u32) -> u32;
+    /// The key's bits, widened.
+    fn bits(self) -> u64;
 }
 
 impl RadixKey for u32 {
@@ -28,6 +30,10 @@ impl RadixKey for u32 {
     fn digit(self, shift: u32, width: u32) -> u32 {
         (self >> shift) & ((1u32 << width) - 1)
     }
+    #[inline(always)]
+    fn bits(self) -> u64 {
+        self as u64
+    }
 }
 
 impl RadixKey for u64 {
@@ -35,6 +41,10 @@ impl RadixKey for u64 {
     #[inline(always)]
     fn digit(self, shift: u32, width: u32) -> u32 {
         ((self >> shift) & ((1u64 << width) - 1)) as u32
+    }
+    #[inline(always)]
+    fn bits(self) -> u64 {
+        self
     }
 }
 
@@ -66,6 +76,14 @@ pub fn sort_by_key_bits<K: RadixKey, V: DeviceCopy>(
     let n = keys.len();
     if n <= 1 || begin_bit == end_bit {
         return;
+    }
+    if !dev.measuring() {
+        let bytes = n * std::mem::size_of::<(K, V)>();
+        return dev.host("simt::sort_by_key [cpu]", n, || {
+            dev.with_pool(bytes, |pool| {
+                super::native::sort_by_key_bits(keys.as_mut_slice(), values.as_mut_slice(), begin_bit, end_bit, pool)
+            })
+        });
     }
     let mut keys_tmp = dev.alloc_vec(keys.as_slice().to_vec());
     let mut vals_tmp = dev.alloc_vec(values.as_slice().to_vec());

@@ -1,0 +1,337 @@
+//! Measurement: what the lanes of a warp actually executed, matched into warp
+//! instructions, and the shared-memory race check that finds missing barriers.
+//!
+//! Every operation a lane performs through `simt` (global load, store, atomic, shared
+//! load/store, warp intrinsic, declared work) is one *thread instruction*. Within one
+//! lane phase of a warp, the n-th execution of an operation at a call site by one lane
+//! is matched with the n-th execution of the same site by the other lanes: that set is
+//! one *warp instruction* (issued once, executed by the lanes that reached it). This is
+//! what a lockstep warp does: a lane that leaves a loop early, or takes the other arm of
+//! a branch, is idle while the instruction issues for the others. SIMD efficiency is
+//! thread instructions / (32 × warp instructions), Nsight Compute's
+//! `smsp__thread_inst_executed_per_inst_executed` over 32.
+//!
+//! Global accesses are split into the accesses the hardware issues: an element of `s`
+//! bytes whose alignment allows vectors of `w` bytes (the largest power of two ≤ 16
+//! dividing both the size and the alignment) is `s / w` instructions of `w` bytes.
+//! Each warp-level memory instruction is one *request*; the distinct 32-byte sectors its
+//! lanes touch are its *sectors*. Loads, stores and atomics are kept apart.
+
+use crate::exec::{MAX_PATHS, MAX_REGIONS, SECTOR_BYTES};
+
+/// Requests and sectors of one kind of memory instruction.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Traffic {
+    /// Warp-level memory instructions.
+    pub requests: u64,
+    /// Distinct 32-byte sectors per request, summed.
+    pub sectors: u64,
+}
+
+impl Traffic {
+    /// Sectors per request: 4 for 32 coalesced 4-byte loads, 32 when fully scattered.
+    pub fn sectors_per_request(&self) -> Option<f64> {
+        (self.requests > 0).then(|| self.sectors as f64 / self.requests as f64)
+    }
+
+    pub fn add(&mut self, o: &Traffic) {
+        self.requests += o.requests;
+        self.sectors += o.sectors;
+    }
+}
+
+/// What kind of instruction an operation is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Kind {
+    Load,
+    Store,
+    Atomic,
+    /// Shared-memory access, warp intrinsic: counted, no global traffic.
+    Other,
+    /// Declared work in a named region.
+    Work(u8),
+}
+
+/// Counters of one launch (or of one worker's share of it).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Counters {
+    /// Warp instructions / thread instructions of operations (not declared work).
+    pub ops_issued: u64,
+    pub ops_active: u64,
+    pub issued: [u64; MAX_REGIONS],
+    pub active: [u64; MAX_REGIONS],
+    pub loads: Traffic,
+    pub stores: Traffic,
+    pub atomics: Traffic,
+    pub barriers: u64,
+    pub threads: u64,
+}
+
+impl Counters {
+    pub fn merge(mut self, o: Counters) -> Counters {
+        for r in 0..MAX_REGIONS {
+            self.issued[r] += o.issued[r];
+            self.active[r] += o.active[r];
+        }
+        self.ops_issued += o.ops_issued;
+        self.ops_active += o.ops_active;
+        self.loads.add(&o.loads);
+        self.stores.add(&o.stores);
+        self.atomics.add(&o.atomics);
+        self.barriers += o.barriers;
+        self.threads += o.threads;
+        self
+    }
+}
+
+/// A warp instruction being assembled from its lanes.
+struct Slot {
+    kind: Kind,
+    max_units: u32,
+    sum_units: u64,
+}
+
+/// Where a lane phase stands, for the race check.
+#[derive(Clone, Copy, Default)]
+struct Stamp {
+    /// Barrier interval (a new one per block and per `sync_threads`).
+    epoch: u64,
+    /// One warp's run of a `for_each_warp` body.
+    warp_call: u64,
+    /// One `for_each_lane` within it.
+    lane_call: u64,
+    thread: u32,
+}
+
+impl Stamp {
+    /// Whether an access stamped `self` and one stamped `o` may race: same barrier
+    /// interval, different threads, and not two lane phases of one warp body (those are
+    /// separated by the warp-synchronous step between them).
+    fn races(&self, o: &Stamp) -> bool {
+        self.epoch == o.epoch
+            && self.thread != o.thread
+            && !(self.warp_call == o.warp_call && self.lane_call != o.lane_call)
+    }
+}
+
+#[derive(Clone, Copy, Default)]
+struct Shadow {
+    write: Stamp,
+    read: Stamp,
+}
+
+/// A shared-memory race: the first one found in a launch.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Race {
+    pub block: u32,
+    /// Byte offset in the block's shared memory.
+    pub byte: usize,
+    /// Thread that accessed the word first, and the one that raced with it.
+    pub first: u32,
+    pub second: u32,
+    /// "read after write", "write after read" or "write after write".
+    pub hazard: &'static str,
+}
+
+/// Per-worker measurement state.
+#[derive(Default)]
+pub(crate) struct Meter {
+    pub totals: Counters,
+    /// Interned keys (call site and path) of the operations seen by this worker.
+    keys: Vec<usize>,
+    last_key: (usize, u32),
+    /// Per key: executions by the current lane.
+    lane_occ: Vec<u32>,
+    lane_touched: Vec<u32>,
+    /// Per key: first slot of each occurrence in the current warp phase.
+    slot_of: Vec<Vec<u32>>,
+    warp_touched: Vec<u32>,
+    slots: Vec<Slot>,
+    /// (slot, sector) of every global access in the current warp phase.
+    sectors: Vec<(u32, u64)>,
+    // Race check.
+    shadow: Vec<Shadow>,
+    now: Stamp,
+    block: u32,
+    pub race: Option<Race>,
+}
+
+impl Meter {
+    fn intern(&mut self, key: usize) -> u32 {
+        if self.last_key.0 == key && !self.keys.is_empty() {
+            return self.last_key.1;
+        }
+        let id = match self.keys.iter().position(|&k| k == key) {
+            Some(i) => i as u32,
+            None => {
+                self.keys.push(key);
+                self.lane_occ.push(0);
+                self.slot_of.push(Vec::new());
+                (self.keys.len() - 1) as u32
+            }
+        };
+        self.last_key = (key, id);
+        id
+    }
+
+    /// Records one operation of `parts` instructions by the current lane; returns the
+    /// first of its slots.
+    pub fn op(&mut self, site: usize, kind: Kind, parts: u32, units: u32) -> u32 {
+        self.op_keyed(site.wrapping_mul(16), kind, parts, units)
+    }
+
+    fn op_keyed(&mut self, key: usize, kind: Kind, parts: u32, units: u32) -> u32 {
+        let id = self.intern(key) as usize;
+        let occ = self.lane_occ[id] as usize;
+        if occ == 0 {
+            self.lane_touched.push(id as u32);
+        }
+        self.lane_occ[id] += 1;
+        let per_site = &mut self.slot_of[id];
+        if per_site.is_empty() {
+            self.warp_touched.push(id as u32);
+        }
+        let first = match per_site.get(occ) {
+            Some(&s) => s,
+            None => {
+                let s = self.slots.len() as u32;
+                per_site.push(s);
+                for _ in 0..parts {
+                    self.slots.push(Slot { kind, max_units: 0, sum_units: 0 });
+                }
+                s
+            }
+        };
+        for p in 0..parts {
+            let slot = &mut self.slots[(first + p) as usize];
+            slot.max_units = slot.max_units.max(units);
+            slot.sum_units += units as u64;
+        }
+        first
+    }
+
+    /// A global access of a `size`-byte element at `addr`, issued as `size / width`
+    /// instructions of `width` bytes.
+    pub fn global(&mut self, site: usize, kind: Kind, addr: u64, size: u64, width: u64) {
+        let parts = (size / width).max(1) as u32;
+        let first = self.op(site, kind, parts, 1);
+        for p in 0..parts as u64 {
+            let a = addr + p * width;
+            for sector in a / SECTOR_BYTES..=(a + width - 1) / SECTOR_BYTES {
+                self.sectors.push((first + p as u32, sector));
+            }
+        }
+    }
+
+    pub fn work(&mut self, site: usize, region: usize, path: usize, units: u32) {
+        if units > 0 {
+            // Paths of one site are distinct instructions (arms of a branch).
+            self.op_keyed(site.wrapping_mul(16) + 8 + path % MAX_PATHS, Kind::Work(region as u8), 1, units);
+        }
+    }
+
+    pub fn begin_block(&mut self, block: u32, shared_words: usize) {
+        self.block = block;
+        self.now.epoch += 1;
+        if self.shadow.len() < shared_words {
+            self.shadow.resize(shared_words, Shadow::default());
+        }
+    }
+
+    /// A warp-wide operation (ballot, shuffle) executed by `lanes` lanes.
+    pub fn warp_op(&mut self, lanes: u32) {
+        self.totals.ops_issued += 1;
+        self.totals.ops_active += lanes as u64;
+    }
+
+    pub fn barrier(&mut self) {
+        self.totals.barriers += 1;
+        self.now.epoch += 1;
+    }
+
+    pub fn begin_warp_call(&mut self) {
+        self.now.warp_call += 1;
+    }
+
+    pub fn begin_lane_phase(&mut self) {
+        self.now.lane_call += 1;
+    }
+
+    pub fn begin_lane(&mut self, thread: u32) {
+        self.now.thread = thread;
+        for &id in &self.lane_touched {
+            self.lane_occ[id as usize] = 0;
+        }
+        self.lane_touched.clear();
+    }
+
+    /// A shared-memory access of words `first..first + n` by the current lane.
+    pub fn shared(&mut self, first: usize, n: usize, write: bool) {
+        let now = self.now;
+        for w in first..first + n {
+            let s = &mut self.shadow[w];
+            let hazard = if write {
+                if s.read.races(&now) {
+                    Some(("write after read", s.read.thread))
+                } else if s.write.races(&now) {
+                    Some(("write after write", s.write.thread))
+                } else {
+                    None
+                }
+            } else if s.write.races(&now) {
+                Some(("read after write", s.write.thread))
+            } else {
+                None
+            };
+            if write {
+                s.write = now;
+            } else {
+                s.read = now;
+            }
+            if let Some((hazard, first)) = hazard
+                && self.race.is_none()
+            {
+                self.race = Some(Race { block: self.block, byte: w * 4, first, second: now.thread, hazard });
+            }
+        }
+    }
+
+    /// Closes a lane phase of a warp: its warp instructions go into the totals.
+    pub fn end_warp_phase(&mut self) {
+        for s in &self.slots {
+            match s.kind {
+                Kind::Work(r) => {
+                    self.totals.issued[r as usize] += s.max_units as u64;
+                    self.totals.active[r as usize] += s.sum_units;
+                }
+                k => {
+                    self.totals.ops_issued += s.max_units as u64;
+                    self.totals.ops_active += s.sum_units;
+                    match k {
+                        Kind::Load => self.totals.loads.requests += 1,
+                        Kind::Store => self.totals.stores.requests += 1,
+                        Kind::Atomic => self.totals.atomics.requests += 1,
+                        _ => {}
+                    }
+                }
+            }
+        }
+        if !self.sectors.is_empty() {
+            self.sectors.sort_unstable();
+            self.sectors.dedup();
+            for &(slot, _) in &self.sectors {
+                match self.slots[slot as usize].kind {
+                    Kind::Load => self.totals.loads.sectors += 1,
+                    Kind::Store => self.totals.stores.sectors += 1,
+                    _ => self.totals.atomics.sectors += 1,
+                }
+            }
+            self.sectors.clear();
+        }
+        for &id in &self.warp_touched {
+            self.slot_of[id as usize].clear();
+        }
+        self.warp_touched.clear();
+        self.slots.clear();
+    }
+}
