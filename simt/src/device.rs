@@ -1,7 +1,7 @@
 //! The device: configuration, memory accounting, kernel launches and statistics.
 
 use crate::exec::{Block, MAX_REGIONS, Thread, Worker};
-use crate::memory::{DeviceBuffer, DeviceCopy, MemCounter, Scratch};
+use crate::memory::{BufferPool, DeviceBuffer, DeviceCopy, MemCounter, Scratch};
 use crate::meter::{Counters, Race};
 use crate::stats::{KernelSummary, LaunchRecord, RegionStats, Stats};
 use rayon::prelude::*;
@@ -80,6 +80,8 @@ struct Inner {
     stats: Mutex<Stats>,
     /// Host scratch the primitives' CPU backend reuses between calls (never zeroed).
     pool: Mutex<Vec<u128>>,
+    /// Allocations of dropped pooled buffers.
+    buffers: Arc<BufferPool>,
 }
 
 /// The race in the lowest block, so that the report does not depend on scheduling.
@@ -114,7 +116,8 @@ impl Device {
     pub fn new(config: DeviceConfig) -> Device {
         let measure = AtomicBool::new(config.measure);
         let (mem, stats, pool) = (Arc::default(), Mutex::new(Stats::default()), Mutex::new(Vec::new()));
-        Device { inner: Arc::new(Inner { config, measure, mem, stats, pool }) }
+        let buffers = Arc::default();
+        Device { inner: Arc::new(Inner { config, measure, mem, stats, pool, buffers }) }
     }
 
     pub fn config(&self) -> &DeviceConfig {
@@ -135,6 +138,17 @@ impl Device {
     /// A buffer of `n` default (zero) elements.
     pub fn alloc<T: DeviceCopy + Default>(&self, n: usize) -> DeviceBuffer<T> {
         DeviceBuffer::from_vec(self.inner.mem.clone(), vec![T::default(); n])
+    }
+
+    /// A buffer of `n` elements whose contents are unspecified (stale values of earlier
+    /// buffers of the same type), for kernels that overwrite what they read, like
+    /// `cudaMallocAsync` from a memory pool: when the buffer drops its allocation
+    /// returns to the device's pool and the next `alloc_pooled` of that type reuses
+    /// it without zero-filling (only growth past its high-water mark is filled).
+    /// Counted as device memory while the buffer lives; idle pooled allocations are
+    /// host memory the device keeps until it is dropped.
+    pub fn alloc_pooled<T: DeviceCopy + Default>(&self, n: usize) -> DeviceBuffer<T> {
+        DeviceBuffer::pooled(self.inner.mem.clone(), self.inner.buffers.clone(), n)
     }
 
     /// A buffer of `n` copies of `value`.

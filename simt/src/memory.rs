@@ -10,9 +10,11 @@
 //! undefined). Element types implement [`DeviceCopy`]: plain data whose size and
 //! alignment are multiples of 4 bytes.
 
+use std::any::{Any, TypeId};
+use std::collections::HashMap;
 use std::marker::PhantomData;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
+use std::sync::{Arc, Mutex};
 
 /// Plain data that can live in device memory.
 ///
@@ -101,6 +103,51 @@ impl MemCounter {
     }
 }
 
+/// Allocations returned by dropped pooled buffers, by element type, for
+/// [`crate::Device::alloc_pooled`] to hand out again without zero-filling.
+#[derive(Default)]
+pub(crate) struct BufferPool {
+    free: Mutex<HashMap<TypeId, Vec<Box<dyn Any + Send>>>>,
+}
+
+/// Allocations the pool keeps per element type (the largest ones).
+const POOLED_PER_TYPE: usize = 8;
+
+impl BufferPool {
+    /// A pooled vector of `T` whose high-water length is at least `n` (elements beyond
+    /// the previous high-water mark are filled with defaults; the rest are stale).
+    pub(crate) fn take<T: DeviceCopy + Default>(&self, n: usize) -> Vec<T> {
+        let mut free = self.free.lock().unwrap_or_else(|e| e.into_inner());
+        let list = free.entry(TypeId::of::<T>()).or_default();
+        // The smallest that fits, else the largest (grown).
+        let len = |b: &Box<dyn Any + Send>| b.downcast_ref::<Vec<T>>().map_or(0, Vec::len);
+        let pick = (0..list.len())
+            .filter(|&i| len(&list[i]) >= n)
+            .min_by_key(|&i| len(&list[i]))
+            .or_else(|| (0..list.len()).max_by_key(|&i| len(&list[i])));
+        let mut v = match pick {
+            Some(i) => *list.swap_remove(i).downcast::<Vec<T>>().expect("pooled by type"),
+            None => Vec::new(),
+        };
+        drop(free);
+        if v.len() < n {
+            v.resize(n, T::default());
+        }
+        v
+    }
+
+    fn give<T: DeviceCopy>(&self, v: Vec<T>) {
+        let mut free = self.free.lock().unwrap_or_else(|e| e.into_inner());
+        let list = free.entry(TypeId::of::<T>()).or_default();
+        list.push(Box::new(v));
+        if list.len() > POOLED_PER_TYPE {
+            let len = |b: &Box<dyn Any + Send>| b.downcast_ref::<Vec<T>>().map_or(0, Vec::len);
+            let smallest = (0..list.len()).min_by_key(|&i| len(&list[i])).expect("non-empty");
+            list.swap_remove(smallest);
+        }
+    }
+}
+
 /// Bytes a primitive's CPU backend holds as scratch, counted as device memory while
 /// the guard lives (the kernels would hold them on the device).
 pub(crate) struct Scratch {
@@ -131,13 +178,27 @@ pub struct DeviceBuffer<T: DeviceCopy> {
     len: usize,
     vbase: u64,
     mem: Arc<MemCounter>,
+    /// Where the allocation goes when the buffer drops (pooled buffers only).
+    pool: Option<Arc<BufferPool>>,
 }
 
 impl<T: DeviceCopy> DeviceBuffer<T> {
     pub(crate) fn from_vec(mem: Arc<MemCounter>, data: Vec<T>) -> Self {
         let _ = const { words::<T>() };
         let vbase = mem.alloc(data.len() * std::mem::size_of::<T>());
-        DeviceBuffer { len: data.len(), data, vbase, mem }
+        DeviceBuffer { len: data.len(), data, vbase, mem, pool: None }
+    }
+
+    /// A buffer of `n` elements on a pooled allocation (contents unspecified).
+    pub(crate) fn pooled(mem: Arc<MemCounter>, pool: Arc<BufferPool>, n: usize) -> Self
+    where
+        T: Default,
+    {
+        let data = pool.take::<T>(n);
+        let mut b = Self::from_vec(mem, data);
+        b.len = n;
+        b.pool = Some(pool);
+        b
     }
 
     pub fn len(&self) -> usize {
@@ -210,6 +271,9 @@ impl<T: DeviceCopy> DeviceBuffer<T> {
 impl<T: DeviceCopy> Drop for DeviceBuffer<T> {
     fn drop(&mut self) {
         self.mem.free(self.held_bytes());
+        if let Some(pool) = self.pool.take() {
+            pool.give(std::mem::take(&mut self.data));
+        }
     }
 }
 

@@ -469,6 +469,27 @@ fn memory_accounting_tracks_current_and_peak() {
 }
 
 #[test]
+fn pooled_buffers_reuse_their_allocation_without_zero_filling() {
+    let dev = Device::default();
+    let mut a = dev.alloc_pooled::<u32>(1000);
+    a.as_mut_slice().fill(7);
+    assert_eq!(dev.memory().current, 4000);
+    drop(a);
+    assert_eq!(dev.memory().current, 0, "idle pooled allocations are not device memory");
+    // Same type, no larger: the same storage, stale contents (not zeroed).
+    let b = dev.alloc_pooled::<u32>(600);
+    assert_eq!(b.len(), 600);
+    assert!(b.as_slice().iter().all(|&x| x == 7), "reused without zero-filling");
+    // Another type never sees it; growth past the high-water mark is filled.
+    let c = dev.alloc_pooled::<u64>(10);
+    assert!(c.as_slice().iter().all(|&x| x == 0));
+    drop(b);
+    let d = dev.alloc_pooled::<u32>(1500);
+    assert!(d.as_slice()[..1000].iter().all(|&x| x == 7) && d.as_slice()[1000..].iter().all(|&x| x == 0));
+    assert_eq!(dev.memory().current, 1500 * 4 + 80);
+}
+
+#[test]
 fn work_queue_pushes_every_item_once_and_reports_overflow() {
     let dev = Device::default();
     let mut q = WorkQueue::<u32>::new(&dev, 1000);

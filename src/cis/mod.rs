@@ -143,9 +143,9 @@ impl CisLbdpt {
         loop {
             // Regenerate into free slots (all at once without compaction, when the pool is done).
             if next_pixel < pixels && (p.regenerate || active.is_empty()) {
-                let mut all = dev.alloc::<u32>(pool);
+                let mut all = dev.alloc_pooled::<u32>(pool);
                 simt::sequence(dev, &mut all, 0, 1);
-                let mut free = dev.alloc::<u32>(pool);
+                let mut free = dev.alloc_pooled::<u32>(pool);
                 let n_free = simt::copy_if_stencil(dev, &all, &slots, &mut free, |s: Slot| s.alive == 0);
                 let k = (n_free as u32).min(pixels - next_pixel) as usize;
                 if k > 0 {
@@ -155,7 +155,7 @@ impl CisLbdpt {
                     dev.for_each("cis::generate", k, |t, i| {
                         generate(t, i, &fv, first, pass, seed, &cam, (w, h), &sv, &vv)
                     });
-                    let mut grown = dev.alloc::<u32>(active.len() + k);
+                    let mut grown = dev.alloc_pooled::<u32>(active.len() + k);
                     let (av, fv, gv) = (active.view(), free.view(), grown.view_mut());
                     let n_old = active.len();
                     dev.for_each("cis::append_active", n_old + k, |t, i| {
@@ -170,21 +170,23 @@ impl CisLbdpt {
             if n == 0 {
                 break;
             }
-            // Extend: one batch of rays through the caster.
-            let mut ray_buf = dev.alloc::<Ray>(n);
+            // Extend: one batch of rays through the caster. (Buffers the kernels fully
+            // overwrite, or read only as far as they were written, come from the device's
+            // pool without zero-filling.)
+            let mut ray_buf = dev.alloc_pooled::<Ray>(n);
             {
                 let (av, sv, rv) = (active.view(), slots.view(), ray_buf.view_mut());
                 dev.for_each("cis::gather_rays", n, |t, i| t.store(&rv, i, t.load(&sv, t.load(&av, i) as usize).ray));
             }
-            let mut hits = dev.alloc::<Hit>(n);
+            let mut hits = dev.alloc_pooled::<Hit>(n);
             rays += n;
             // Dead samples kept in the pool (no compaction) carry invalid rays: they miss.
             ctx.caster.closest(ray_buf.as_slice(), hits.as_mut_slice());
             drop(ray_buf);
 
             // Implicit queues: sort by material.
-            let mut keys = dev.alloc::<u32>(n);
-            let mut order = dev.alloc::<u32>(n);
+            let mut keys = dev.alloc_pooled::<u32>(n);
+            let mut order = dev.alloc_pooled::<u32>(n);
             {
                 let (hv, kv, ov) = (hits.view(), keys.view_mut(), order.view_mut());
                 let material_of = &ctx.scene.material_of;
@@ -228,11 +230,11 @@ impl CisLbdpt {
             let n_pending = pool * PENDING_PER_SLOT;
             let mut blocked = dev.alloc::<u32>(n_pending);
             {
-                let mut all = dev.alloc::<u32>(n_pending);
+                let mut all = dev.alloc_pooled::<u32>(n_pending);
                 simt::sequence(dev, &mut all, 0, 1);
-                let mut idx = dev.alloc::<u32>(n_pending);
+                let mut idx = dev.alloc_pooled::<u32>(n_pending);
                 let m = simt::copy_if_stencil(dev, &all, &pending, &mut idx, |q: PendingData| q.state == 1);
-                let mut shadow = dev.alloc::<Ray>(m);
+                let mut shadow = dev.alloc_pooled::<Ray>(m);
                 {
                     let (iv, pv, sv) = (idx.view(), pending.view(), shadow.view_mut());
                     dev.for_each("cis::gather_shadow_rays", m, |t, i| {
@@ -254,12 +256,12 @@ impl CisLbdpt {
             }
 
             // Compact the dead out of the active list.
-            let mut alive = dev.alloc::<u32>(n);
+            let mut alive = dev.alloc_pooled::<u32>(n);
             {
                 let (av, sv, lv) = (active.view(), slots.view(), alive.view_mut());
                 dev.for_each("cis::alive_flags", n, |t, i| t.store(&lv, i, t.load(&sv, t.load(&av, i) as usize).alive));
             }
-            let mut kept = dev.alloc::<u32>(n);
+            let mut kept = dev.alloc_pooled::<u32>(n);
             let survivors = simt::copy_if_stencil(dev, &active, &alive, &mut kept, |a: u32| a != 0);
             if p.regenerate || survivors == 0 {
                 active = dev.alloc_from(&kept.as_slice()[..survivors]);
@@ -286,7 +288,7 @@ impl CisLbdpt {
 fn queue_lengths(dev: &Device, keys: &DeviceBuffer<u32>, sorted: bool) -> Vec<(u32, u32)> {
     let n = keys.len();
     let ones = dev.alloc_filled(n, 1u32);
-    let (mut rk, mut rv) = (dev.alloc::<u32>(n), dev.alloc::<u32>(n));
+    let (mut rk, mut rv) = (dev.alloc_pooled::<u32>(n), dev.alloc_pooled::<u32>(n));
     let runs = simt::reduce_by_key(dev, keys, &ones, &mut rk, &mut rv, 0, |a, b| a + b);
     let mut out: Vec<(u32, u32)> =
         rk.as_slice()[..runs].iter().copied().zip(rv.as_slice()[..runs].iter().copied()).collect();
