@@ -163,13 +163,13 @@ pub fn shade(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
 
     // Every strategy at this vertex, into this slot's pending entries.
     let cache_len = a.cache_entries.len();
-    let subpath = |e: usize| {
+    let subpath = |e: usize, light: &mut VertexList| {
         let [start, s] = t.load(&a.cache_entries, e);
-        let mut light = VertexList::default();
+        light.clear();
         for k in 0..s as usize {
             light.push(t.load(&a.cache_vertices, start as usize + k));
         }
-        (light, s as usize)
+        s as usize
     };
     let mut path = VertexList::default();
     let mut next = 0;

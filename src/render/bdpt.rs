@@ -84,16 +84,17 @@ impl Default for Vertex {
 /// integrators handle: `max_depth + 2` vertices.
 pub const MAX_PATH: usize = 64;
 
-/// A full path on the stack, so kernels can build one without allocating.
+/// A full path on the stack, so kernels can build one without allocating. Slots past
+/// `len` are never read, so a new list costs nothing (no 64-vertex fill).
 #[derive(Clone, Copy)]
 pub struct VertexList {
-    buf: [Vertex; MAX_PATH],
+    buf: [std::mem::MaybeUninit<Vertex>; MAX_PATH],
     len: usize,
 }
 
 impl Default for VertexList {
     fn default() -> Self {
-        VertexList { buf: [Vertex::default(); MAX_PATH], len: 0 }
+        VertexList { buf: [std::mem::MaybeUninit::uninit(); MAX_PATH], len: 0 }
     }
 }
 
@@ -102,7 +103,7 @@ impl VertexList {
         self.len = 0;
     }
     pub fn push(&mut self, v: Vertex) {
-        self.buf[self.len] = v;
+        self.buf[self.len] = std::mem::MaybeUninit::new(v);
         self.len += 1;
     }
     pub fn extend<'a>(&mut self, vs: impl IntoIterator<Item = &'a Vertex>) {
@@ -115,13 +116,15 @@ impl VertexList {
 impl std::ops::Deref for VertexList {
     type Target = [Vertex];
     fn deref(&self) -> &[Vertex] {
-        &self.buf[..self.len]
+        // SAFETY: the first `len` slots were written by `push`.
+        unsafe { std::slice::from_raw_parts(self.buf.as_ptr() as *const Vertex, self.len) }
     }
 }
 
 impl std::ops::DerefMut for VertexList {
     fn deref_mut(&mut self) -> &mut [Vertex] {
-        &mut self.buf[..self.len]
+        // SAFETY: as for `deref`.
+        unsafe { std::slice::from_raw_parts_mut(self.buf.as_mut_ptr() as *mut Vertex, self.len) }
     }
 }
 

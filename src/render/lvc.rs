@@ -235,7 +235,7 @@ pub(crate) fn vertex_strategies(
     cam: &[Vertex],
     t: usize,
     cache_len: usize,
-    subpath: &dyn Fn(usize) -> (VertexList, usize),
+    subpath: &dyn Fn(usize, &mut VertexList) -> usize,
     counts: StrategyCounts,
     connections: Connections,
     rng: &mut Rng,
@@ -257,8 +257,10 @@ pub(crate) fn vertex_strategies(
     if cache_len == 0 || connections.per_vertex() == 0 || t > max_depth {
         return;
     }
-    let connect = |e: usize, extra: f32, path: &mut VertexList, sink: &mut dyn FnMut(Pending)| {
-        let (light, s) = subpath(e);
+    // One light-subpath buffer for every candidate and connection (filled in place).
+    let mut light = VertexList::default();
+    let mut connect = |e: usize, extra: f32, path: &mut VertexList, sink: &mut dyn FnMut(Pending)| {
+        let s = subpath(e, &mut light);
         if s + t - 2 > max_depth {
             return;
         }
@@ -278,9 +280,10 @@ pub(crate) fn vertex_strategies(
             let n = (candidates as usize).clamp(1, MAX_CANDIDATES);
             let (mut entry, mut target) = ([0usize; MAX_CANDIDATES], [0f32; MAX_CANDIDATES]);
             let mut total = 0.0f32;
+            let mut light = VertexList::default();
             for k in 0..n {
                 entry[k] = uniform_entry(cache_len, rng);
-                let (light, s) = subpath(entry[k]);
+                let s = subpath(entry[k], &mut light);
                 target[k] = if s + t - 2 > max_depth {
                     0.0
                 } else {
@@ -317,11 +320,11 @@ pub(crate) fn camera_strategies(
     rng: &mut Rng,
     path: &mut VertexList,
 ) -> Vec<Pending> {
-    let subpath = |e: usize| {
+    let subpath = |e: usize, list: &mut VertexList| {
         let (light, s) = cache.subpath(e);
-        let mut list = VertexList::default();
+        list.clear();
         list.extend(light);
-        (list, s)
+        s
     };
     let mut pending = Vec::new();
     for t in 2..=cam.len() {
