@@ -440,7 +440,7 @@ impl Inspector {
         }
         egui::ScrollArea::vertical().show(ui, |ui| {
             egui::Grid::new("kernels").striped(true).show(ui, |ui| {
-                for (i, h) in ["kernel", "launches", "ms", "SIMD eff", "sectors/req", "shared B"].iter().enumerate() {
+                for (i, h) in ["kernel", "launches", "ms", "SIMD eff", "load sect/req", "shared B"].iter().enumerate() {
                     let arrow = if self.kernel_sort.0 == i { if self.kernel_sort.1 { " v" } else { " ^" } } else { "" };
                     if ui.button(format!("{h}{arrow}")).clicked() {
                         self.kernel_sort = (i, if self.kernel_sort.0 == i { !self.kernel_sort.1 } else { true });
