@@ -37,6 +37,10 @@ pub enum Error {
         #[source]
         source: std::io::Error,
     },
+    #[error("{path}: is {what}, not a regular file; refusing to read it")]
+    NotRegularFile { path: PathBuf, what: &'static str },
+    #[error("{path}: more than {limit} bytes (after decompression); raise WARPRAY_MAX_INPUT_BYTES to read it")]
+    TooLarge { path: PathBuf, limit: u64 },
     #[error("{at}: malformed OBJ: {msg}")]
     MalformedObj { at: Location, msg: String },
     #[error("{at}: material library '{mtl}' not found (looked for {looked})")]

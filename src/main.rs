@@ -174,14 +174,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
     warpray::film::check_size(width, height)?;
     desc.scene.check_renderable()?;
 
-    let mut pool = rayon::ThreadPoolBuilder::new();
-    if let Some(n) = args.threads {
-        if n == 0 {
-            return Err(Error::BadSetting("--threads must be at least 1".into()));
-        }
-        pool = pool.num_threads(n);
-    }
-    let pool = pool.build().map_err(|e| Error::BadSetting(format!("thread pool: {e}")))?;
+    let pool = thread_pool(args.threads)?;
     let threads = pool.current_num_threads();
 
     pool.install(|| {
@@ -226,11 +219,14 @@ fn run_render(args: RenderArgs) -> Result<()> {
     })
 }
 
+/// Most worker threads `--threads` accepts (thousands of OS threads only thrash).
+const MAX_THREADS: usize = 1024;
+
 fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(n) = threads {
-        if n == 0 {
-            return Err(Error::BadSetting("--threads must be at least 1".into()));
+        if n == 0 || n > MAX_THREADS {
+            return Err(Error::BadSetting(format!("--threads must be between 1 and {MAX_THREADS}, not {n}")));
         }
         pool = pool.num_threads(n);
     }
@@ -242,8 +238,12 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
     let desc = resolve_scene(&args.scene)?;
     let (width, height) = args.size;
     warpray::film::check_size(width, height)?;
-    if !(args.seconds > 0.0 && args.seconds.is_finite()) {
-        return Err(Error::BadSetting("--seconds must be positive".into()));
+    if !(args.seconds > 0.0 && args.seconds <= warpray::render::MAX_SECONDS) {
+        return Err(Error::BadSetting(format!(
+            "--seconds must be positive and at most {:e}, not {}",
+            warpray::render::MAX_SECONDS,
+            args.seconds
+        )));
     }
     let with_ext = |ext: &str| {
         let mut name = args.output.clone().into_os_string();

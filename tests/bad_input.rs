@@ -10,7 +10,7 @@ use warpray::cast::BvhCaster;
 use warpray::error::Error;
 use warpray::film::Film;
 use warpray::render::{Budget, RenderOptions, render};
-use warpray::scene::{ObjOptions, load_obj, load_scene};
+use warpray::scene::{Material, ObjOptions, load_obj, load_scene};
 
 /// A fresh scratch folder for one test.
 fn scratch(name: &str) -> PathBuf {
@@ -200,4 +200,112 @@ fn failed_writes_leave_no_file_behind() {
     let names: Vec<String> =
         fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
     assert_eq!(names.len(), 2, "{names:?}");
+}
+
+/// Makes a FIFO with the system's `mkfifo`; a test that needs one says loudly when the
+/// tool is missing.
+#[cfg(unix)]
+fn fifo(path: &Path) {
+    let ok = std::process::Command::new("mkfifo").arg(path).status().map(|s| s.success());
+    assert!(matches!(ok, Ok(true)), "this test needs `mkfifo` to make a FIFO: {ok:?}");
+}
+
+#[cfg(unix)]
+#[test]
+fn fifos_devices_and_directories_are_refused_without_reading() {
+    let dir = scratch("special");
+    // A FIFO with no writer would block a reader forever; /dev/zero never ends.
+    let pipe = dir.join("pipe.obj");
+    fifo(&pipe);
+    let zero_link = dir.join("zero.obj");
+    std::os::unix::fs::symlink("/dev/zero", &zero_link).unwrap();
+    for p in [pipe.as_path(), Path::new("/dev/zero"), zero_link.as_path(), dir.as_path()] {
+        let e = load_obj(p, &ObjOptions::default()).unwrap_err();
+        assert!(matches!(&e, Error::NotRegularFile { path, .. } if path == p), "{}: {e}", p.display());
+    }
+    let e = load_scene(&pipe).unwrap_err();
+    assert!(matches!(e, Error::NotRegularFile { .. }), "{e}");
+    let toml = dir.join("pipe.toml");
+    fifo(&toml);
+    assert!(matches!(load_scene(&toml).unwrap_err(), Error::NotRegularFile { .. }));
+    // An `mtllib` that names a device.
+    let p = write(&dir, "scene.obj", "mtllib /dev/zero\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    let e = load_obj(p, &ObjOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("/dev/zero") && e.to_string().contains("device"), "{e}");
+}
+
+#[test]
+fn inputs_past_the_byte_limit_stop_there() {
+    let dir = scratch("limit");
+    write(&dir, "scene.mtl", GOOD_MTL);
+    // A gzip bomb of newlines: 64 MB of text from 64 KB on disk.
+    let p = dir.join("bomb.obj.gz");
+    let mut gz = flate2::write::GzEncoder::new(fs::File::create(&p).unwrap(), flate2::Compression::best());
+    let chunk = vec![b'\n'; 1 << 20];
+    for _ in 0..64 {
+        gz.write_all(&chunk).unwrap();
+    }
+    gz.finish().unwrap();
+    assert!(fs::metadata(&p).unwrap().len() < 1 << 20);
+    let opts = ObjOptions { max_bytes: Some(1 << 20), ..ObjOptions::default() };
+    let start = std::time::Instant::now();
+    let e = load_obj(&p, &opts).unwrap_err();
+    assert!(matches!(&e, Error::TooLarge { path, limit: 1048576 } if path == &p), "{e}");
+    assert!(e.to_string().contains("WARPRAY_MAX_INPUT_BYTES"), "{e}");
+    assert!(start.elapsed().as_secs() < 10, "stopped at the limit, not at the end");
+    // A plain file just under the limit loads; the same file one byte over does not.
+    let text = obj("f 1 2 3\n");
+    let p = write(&dir, "small.obj", &text);
+    let exact = ObjOptions { max_bytes: Some(text.len() as u64), ..ObjOptions::default() };
+    assert!(load_obj(&p, &exact).is_ok());
+    let short = ObjOptions { max_bytes: Some(text.len() as u64 - 1), ..ObjOptions::default() };
+    assert!(matches!(load_obj(&p, &short).unwrap_err(), Error::TooLarge { .. }));
+}
+
+#[test]
+fn mtl_numbers_are_checked_with_file_line_and_field() {
+    let dir = scratch("mtlnum");
+    let p = write(&dir, "scene.obj", &obj("f 1 2 3\n"));
+    let cases = [
+        ("newmtl white\nKd 0.5 0.5\n", 2, "Kd"), // two components: a panic inside tobj before
+        ("newmtl white\nKd 0.5 0.5 0.5\nKe -1 0 0\n", 3, "Ke"),
+        ("newmtl white\nKe nan 1 1\n", 2, "Ke"),
+        ("newmtl white\nNi 0\n", 2, "Ni"),
+        ("newmtl white\nNi NaN\n", 2, "Ni"),
+        ("newmtl white\nNs -3\n", 2, "Ns"),
+        ("newmtl white\nd 1.5\n", 2, "d"),
+        ("newmtl white\nKs 1 1 1 1\n", 2, "Ks"),
+    ];
+    for (mtl, line, field) in cases {
+        write(&dir, "scene.mtl", mtl);
+        let e = load_obj(&p, &ObjOptions::default()).unwrap_err();
+        let msg = e.to_string();
+        assert!(
+            matches!(&e, Error::MalformedMtl { at, .. } if at.line == line && at.path.ends_with("scene.mtl")),
+            "{mtl:?}: {msg}"
+        );
+        assert!(msg.contains(field), "{mtl:?}: {msg}");
+    }
+    // A comment after the values is fine (the shared Cornell box's MTL has them).
+    write(&dir, "scene.mtl", "newmtl white\nKa 0.63 0.065 0.05 # Red\nKd 0.5 0.5 0.5\n");
+    assert!(load_obj(&p, &ObjOptions::default()).is_ok());
+    // One value is a grey (the MTL format allows it).
+    write(&dir, "scene.mtl", "newmtl white\nKd 0.25\n");
+    let s = load_obj(&p, &ObjOptions::default()).unwrap();
+    let Material::Diffuse { albedo } = s.materials[0] else { panic!("{:?}", s.materials[0]) };
+    assert_eq!(albedo, warpray::prelude::Vec3::splat(0.25));
+}
+
+#[test]
+fn absurd_time_budgets_are_errors_not_overflows() {
+    let s = warpray::scene::cornell_box();
+    let caster = BvhCaster::new(&s);
+    for t in [1e30, f64::INFINITY, f64::NAN, 0.0, -1.0] {
+        let opts = RenderOptions { width: 4, height: 4, budget: Budget::Seconds(t), ..Default::default() };
+        assert!(matches!(render(&s, &caster, &opts, |_, _| true), Err(Error::BadSetting(_))), "{t}");
+    }
+    let dir = scratch("seconds");
+    let p = write(&dir, "s.toml", "base = \"cornell\"\n[render]\nseconds = 1e30\n");
+    let e = load_scene(&p).unwrap_err();
+    assert!(matches!(&e, Error::SceneFile { at, .. } if at.line == 3), "{e}");
 }

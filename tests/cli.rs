@@ -44,20 +44,28 @@ fn render_writes_png_and_exr_and_a_summary() {
 fn bad_arguments_fail_with_a_message_and_write_nothing() {
     let dir = scratch("bad");
     let png = dir.join("never.png");
-    let cases: [&[&str]; 5] = [
+    let cases: [&[&str]; 8] = [
         &["render", "/no/such/scene.obj"],
         &["render", "--size", "0x10"],
         &["render", "--size", "20000x20000"],
         &["render", "--threads", "0"],
+        &["render", "--threads", "20000"],
         &["render", "--spp", "0"],
+        &["render", "--seconds", "1e30"],
+        &["render", "--seconds", "nan"],
     ];
     for args in cases {
+        let start = std::time::Instant::now();
         let out = warpray().args(args).arg("-o").arg(&png).arg("-q").output().unwrap();
+        assert!(start.elapsed().as_secs() < 60, "{args:?} took {:?}", start.elapsed());
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "{args:?} should fail");
         assert!(stderr.contains("error"), "{args:?}: {stderr}");
         assert!(!png.exists(), "{args:?} wrote an image");
     }
+    let out = warpray().args(["converge", "--seconds", "1e30", "-o"]).arg(dir.join("c")).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("--seconds"), "{stderr}");
     let out = warpray().args(["render", "-o"]).arg(dir.join("x.jpg")).output().unwrap();
     assert!(!out.status.success());
     assert!(std::fs::read_dir(&dir).unwrap().next().is_none(), "nothing may be left behind");

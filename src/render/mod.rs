@@ -146,15 +146,19 @@ pub struct Renderer<'a> {
     integrator: Integrator,
 }
 
+/// Longest time budget a render accepts, seconds (about 116 days; a `Duration` of
+/// 1e30 s does not exist).
+pub const MAX_SECONDS: f64 = 1.0e7;
+
 impl<'a> Renderer<'a> {
     /// Checks the scene and settings and prepares the integrator.
     pub fn new(scene: &'a Scene, caster: &'a dyn RayCaster, opts: &RenderOptions) -> Result<Self> {
         scene.check_renderable()?;
         crate::film::check_size(opts.width, opts.height)?;
         if let Budget::Seconds(s) = opts.budget
-            && !(s > 0.0 && s.is_finite())
+            && !(s > 0.0 && s <= MAX_SECONDS)
         {
-            return Err(Error::BadSetting(format!("time budget {s} s must be positive")));
+            return Err(Error::BadSetting(format!("time budget {s} s must be positive and at most {MAX_SECONDS:e} s")));
         }
         if opts.max_depth > 1024 {
             return Err(Error::BadSetting(format!("max depth {} is absurd (at most 1024)", opts.max_depth)));

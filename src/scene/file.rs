@@ -225,7 +225,7 @@ pub fn load_scene(path: impl AsRef<Path>) -> Result<SceneDesc> {
         let scene = load_obj(path, &ObjOptions::default())?;
         return Ok(SceneDesc { scene, settings: RenderSettings::default() });
     }
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = super::input::read_text(path, super::input::max_input_bytes())?;
     parse_scene_file(path, &text)
 }
 
@@ -241,6 +241,15 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
     })?;
     let err = |msg: String| Error::SceneFile { at: Location::file(path), msg };
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    if let Some(t) = file.render.seconds
+        && !(t > 0.0 && t <= crate::render::MAX_SECONDS)
+    {
+        let line = text.lines().position(|l| l.trim_start().starts_with("seconds")).map_or(0, |i| i + 1);
+        return Err(Error::SceneFile {
+            at: Location::new(path, line),
+            msg: format!("render.seconds = {t}: must be positive and at most {:e}", crate::render::MAX_SECONDS),
+        });
+    }
 
     let mut scene = match file.base.as_deref() {
         None => Scene::empty(path),
@@ -274,7 +283,7 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
                 ),
             ));
         }
-        let opts = ObjOptions { scale: mesh.scale, translate: Vec3::from_array(mesh.translate) };
+        let opts = ObjOptions { scale: mesh.scale, translate: Vec3::from_array(mesh.translate), max_bytes: None };
         let mut part = load_obj(&found, &opts)?;
         if let Some(mname) = &mesh.material {
             let (_, m, e) = named.iter().find(|(n, ..)| n == mname).ok_or_else(|| {

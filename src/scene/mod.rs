@@ -6,6 +6,7 @@
 mod camera;
 mod cornell;
 mod file;
+pub mod input;
 mod material;
 mod obj;
 

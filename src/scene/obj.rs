@@ -4,11 +4,11 @@
 //! fails validation, a second pass over the file finds the first offending line so the
 //! error names `file:line`. That pass only runs on the error path.
 
+use super::input::{self, Limited};
 use super::{Material, Scene};
 use crate::error::{Error, Location, Result};
 use glam::Vec3;
 use std::cell::{Cell, RefCell};
-use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
@@ -19,15 +19,21 @@ pub struct ObjOptions {
     pub scale: f32,
     /// Translation applied after scaling.
     pub translate: Vec3,
+    /// Bytes read from the OBJ and from each MTL at most, after decompression
+    /// (default: [`super::input::max_input_bytes`]).
+    pub max_bytes: Option<u64>,
 }
 
-fn open_text(path: &Path) -> Result<Box<dyn BufRead>> {
-    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+/// A regular file's text (decompressed when it ends in `.gz`), cut off after `limit`
+/// bytes with `exceeded` set.
+fn open_text<'a>(path: &Path, limit: u64, exceeded: &'a Cell<bool>) -> Result<Box<dyn BufRead + 'a>> {
+    let file = input::open_regular(path)?;
     let gz = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("gz"));
     Ok(if gz {
-        Box::new(BufReader::with_capacity(1 << 16, flate2::read::MultiGzDecoder::new(file)))
+        let text = Limited::new(flate2::read::MultiGzDecoder::new(file), limit, exceeded);
+        Box::new(BufReader::with_capacity(1 << 16, text))
     } else {
-        Box::new(BufReader::with_capacity(1 << 16, file))
+        Box::new(BufReader::with_capacity(1 << 16, Limited::new(file, limit, exceeded)))
     })
 }
 
@@ -128,23 +134,27 @@ impl<R: BufRead> BufRead for LineCounter<'_, R> {
 pub fn load_obj(path: impl AsRef<Path>, opts: &ObjOptions) -> Result<Scene> {
     let path = path.as_ref();
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let lines_read = Cell::new(0usize);
-    let mut reader = LineCounter::new(open_text(path)?, &lines_read);
+    let limit = opts.max_bytes.unwrap_or_else(input::max_input_bytes);
+    let (lines_read, exceeded) = (Cell::new(0usize), Cell::new(false));
+    let mut reader = LineCounter::new(open_text(path, limit, &exceeded)?, &lines_read);
     // The MTL loader is called from inside tobj; remember the first failure and the
     // line that named the library.
     let mtl_error: RefCell<Option<Error>> = RefCell::new(None);
     let load_opts =
         tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
     let result = tobj::load_obj_buf(&mut reader, &load_opts, |mtl_path: &Path| {
-        load_mtl(&dir, mtl_path, path, lines_read.get(), &mtl_error)
+        load_mtl(&dir, mtl_path, path, lines_read.get(), limit, &mtl_error)
     });
     if let Some(e) = mtl_error.into_inner() {
         return Err(e);
     }
+    if exceeded.get() {
+        return Err(Error::TooLarge { path: path.into(), limit });
+    }
     let (models, materials) = match result {
         Ok(r) => r,
         Err(e) => {
-            return Err(diagnose(path, Some(e), lines_read.get().max(1)));
+            return Err(diagnose(path, Some(e), lines_read.get().max(1), limit));
         }
     };
     if let Some(line) = reader.first_short_face() {
@@ -184,14 +194,21 @@ pub fn load_obj(path: impl AsRef<Path>, opts: &ObjOptions) -> Result<Scene> {
         return Err(Error::EmptyMesh { at: Location::file(path) });
     }
     if scene.positions.iter().any(|p| !p.is_finite()) {
-        return Err(diagnose(path, None, 0));
+        return Err(diagnose(path, None, 0, limit));
     }
     scene.frame_camera();
     scene.validate()?;
     Ok(scene)
 }
 
-fn load_mtl(dir: &Path, mtl_path: &Path, obj: &Path, line: usize, err: &RefCell<Option<Error>>) -> tobj::MTLLoadResult {
+fn load_mtl(
+    dir: &Path,
+    mtl_path: &Path,
+    obj: &Path,
+    line: usize,
+    limit: u64,
+    err: &RefCell<Option<Error>>,
+) -> tobj::MTLLoadResult {
     let full: PathBuf = dir.join(mtl_path);
     let fail = |e: Error| {
         err.borrow_mut().get_or_insert(e);
@@ -199,14 +216,16 @@ fn load_mtl(dir: &Path, mtl_path: &Path, obj: &Path, line: usize, err: &RefCell<
     };
     // tobj calls us after it has read the `mtllib` line, so `line` counts it.
     let at = Location::new(obj, line.max(1));
-    let file = match File::open(&full) {
-        Ok(f) => f,
-        Err(_) => {
-            return fail(Error::MissingMtl { at, mtl: mtl_path.display().to_string(), looked: full });
-        }
+    if !full.exists() {
+        return fail(Error::MissingMtl { at, mtl: mtl_path.display().to_string(), looked: full });
+    }
+    // Read whole (bounded, regular files only) and checked before tobj parses it.
+    let text = match input::read_text(&full, limit).and_then(|t| input::check_mtl(&full, &t)) {
+        Ok(t) => t,
+        Err(e) => return fail(e),
     };
     let mtl_lines = Cell::new(0usize);
-    let mut reader = LineCounter::new(BufReader::new(file), &mtl_lines);
+    let mut reader = LineCounter::new(text.as_bytes(), &mtl_lines);
     match tobj::load_mtl_buf(&mut reader) {
         Ok(r) => Ok(r),
         Err(e) => fail(Error::MalformedMtl { at: Location::new(&full, mtl_lines.get().max(1)), msg: e.to_string() }),
@@ -215,8 +234,9 @@ fn load_mtl(dir: &Path, mtl_path: &Path, obj: &Path, line: usize, err: &RefCell<
 
 /// Finds the first line of the OBJ that is malformed, out of range or not finite.
 /// `fallback` is tobj's error when the scan finds nothing more precise.
-fn diagnose(path: &Path, fallback: Option<tobj::LoadError>, fallback_line: usize) -> Error {
-    let Ok(reader) = open_text(path) else {
+fn diagnose(path: &Path, fallback: Option<tobj::LoadError>, fallback_line: usize, limit: u64) -> Error {
+    let exceeded = Cell::new(false);
+    let Ok(reader) = open_text(path, limit, &exceeded) else {
         return Error::MalformedObj { at: Location::file(path), msg: "cannot re-read file".into() };
     };
     let mut n_v = 0usize;
