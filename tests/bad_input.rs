@@ -309,3 +309,23 @@ fn absurd_time_budgets_are_errors_not_overflows() {
     let e = load_scene(&p).unwrap_err();
     assert!(matches!(&e, Error::SceneFile { at, .. } if at.line == 3), "{e}");
 }
+
+#[test]
+fn vectors_in_scene_files_have_exactly_three_numbers() {
+    let dir = scratch("vec3");
+    let cases = [
+        ("base = \"cornell\"\n[[point_light]]\nposition = [0, 1, 0, 7]\nintensity = [1, 1, 1]\n", 3, "position"),
+        ("base = \"cornell\"\n[camera]\nposition = [0, 1, 3]\nlook_at = [0, 1]\n", 4, "look_at"),
+        (
+            "base = \"cornell\"\n[[material]]\nname = \"m\"\ntype = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5, 0.5]\n",
+            5,
+            "albedo",
+        ),
+    ];
+    for (text, line, key) in cases {
+        let p = write(&dir, "v.toml", text);
+        let e = load_scene(&p).unwrap_err();
+        assert!(matches!(&e, Error::SceneFile { at, .. } if at.line == line), "{text:?}: {e}");
+        assert!(e.to_string().contains(key), "{e}");
+    }
+}

@@ -234,7 +234,42 @@ fn line_of(text: &str, offset: usize) -> usize {
 }
 
 /// Parses scene-file text; `path` locates meshes and names the file in errors.
+/// Every array of numbers in a scene file is a 3-vector: serde would quietly drop a
+/// fourth number, so a list of any other length is an error at its key's line.
+fn check_vectors(path: &Path, text: &str) -> Result<()> {
+    fn walk(v: &toml::Value, key: &str, bad: &mut Option<(String, usize)>) {
+        match v {
+            toml::Value::Array(items) => {
+                let numbers = items.iter().all(|x| x.is_integer() || x.is_float());
+                if numbers && !items.is_empty() && items.len() != 3 && bad.is_none() {
+                    *bad = Some((key.to_string(), items.len()));
+                }
+                items.iter().for_each(|x| walk(x, key, bad));
+            }
+            toml::Value::Table(t) => t.iter().for_each(|(k, x)| walk(x, k, bad)),
+            _ => {}
+        }
+    }
+    let Ok(table) = text.parse::<toml::Table>() else { return Ok(()) };
+    let mut bad = None;
+    table.iter().for_each(|(k, v)| walk(v, k, &mut bad));
+    match bad {
+        None => Ok(()),
+        Some((key, n)) => {
+            let line = text
+                .lines()
+                .position(|l| l.split('=').next().is_some_and(|k| k.trim() == key) || l.contains(&format!(" {key} =")))
+                .map_or(0, |i| i + 1);
+            Err(Error::SceneFile {
+                at: Location::new(path, line),
+                msg: format!("{key}: expected three numbers, found {n}"),
+            })
+        }
+    }
+}
+
 pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
+    check_vectors(path, text)?;
     let file: FileScene = toml::from_str(text).map_err(|e| Error::SceneFile {
         at: Location::new(path, e.span().map_or(0, |s| line_of(text, s.start))),
         msg: e.message().to_string(),
