@@ -178,20 +178,25 @@ impl<'w> Block<'w> {
         }
         // Unmeasured: one plain loop over the block's threads (the order is the same,
         // warp by warp and lane by lane).
-        let shared = &self.worker.shared[..self.shared_words];
         for thread_idx in 0..self.block_dim {
-            let t = Thread {
-                thread_idx,
-                block_idx: self.block_idx,
-                block_dim: self.block_dim,
-                grid_dim: self.grid_dim,
-                shared,
-                regs: &self.worker.regs,
-                meter: None,
-            };
-            f(&t);
+            f(&self.thread(thread_idx, None));
         }
         self.worker.meter.get_mut().totals.threads += self.block_dim as u64;
+    }
+
+    /// Thread `thread_idx` of this block as a kernel phase sees it (`meter` is `None`
+    /// when the launch is not measured).
+    #[inline(always)]
+    fn thread<'s>(&'s self, thread_idx: u32, meter: Option<&'s RefCell<Meter>>) -> Thread<'s> {
+        Thread {
+            thread_idx,
+            block_idx: self.block_idx,
+            block_dim: self.block_dim,
+            grid_dim: self.grid_dim,
+            shared: &self.worker.shared[..self.shared_words],
+            regs: &self.worker.regs,
+            meter,
+        }
     }
 
     /// Runs `f` for every warp of the block, in order.
@@ -232,16 +237,7 @@ impl Warp<'_, '_> {
     pub fn for_each_lane(&mut self, mut f: impl FnMut(&Thread)) {
         let b = self.block;
         let meter = &b.worker.meter;
-        let shared = &b.worker.shared[..b.shared_words];
-        let thread = |lane: u32, meter| Thread {
-            thread_idx: self.warp_idx * WARP_SIZE + lane,
-            block_idx: b.block_idx,
-            block_dim: b.block_dim,
-            grid_dim: b.grid_dim,
-            shared,
-            regs: &b.worker.regs,
-            meter,
-        };
+        let thread = |lane: u32, meter| b.thread(self.warp_idx * WARP_SIZE + lane, meter);
         if b.measure {
             meter.borrow_mut().begin_lane_phase();
             for lane in 0..self.lanes {
