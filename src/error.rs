@@ -41,6 +41,8 @@ pub enum Error {
     NotRegularFile { path: PathBuf, what: &'static str },
     #[error("{path}: more than {limit} bytes (after decompression); raise WARPRAY_MAX_INPUT_BYTES to read it")]
     TooLarge { path: PathBuf, limit: u64 },
+    #[error("GPU library {library}: {msg}")]
+    Gpu { library: PathBuf, msg: String },
     #[error("{at}: malformed OBJ: {msg}")]
     MalformedObj { at: Location, msg: String },
     #[error("{at}: material library '{mtl}' not found (looked for {looked})")]

@@ -84,7 +84,7 @@ pub struct Aabb {
 }
 
 /// 1 + 2·γ(3) with γ(n) = nε/(1−nε): the widening that makes the slab test conservative.
-const SLAB_WIDEN: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
+pub(crate) const SLAB_WIDEN: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
 impl Default for Aabb {
     fn default() -> Self {

@@ -32,6 +32,8 @@ pub mod converge;
 pub mod error;
 pub mod film;
 pub mod geometry;
+#[cfg(feature = "cuda")]
+pub mod gpu;
 #[cfg(feature = "inspector")]
 pub mod inspector;
 pub mod lights;

@@ -184,6 +184,26 @@ impl<'w> Block<'w> {
         self.worker.meter.get_mut().totals.threads += self.block_dim as u64;
     }
 
+    /// Element `i` of a global buffer, loaded by every thread of the block from the same
+    /// address (a block's work item, a binary search over offsets): the value the block's
+    /// control flow needs, measured as on a GPU, one load per warp with all its lanes
+    /// active and the sectors of one element.
+    #[track_caller]
+    pub fn load_uniform<T: DeviceCopy, V: Readable<T>>(&mut self, v: &V, i: usize) -> T {
+        if self.measure {
+            let (at, addr) = (site(), v.address(i));
+            let (size, width) = (std::mem::size_of::<T>() as u64, access_width::<T>());
+            self.for_each_thread(|t| {
+                if let Some(m) = t.meter {
+                    note_global(m, at, Kind::Load, addr, size, width);
+                }
+            });
+            // A load, not a phase of its own: the block's threads were counted already.
+            self.worker.meter.get_mut().totals.threads -= self.block_dim as u64;
+        }
+        v.read(i)
+    }
+
     /// Thread `thread_idx` of this block as a kernel phase sees it (`meter` is `None`
     /// when the launch is not measured).
     #[inline(always)]

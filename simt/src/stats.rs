@@ -112,6 +112,31 @@ impl KernelSummary {
         self.loads.sectors_per_request()
     }
 
+    /// Adds another summary's launches to this one (the same kernel measured in two
+    /// runs, say).
+    pub fn merge(&mut self, o: &KernelSummary) {
+        self.launches += o.launches;
+        self.seconds += o.seconds;
+        self.threads += o.threads;
+        self.measured_launches += o.measured_launches;
+        self.ops.add(&o.ops);
+        self.add_regions(&o.regions);
+        self.loads.add(&o.loads);
+        self.stores.add(&o.stores);
+        self.atomics.add(&o.atomics);
+        self.shared_bytes = self.shared_bytes.max(o.shared_bytes);
+        self.barriers += o.barriers;
+    }
+
+    fn add_regions(&mut self, regions: &[RegionStats]) {
+        for reg in regions {
+            match self.regions.iter_mut().find(|x| x.name == reg.name) {
+                Some(x) => x.add(reg),
+                None => self.regions.push(reg.clone()),
+            }
+        }
+    }
+
     fn add(&mut self, r: &LaunchRecord) {
         self.name = r.name;
         self.launches += 1;
@@ -120,12 +145,7 @@ impl KernelSummary {
         self.measured_launches += r.measured as u64;
         self.ops.name = "ops";
         self.ops.add(&r.ops);
-        for reg in &r.regions {
-            match self.regions.iter_mut().find(|x| x.name == reg.name) {
-                Some(x) => x.add(reg),
-                None => self.regions.push(reg.clone()),
-            }
-        }
+        self.add_regions(&r.regions);
         self.loads.add(&r.loads);
         self.stores.add(&r.stores);
         self.atomics.add(&r.atomics);

@@ -207,6 +207,34 @@ fn coalesced_loads_touch_4_sectors_and_strided_loads_32() {
     assert_eq!((rec.loads.requests, rec.loads.sectors, rec.simd_efficiency()), (0, 0, None));
 }
 
+#[test]
+fn a_uniform_load_is_one_request_per_warp_on_one_element() {
+    let dev = measured();
+    let data = dev.alloc_from(&[5u32, 6, 7, 8, 9, 10, 11, 12]);
+    let wide = dev.alloc_from(&[[1u32; 8]; 4]);
+    let (v, w) = (data.view(), wide.view());
+    // Three blocks of 80 threads: warps of 32, 32 and 16 lanes.
+    let cfg = || LaunchConfig { grid: 3, block: 80, shared_bytes: 0, regions: &[] };
+    let rec = dev
+        .launch("uniform", cfg(), |blk| {
+            let x = blk.load_uniform(&v, blk.block_idx() as usize);
+            assert_eq!(x, 5 + blk.block_idx());
+            let _ = blk.load_uniform(&w, 1); // 32 bytes, 4-aligned: eight 4-byte loads
+        })
+        .unwrap();
+    // Per warp: one request for the u32 and eight for the 32-byte element, one sector each.
+    assert_eq!(rec.loads.requests, 3 * 3 * (1 + 8));
+    assert_eq!(rec.loads.sectors, rec.loads.requests);
+    // Every lane of a warp takes part: 16 of 32 in the partial warp.
+    let expected = (2.0 * 32.0 + 16.0) / (3.0 * 32.0);
+    assert!((rec.simd_efficiency().unwrap() - expected).abs() < 1e-12, "{:?}", rec.simd_efficiency());
+    assert_eq!(rec.threads, 0, "a uniform load is not a phase of threads");
+    // Unmeasured, the value is the same and nothing is counted.
+    dev.set_measure(false);
+    let rec = dev.launch("uniform_off", cfg(), |blk| assert_eq!(blk.load_uniform(&v, 2), 7)).unwrap();
+    assert_eq!(rec.loads.requests, 0);
+}
+
 #[derive(Clone, Copy, Default)]
 #[repr(C, align(16))]
 struct Vec4([f32; 4]);

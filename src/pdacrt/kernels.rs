@@ -467,14 +467,15 @@ pub(crate) struct BruteForceArgs<'a> {
 /// atomic minimum of (distance, triangle id).
 pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
     let b = blk.block_idx();
-    // The terminal node owning this chunk (binary search; the same in every thread).
+    // The terminal node owning this chunk: a binary search that every thread makes on
+    // the same addresses (uniform loads).
     let (mut lo, mut hi) = (0usize, a.terminal_count);
     while hi - lo > 1 {
         let mid = (lo + hi) / 2;
-        if a.chunk_start.read(mid) <= b { lo = mid } else { hi = mid }
+        if blk.load_uniform(&a.chunk_start, mid) <= b { lo = mid } else { hi = mid }
     }
-    let node = a.terminals.read(lo);
-    let chunk = (b - a.chunk_start.read(lo)) as usize * blk.block_dim() as usize;
+    let node = blk.load_uniform(&a.terminals, lo);
+    let chunk = (b - blk.load_uniform(&a.chunk_start, lo)) as usize * blk.block_dim() as usize;
     let stage = blk.shared::<[f32; 9]>(STAGE);
     let stage_ids = blk.shared::<u32>(STAGE);
     let best = blk.local::<u64>(NO_HIT);

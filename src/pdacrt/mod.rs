@@ -188,6 +188,18 @@ impl Workspace {
     }
 }
 
+/// Triangles as the kernels read them (nine floats each), and their bounding box.
+pub(crate) fn flatten(tris: &[[glam::Vec3; 3]]) -> (Vec<[f32; 9]>, Aabb) {
+    let flat = tris
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| v.to_array());
+            [a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]]
+        })
+        .collect();
+    (flat, tris.iter().fold(Aabb::EMPTY, |b, t| b.union(Aabb::from_points(t))))
+}
+
 /// What one chunk's trace leaves for the caller: per level, its record and launches.
 type Levels = Vec<(LevelRecord, Vec<LaunchRecord>)>;
 
@@ -208,14 +220,7 @@ impl Pdacrt {
         if params.measure {
             dev.set_measure(true);
         }
-        let flat: Vec<[f32; 9]> = tris
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|v| v.to_array());
-                [a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]]
-            })
-            .collect();
-        let scene_box = tris.iter().fold(Aabb::EMPTY, |b, t| b.union(Aabb::from_points(t)));
+        let (flat, scene_box) = flatten(tris);
         Pdacrt {
             tris: dev.alloc_vec(flat),
             dev,

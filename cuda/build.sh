@@ -1,0 +1,14 @@
+#!/bin/sh
+# Builds target/cuda/libwarpray_cuda.so, PDACRT's GPU twin (cuda/pdacrt.cu), for the
+# cargo feature `cuda`. Needs nvcc (CUDA 12 or 13, with its bundled CUB/Thrust).
+#   NVCC=/path/to/nvcc CUDA_ARCH=sm_90 sh cuda/build.sh
+# -fmad=false keeps every multiply and add rounded separately, as in the Rust code,
+# so the GPU's hit keys equal the emulator's bit for bit.
+set -eu
+cd "$(dirname "$0")/.."
+NVCC=${NVCC:-nvcc}
+ARCH=${CUDA_ARCH:-sm_90}
+mkdir -p target/cuda
+"$NVCC" -std=c++17 -O3 -arch="$ARCH" -fmad=false -prec-div=true -prec-sqrt=true -lineinfo \
+    -shared -Xcompiler -fPIC ${NVCC_FLAGS:-} -o target/cuda/libwarpray_cuda.so cuda/pdacrt.cu
+echo "built target/cuda/libwarpray_cuda.so ($ARCH)"

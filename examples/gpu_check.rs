@@ -1,0 +1,364 @@
+//! The `simt` model checked against a real GPU (`docs/gpu-check.md`): PDACRT's kernels
+//! measured by the emulator and by Nsight Compute on the same rays, and PDACRT's GPU
+//! timings beside the CPU casters on the same machine.
+//!
+//! ```text
+//! sh cuda/build.sh                                    # on the GPU machine: target/cuda/libwarpray_cuda.so
+//! gpu_check simt --model bunny --batch primary --out simt.tsv
+//! ncu --csv --page raw --print-units base --metrics "$(gpu_check metrics)" --log-file ncu.csv \
+//!     gpu_check gpu --model bunny --batch primary --repeat 1
+//! gpu_check report --simt simt.tsv --ncu ncu.csv
+//! gpu_check gpu --model dragon,bunny,conference --batch primary,shadow,ao --size 1024 --repeat 5 --cpu bvh,dacrt
+//! ```
+//!
+//! `gpu` checks every GPU key against the CPU PDACRT's (bit for bit) and every 256th ray
+//! against brute force, and exits non-zero when any differs.
+
+use clap::{Parser, Subcommand};
+use std::io::Write as _;
+use std::time::Instant;
+use warpray::cast::{BruteForce, BvhCaster, Dacrt, RayCaster, Traversal};
+use warpray::geometry::{Hit, Ray};
+use warpray::gpu::{GpuPdacrt, ncu};
+use warpray::pdacrt::{Pdacrt, PdacrtParams};
+use warpray::scene::{ObjOptions, Scene, find_model, load_obj, models_dir};
+
+#[derive(Parser)]
+struct Args {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(clap::Args, Clone)]
+struct Input {
+    /// Models (from WARPRAY_MODELS), comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "bunny")]
+    model: Vec<String>,
+    /// Batches: primary, shadow, specular, ao (comma-separated).
+    #[arg(long, value_delimiter = ',', default_value = "primary")]
+    batch: Vec<String>,
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=8192))]
+    size: u32,
+    /// Ambient-occlusion rays per primary hit.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(0..=64))]
+    ao: u32,
+    /// PDACRT's rays per pass (0: the whole batch at once; default: PdacrtParams').
+    #[arg(long)]
+    chunk: Option<usize>,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Print the metrics `ncu --metrics` must collect.
+    Metrics,
+    /// PDACRT on the emulator with measurement on: per-kernel summaries to a TSV file.
+    Simt {
+        #[command(flatten)]
+        input: Input,
+        #[arg(long)]
+        out: std::path::PathBuf,
+    },
+    /// PDACRT on the GPU: checks, timings, and optionally CPU casters on the same rays.
+    Gpu {
+        #[command(flatten)]
+        input: Input,
+        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=100))]
+        repeat: u32,
+        /// CPU casters to time on the same rays (bvh, dacrt, pdacrt), comma-separated.
+        #[arg(long, value_delimiter = ',')]
+        cpu: Vec<String>,
+        /// Brute-force check of every Nth ray (0: none).
+        #[arg(long, default_value_t = 256)]
+        brute_every: usize,
+        /// Print one JSON object per row too.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Join a `simt` TSV and an ncu CSV into the comparison table.
+    Report {
+        #[arg(long)]
+        simt: std::path::PathBuf,
+        #[arg(long)]
+        ncu: std::path::PathBuf,
+    },
+}
+
+fn main() {
+    if let Err(e) = run(Args::parse()) {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn load(name: &str) -> Result<Scene, String> {
+    let path =
+        find_model(name).ok_or_else(|| format!("model {name} not found in {}: set WARPRAY_MODELS", models_dir().display()))?;
+    load_obj(path, &ObjOptions::default()).map_err(|e| e.to_string())
+}
+
+/// The named batch and whether it is traced for occlusion (shadow rays).
+fn batch(b: &warpray::cast::batches::Batches, name: &str) -> Result<(Vec<Ray>, bool), String> {
+    Ok(match name {
+        "primary" => (b.primary.clone(), false),
+        "shadow" => (b.shadow.clone(), true),
+        "specular" => (b.specular.clone(), false),
+        "ao" => (b.ambient.clone(), false),
+        other => return Err(format!("unknown batch {other} (known: primary, shadow, specular, ao)")),
+    })
+}
+
+fn params(input: &Input) -> PdacrtParams {
+    let mut p = PdacrtParams::default();
+    if let Some(c) = input.chunk {
+        p.chunk_rays = c;
+    }
+    p
+}
+
+/// Every (model, batch) of the input, loaded.
+fn inputs(input: &Input) -> Result<Vec<(String, Scene, String, Vec<Ray>, bool)>, String> {
+    let mut out = Vec::new();
+    for m in &input.model {
+        let scene = load(m)?;
+        let b = warpray::cast::batches::batches(&scene, input.size, input.size, input.ao as usize, 1);
+        for name in &input.batch {
+            let (rays, shadow) = batch(&b, name)?;
+            out.push((m.clone(), scene.clone(), name.clone(), rays, shadow));
+        }
+    }
+    Ok(out)
+}
+
+fn run(a: Args) -> Result<(), String> {
+    match a.cmd {
+        Cmd::Metrics => println!("{}", ncu::METRICS),
+        Cmd::Simt { input, out } => simt_run(&input, &out)?,
+        Cmd::Gpu { input, repeat, cpu, brute_every, json } => gpu_run(&input, repeat, &cpu, brute_every, json)?,
+        Cmd::Report { simt, ncu: csv } => {
+            let read = |p: &std::path::Path| std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()));
+            let simt = tsv::read(&read(&simt)?).map_err(|e| format!("{}: {e}", simt.display()))?;
+            let gpu = ncu::parse_csv(&read(&csv)?).map_err(|e| format!("{}: {e}", csv.display()))?;
+            println!("{}", ncu::table(&ncu::compare(&simt, &gpu)));
+            println!("\nOther GPU kernels (CUB's scans and selection; the emulator's primitives have other names):\n");
+            println!("| kernel | launches | SIMD eff. | ld sect/req | GPU ms |\n|---|---:|---:|---:|---:|");
+            for g in gpu.iter().filter(|g| !simt.iter().any(|s| s.name == g.name)) {
+                let f = |v: Option<f64>| v.map_or("–".to_string(), |x| format!("{x:.3}"));
+                println!(
+                    "| {} | {} | {} | {} | {:.3} |",
+                    g.name,
+                    g.launches,
+                    f(g.simd_efficiency()),
+                    f(g.loads.sectors_per_request()),
+                    g.seconds * 1e3
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+fn simt_run(input: &Input, out: &std::path::Path) -> Result<(), String> {
+    let mut p = params(input);
+    p.measure = true;
+    let mut rows = Vec::new();
+    for (model, scene, name, rays, shadow) in inputs(input)? {
+        let caster = Pdacrt::from_triangles(&scene.triangle_vertices(), p);
+        let start = Instant::now();
+        cast(&caster, &rays, shadow);
+        eprintln!("simt {model} {name}: {} rays, {:.1} s measured", rays.len(), start.elapsed().as_secs_f64());
+        rows.extend(caster.device().kernel_stats());
+    }
+    std::fs::write(out, tsv::write(&merge(rows))).map_err(|e| format!("{}: {e}", out.display()))
+}
+
+/// Summaries of several runs, added up by kernel name.
+fn merge(rows: Vec<simt::KernelSummary>) -> Vec<simt::KernelSummary> {
+    let mut out: Vec<simt::KernelSummary> = Vec::new();
+    for r in rows {
+        match out.iter_mut().find(|o| o.name == r.name) {
+            Some(o) => o.merge(&r),
+            None => out.push(r),
+        }
+    }
+    out
+}
+
+fn cast(c: &dyn RayCaster, rays: &[Ray], shadow: bool) -> (Vec<Hit>, Vec<bool>, f64) {
+    let start = Instant::now();
+    if shadow {
+        let mut o = vec![false; rays.len()];
+        c.occluded(rays, &mut o);
+        (Vec::new(), o, start.elapsed().as_secs_f64())
+    } else {
+        let mut h = vec![Hit::MISS; rays.len()];
+        c.closest(rays, &mut h);
+        (h, Vec::new(), start.elapsed().as_secs_f64())
+    }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn gpu_run(input: &Input, repeat: u32, cpu: &[String], brute_every: usize, json: bool) -> Result<(), String> {
+    let p = params(input);
+    let mut failed = 0usize;
+    println!("| model | batch | rays | GPU trace ms | GPU call ms | tests/ray | levels | keys = CPU PDACRT | brute-force sample | CPU casters (ms, {} threads) |", rayon::current_num_threads());
+    println!("|---|---|---:|---:|---:|---:|---:|---|---|---|");
+    for (model, scene, name, rays, shadow) in inputs(input)? {
+        let tris = scene.triangle_vertices();
+        let gpu = GpuPdacrt::new(&tris, p).map_err(|e| e.to_string())?;
+        let (mut trace, mut call) = (Vec::new(), Vec::new());
+        let mut keys = Vec::new();
+        for _ in 0..repeat {
+            keys = gpu.trace_keys(&rays, shadow).map_err(|e| e.to_string())?;
+            let s = gpu.last_stats();
+            trace.push(s.trace_ms);
+            call.push(s.call_ms);
+        }
+        let s = gpu.last_stats();
+        // Bit for bit against the CPU PDACRT: the same kernels on the same data.
+        let cpu_pdacrt = Pdacrt::from_triangles(&tris, p);
+        let same = compare_keys(&gpu, &keys, &cpu_pdacrt, &rays, shadow);
+        // Against brute force on a sample (by distance: equally valid ids may differ on shared edges).
+        let brute = if brute_every > 0 { brute_check(&gpu, &BruteForce::new(&scene), &rays, shadow, brute_every) } else { (0, 0) };
+        failed += same.1 + brute.1;
+        let mut cpu_cells = vec![format!("pdacrt {:.1} (one run)", same.2 * 1e3)];
+        for c in cpu {
+            let caster: Box<dyn RayCaster> = match c.as_str() {
+                "bvh" => Box::new(BvhCaster::new(&scene).with_traversal(Traversal::Fast)),
+                "dacrt" => Box::new(Dacrt::new(&scene)),
+                "pdacrt" => Box::new(Pdacrt::from_triangles(&tris, p)),
+                other => return Err(format!("unknown CPU caster {other} (known: bvh, dacrt, pdacrt)")),
+            };
+            let ms = median((0..repeat.min(3)).map(|_| cast(caster.as_ref(), &rays, shadow).2 * 1e3).collect());
+            cpu_cells.push(format!("{c} {ms:.1}"));
+        }
+        let (tm, cm) = (median(trace), median(call));
+        println!(
+            "| {model} | {name} | {} | {tm:.2} | {cm:.2} | {:.1} | {} | {} of {} differ | {} of {} differ | {} |",
+            rays.len(),
+            s.tests as f64 / rays.len().max(1) as f64,
+            s.levels,
+            same.1,
+            same.0,
+            brute.1,
+            brute.0,
+            cpu_cells.join(", ")
+        );
+        if json {
+            println!(
+                "{{\"device\":\"{}\",\"model\":\"{model}\",\"batch\":\"{name}\",\"rays\":{},\"trace_ms\":{tm:.3},\"call_ms\":{cm:.3},\"tests\":{},\"levels\":{},\"key_mismatches\":{},\"brute_checked\":{},\"brute_mismatches\":{},\"cpu\":\"{}\",\"threads\":{}}}",
+                gpu.device_name(),
+                rays.len(),
+                s.tests,
+                s.levels,
+                same.1,
+                brute.0,
+                brute.1,
+                cpu_cells.join(", "),
+                rayon::current_num_threads()
+            );
+        }
+        std::io::stdout().flush().ok();
+    }
+    if failed > 0 {
+        return Err(format!("{failed} rays differ between the GPU and the CPU references"));
+    }
+    Ok(())
+}
+
+/// (rays compared, rays whose key differs) between the GPU's `keys` and the CPU PDACRT
+/// (no second GPU trace, so a profiled run traces exactly once).
+fn compare_keys(gpu: &GpuPdacrt, keys: &[u64], cpu: &Pdacrt, rays: &[Ray], shadow: bool) -> (usize, usize, f64) {
+    let (ch, co, seconds) = cast(cpu, rays, shadow);
+    let differ = if shadow {
+        keys.iter().zip(&co).filter(|(k, b)| (**k == 0) != **b).count()
+    } else {
+        let mut gh = vec![Hit::MISS; rays.len()];
+        gpu.hits_of_keys(rays, keys, &mut gh);
+        gh.iter().zip(&ch).filter(|(a, b)| a.t.to_bits() != b.t.to_bits() || a.prim != b.prim).count()
+    };
+    (rays.len(), differ, seconds)
+}
+
+/// (rays checked, rays that disagree) against brute force, every `every`th ray.
+fn brute_check(gpu: &GpuPdacrt, brute: &BruteForce, rays: &[Ray], shadow: bool, every: usize) -> (usize, usize) {
+    let sample: Vec<Ray> = rays.iter().step_by(every).copied().collect();
+    let (gh, go, _) = cast(gpu, &sample, shadow);
+    let (bh, bo, _) = cast(brute, &sample, shadow);
+    let differ = if shadow {
+        go.iter().zip(&bo).filter(|(a, b)| a != b).count()
+    } else {
+        gh.iter()
+            .zip(&bh)
+            .filter(|(a, b)| a.is_hit() != b.is_hit() || (a.is_hit() && (a.t - b.t).abs() > 1e-5 * b.t.abs().max(1.0)))
+            .count()
+    };
+    (sample.len(), differ)
+}
+
+/// `simt::KernelSummary` to and from tab-separated lines (the measured run and the
+/// report may run as separate commands).
+mod tsv {
+    use simt::{KernelSummary, RegionStats, Traffic};
+
+    const HEADER: &str = "name\tlaunches\tthreads\tissued\tactive\tld_req\tld_sec\tst_req\tst_sec\tat_req\tat_sec\tshared\tseconds";
+
+    pub fn write(rows: &[KernelSummary]) -> String {
+        let mut s = format!("{HEADER}\n");
+        for r in rows {
+            let mut all = r.ops.clone();
+            r.regions.iter().for_each(|x| all.add(x));
+            s += &format!(
+                "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\n",
+                r.name,
+                r.launches,
+                r.threads,
+                all.issued,
+                all.active,
+                r.loads.requests,
+                r.loads.sectors,
+                r.stores.requests,
+                r.stores.sectors,
+                r.atomics.requests,
+                r.atomics.sectors,
+                r.shared_bytes,
+                r.seconds
+            );
+        }
+        s
+    }
+
+    pub fn read(text: &str) -> Result<Vec<KernelSummary>, String> {
+        let mut lines = text.lines().enumerate();
+        match lines.next() {
+            Some((_, h)) if h == HEADER => {}
+            _ => return Err("not a gpu_check simt file (header differs)".into()),
+        }
+        let mut out = Vec::new();
+        for (i, line) in lines {
+            let f: Vec<&str> = line.split('\t').collect();
+            if f.len() != 13 {
+                return Err(format!("line {}: {} fields, expected 13", i + 1, f.len()));
+            }
+            let n = |k: usize| f[k].parse::<u64>().map_err(|_| format!("line {}: field {k}: '{}'", i + 1, f[k]));
+            let name: &'static str = Box::leak(f[0].to_string().into_boxed_str());
+            out.push(KernelSummary {
+                name,
+                launches: n(1)?,
+                threads: n(2)?,
+                measured_launches: n(1)?,
+                ops: RegionStats { name: "all", issued: n(3)?, active: n(4)? },
+                loads: Traffic { requests: n(5)?, sectors: n(6)? },
+                stores: Traffic { requests: n(7)?, sectors: n(8)? },
+                atomics: Traffic { requests: n(9)?, sectors: n(10)? },
+                shared_bytes: n(11)? as usize,
+                seconds: f[12].parse().map_err(|_| format!("line {}: seconds '{}'", i + 1, f[12]))?,
+                ..Default::default()
+            });
+        }
+        Ok(out)
+    }
+}

@@ -1,0 +1,160 @@
+//! The C interface of `libwarpray_cuda` (`cuda/pdacrt_api.h`), opened with libloading.
+
+use crate::error::{Error, Result};
+use crate::geometry::{Aabb, Ray};
+use std::ffi::{CStr, c_char, c_int, c_void};
+use std::path::PathBuf;
+
+/// `WR_API_VERSION` of the header this file mirrors.
+const API_VERSION: c_int = 1;
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct WrParams {
+    pub leaf_rays: u32,
+    pub leaf_triangles: u32,
+    pub max_depth: u32,
+    pub brute_force_block: u32,
+    pub leaf_pairs: u64,
+    pub chunk_rays: u64,
+    pub slab_widen: f32,
+    pub reserved: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct WrStats {
+    pub trace_ms: f64,
+    pub call_ms: f64,
+    pub tests: u64,
+    pub levels: u32,
+    pub launches: u32,
+    pub peak_bytes: u64,
+}
+
+type VersionFn = unsafe extern "C" fn() -> c_int;
+type DeviceNameFn = unsafe extern "C" fn(*mut c_char, u32) -> c_int;
+type CreateFn = unsafe extern "C" fn(*const f32, u64, *const f32, *mut *mut c_void) -> c_int;
+type TraceFn =
+    unsafe extern "C" fn(*mut c_void, *const c_void, u64, c_int, *const WrParams, *mut u64, *mut WrStats) -> c_int;
+type DestroyFn = unsafe extern "C" fn(*mut c_void);
+type ErrorFn = unsafe extern "C" fn() -> *const c_char;
+
+/// The opened library and its entry points.
+pub(crate) struct Library {
+    path: PathBuf,
+    device_name: DeviceNameFn,
+    create: CreateFn,
+    trace: TraceFn,
+    destroy: DestroyFn,
+    last_error: ErrorFn,
+    // Last: the entry points above must not outlive it.
+    _lib: libloading::Library,
+}
+
+/// A traced scene on the GPU; destroyed with the library's `wr_pdacrt_destroy`.
+pub(crate) struct Handle {
+    ptr: *mut c_void,
+    destroy: DestroyFn,
+}
+
+// SAFETY: the handle is only used under the caster's mutex (one call at a time), and
+// the CUDA runtime allows use of a context from any host thread.
+unsafe impl Send for Handle {}
+
+impl Drop for Handle {
+    fn drop(&mut self) {
+        // SAFETY: `ptr` came from `wr_pdacrt_create` and is dropped once.
+        unsafe { (self.destroy)(self.ptr) }
+    }
+}
+
+impl Library {
+    pub fn open(path: PathBuf) -> Result<Library> {
+        let err = |msg: String| Error::Gpu { library: path.clone(), msg };
+        if !path.is_file() {
+            return Err(err(format!(
+                "not found; build it on a machine with CUDA with `sh cuda/build.sh`, or point {} at it",
+                super::LIBRARY_ENV
+            )));
+        }
+        // SAFETY: loading runs the library's initialisers; ours has none beyond the CUDA
+        // runtime's static state.
+        let lib = unsafe { libloading::Library::new(&path) }.map_err(|e| err(format!("cannot open: {e}")))?;
+        macro_rules! sym {
+            ($name:literal, $ty:ty) => {
+                // SAFETY: the symbol has this signature in cuda/pdacrt_api.h, checked by
+                // the API version below.
+                *unsafe { lib.get::<$ty>($name) }.map_err(|e| err(format!("missing symbol: {e}")))?
+            };
+        }
+        let version = sym!(b"wr_api_version\0", VersionFn);
+        // SAFETY: no arguments, returns an int.
+        let v = unsafe { version() };
+        if v != API_VERSION {
+            return Err(err(format!("API version {v}, this build of warpray speaks {API_VERSION}: rebuild it")));
+        }
+        Ok(Library {
+            device_name: sym!(b"wr_device_name\0", DeviceNameFn),
+            create: sym!(b"wr_pdacrt_create\0", CreateFn),
+            trace: sym!(b"wr_pdacrt_trace\0", TraceFn),
+            destroy: sym!(b"wr_pdacrt_destroy\0", DestroyFn),
+            last_error: sym!(b"wr_last_error\0", ErrorFn),
+            path,
+            _lib: lib,
+        })
+    }
+
+    fn error(&self, what: &str) -> Error {
+        // SAFETY: returns a NUL-terminated string owned by the library (thread-local).
+        let msg = unsafe { CStr::from_ptr((self.last_error)()) }.to_string_lossy().into_owned();
+        Error::Gpu { library: self.path.clone(), msg: format!("{what}: {msg}") }
+    }
+
+    pub fn device_name(&self) -> Result<String> {
+        let mut buf = [0 as c_char; 256];
+        // SAFETY: the buffer and its length.
+        if unsafe { (self.device_name)(buf.as_mut_ptr(), buf.len() as u32) } != 0 {
+            return Err(self.error("no CUDA device"));
+        }
+        // SAFETY: the library wrote a NUL-terminated string into it.
+        Ok(unsafe { CStr::from_ptr(buf.as_ptr()) }.to_string_lossy().into_owned())
+    }
+
+    pub fn create(&self, tris: &[[f32; 9]], scene_box: Aabb) -> Result<Handle> {
+        let b = [scene_box.min.x, scene_box.min.y, scene_box.min.z, scene_box.max.x, scene_box.max.y, scene_box.max.z];
+        let mut ptr = std::ptr::null_mut();
+        // SAFETY: `tris` holds `len` records of 9 floats; `b` six floats.
+        let rc = unsafe { (self.create)(tris.as_ptr().cast(), tris.len() as u64, b.as_ptr(), &mut ptr) };
+        if rc != 0 {
+            return Err(self.error("uploading the triangles"));
+        }
+        Ok(Handle { ptr, destroy: self.destroy })
+    }
+
+    pub fn trace(&self, h: &Handle, rays: &[Ray], any_hit: bool, p: &WrParams, keys: &mut [u64]) -> Result<WrStats> {
+        assert_eq!(rays.len(), keys.len());
+        let mut stats = WrStats::default();
+        // SAFETY: `Ray` is #[repr(C)] with the header's 32-byte layout; `keys` has one
+        // slot per ray; the handle is live.
+        let rc = unsafe {
+            (self.trace)(
+                h.ptr,
+                rays.as_ptr().cast(),
+                rays.len() as u64,
+                any_hit as c_int,
+                p,
+                keys.as_mut_ptr(),
+                &mut stats,
+            )
+        };
+        if rc != 0 {
+            return Err(self.error("tracing"));
+        }
+        Ok(stats)
+    }
+}
+
+const _: () = assert!(std::mem::size_of::<Ray>() == 32);
+const _: () = assert!(std::mem::size_of::<WrParams>() == 40);
+const _: () = assert!(std::mem::size_of::<WrStats>() == 40);
