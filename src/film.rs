@@ -103,10 +103,16 @@ impl Film {
 
     /// Writes `path` as PNG or EXR, chosen by its extension.
     pub fn write(&self, path: &Path, exposure: f32) -> Result<()> {
+        self.write_with(path, exposure, &[])
+    }
+
+    /// As [`Film::write`]; an EXR also carries `metadata` as text attributes named
+    /// `warpray.KEY` in its header (read back with [`read_exr_metadata`]).
+    pub fn write_with(&self, path: &Path, exposure: f32, metadata: &[(&str, String)]) -> Result<()> {
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         match ext.as_deref() {
             Some("png") => self.write_png(path, exposure),
-            Some("exr") => self.write_exr(path),
+            Some("exr") => self.write_exr_with(path, metadata),
             _ => Err(Error::Output { path: path.into(), msg: "unknown image type: use .png or .exr".into() }),
         }
     }
@@ -127,18 +133,59 @@ impl Film {
     }
 
     pub fn write_exr(&self, path: &Path) -> Result<()> {
+        self.write_exr_with(path, &[])
+    }
+
+    /// Linear EXR with `metadata` as `warpray.KEY` text attributes (characters outside
+    /// Latin-1, which EXR text cannot hold, become `?`).
+    pub fn write_exr_with(&self, path: &Path, metadata: &[(&str, String)]) -> Result<()> {
         use exr::prelude::*;
         let mean = self.mean();
         let (w, h) = (self.width as usize, self.height as usize);
+        let mut attributes = LayerAttributes::named("rgb");
+        for (key, value) in metadata {
+            let text = |s: &str| {
+                let latin1: String = s.chars().map(|c| if (c as u32) < 256 { c } else { '?' }).collect();
+                Text::new_or_panic(latin1)
+            };
+            attributes.other.insert(text(&format!("warpray.{key}")), AttributeValue::Text(text(value)));
+        }
         atomic_write(path, |tmp| {
             let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
                 let c = mean[p.y() * w + p.x()];
                 (c.x, c.y, c.z)
             });
-            let layer = Layer::new((w, h), LayerAttributes::named("rgb"), Encoding::SMALL_LOSSLESS, channels);
+            let layer = Layer::new((w, h), attributes, Encoding::SMALL_LOSSLESS, channels);
             Image::from_layer(layer).write().to_file(tmp).map_err(|e| e.to_string())
         })
     }
+}
+
+/// The `warpray.KEY` text attributes of an EXR's first layer, as (KEY, value), sorted
+/// by key.
+pub fn read_exr_metadata(path: &Path) -> Result<Vec<(String, String)>> {
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| Error::Output { path: path.into(), msg: format!("not a readable EXR: {e}") })?;
+    let mut out: Vec<(String, String)> = meta
+        .headers
+        .first()
+        .map(|h| {
+            h.own_attributes
+                .other
+                .iter()
+                .filter_map(|(k, v)| {
+                    let key = k.to_string();
+                    let key = key.strip_prefix("warpray.")?.to_string();
+                    match v {
+                        exr::meta::attribute::AttributeValue::Text(t) => Some((key, t.to_string())),
+                        _ => None,
+                    }
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    out.sort();
+    Ok(out)
 }
 
 /// Rec. 709 luminance of a linear RGB colour.
@@ -167,4 +214,29 @@ pub(crate) fn atomic_write(path: &Path, write: impl FnOnce(&Path) -> std::result
         return Err(Error::Output { path: path.into(), msg });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exr_metadata_round_trips_and_non_latin1_text_is_replaced() {
+        let dir = std::env::temp_dir().join(format!("warpray-film-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("m.exr");
+        let mut film = Film::new(3, 2).unwrap();
+        film.add_pass(&[Vec3::ONE; 6]);
+        film.end_pass();
+        film.write_with(&path, 1.0, &[("spp", "1".into()), ("scene", "Ünïcode ∞ scene".into())]).unwrap();
+        let m = read_exr_metadata(&path).unwrap();
+        assert_eq!(m, vec![("scene".to_string(), "Ünïcode ? scene".to_string()), ("spp".to_string(), "1".to_string())]);
+        // Without metadata there is none, and a non-EXR is an error naming the file.
+        film.write(&path, 1.0).unwrap();
+        assert!(read_exr_metadata(&path).unwrap().is_empty());
+        std::fs::write(&path, b"not an exr").unwrap();
+        let e = read_exr_metadata(&path).unwrap_err().to_string();
+        assert!(e.contains("m.exr"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
 }

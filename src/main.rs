@@ -135,7 +135,78 @@ fn resolve_scene(arg: &Path) -> Result<SceneDesc> {
     load_scene(arg)
 }
 
-fn run_render(args: RenderArgs) -> Result<()> {
+/// Ctrl-C during a render: the first asks the render loop to stop after the pass it is
+/// in (the image is then written as usual), the second exits at once with status 130.
+/// Images are written under a temporary name and renamed, so neither leaves a
+/// half-written file behind.
+mod interrupt {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    static COUNT: AtomicUsize = AtomicUsize::new(0);
+
+    #[cfg(unix)]
+    extern "C" fn on_sigint(_: libc::c_int) {
+        // Only async-signal-safe calls here: an atomic, write(2) and _exit(2).
+        if COUNT.fetch_add(1, Ordering::SeqCst) == 0 {
+            let msg = b"\ninterrupted: finishing this pass and writing the image (Ctrl-C again to quit now)\n";
+            // SAFETY: write(2) on stderr with a valid buffer.
+            unsafe { libc::write(2, msg.as_ptr().cast(), msg.len()) };
+        } else {
+            // SAFETY: _exit(2) ends the process without running anything else.
+            unsafe { libc::_exit(130) };
+        }
+    }
+
+    /// Installs the handler (Unix; elsewhere Ctrl-C keeps its default meaning).
+    pub fn install() {
+        #[cfg(unix)]
+        // SAFETY: the handler only touches an atomic and calls async-signal-safe functions.
+        unsafe {
+            libc::signal(libc::SIGINT, on_sigint as *const () as libc::sighandler_t);
+        }
+    }
+
+    pub fn requested() -> bool {
+        COUNT.load(Ordering::SeqCst) > 0
+    }
+}
+
+/// Exit status of a render stopped by Ctrl-C (128 + SIGINT, as shells report it).
+const INTERRUPTED: u8 = 130;
+
+/// Every output path, checked before any work: a known extension, an existing folder,
+/// and one we may create files in (a probe file is made and removed).
+fn check_outputs(outputs: &[PathBuf], extensions: &[&str]) -> Result<()> {
+    for out in outputs {
+        let bad = |msg: String| Err(Error::Output { path: out.clone(), msg });
+        let ext = out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        if !ext.as_deref().is_some_and(|e| extensions.contains(&e)) {
+            return bad(format!("use a file name ending in .{}", extensions.join(" or .")));
+        }
+        let dir = match out.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        if !dir.is_dir() {
+            return bad(format!("the folder {} does not exist", dir.display()));
+        }
+        if out.is_dir() {
+            return bad("is a folder".into());
+        }
+        let probe = dir.join(format!(".warpray-probe.{}", std::process::id()));
+        match std::fs::File::create(&probe) {
+            Ok(_) => {
+                let _ = std::fs::remove_file(&probe);
+            }
+            Err(e) => return bad(format!("cannot create files in {}: {e}", dir.display())),
+        }
+    }
+    Ok(())
+}
+
+/// Renders; `Ok(true)` when Ctrl-C stopped it early (the image was still written).
+fn run_render(args: RenderArgs) -> Result<bool> {
+    check_outputs(&args.output, &["png", "exr"])?;
     let desc = resolve_scene(&args.scene)?;
     let s = &desc.settings;
     let (width, height) = args.size.unwrap_or((s.width.unwrap_or(512), s.height.unwrap_or(512)));
@@ -163,14 +234,6 @@ fn run_render(args: RenderArgs) -> Result<()> {
         integrator,
         ..Default::default()
     };
-    for out in &args.output {
-        match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-            Some("png") | Some("exr") => {}
-            _ => {
-                return Err(Error::Output { path: out.clone(), msg: "use a .png or .exr file name".into() });
-            }
-        }
-    }
     warpray::film::check_size(width, height)?;
     desc.scene.check_renderable()?;
 
@@ -184,17 +247,33 @@ fn run_render(args: RenderArgs) -> Result<()> {
         };
         let bar = if args.quiet { ProgressBar::hidden() } else { progress_bar(budget) };
         let start = std::time::Instant::now();
+        interrupt::install();
         let (film, stats) = render(&desc.scene, caster.as_ref(), &opts, |pass, _| {
             match budget {
                 Budget::Samples(_) => bar.set_position(pass as u64),
                 Budget::Seconds(_) => bar.set_position(start.elapsed().as_millis() as u64),
             }
             bar.set_message(format!("{pass} spp"));
-            true
+            !interrupt::requested()
         })?;
         bar.finish_and_clear();
+        let interrupted = interrupt::requested();
+        let metadata = [
+            ("scene", desc.scene.source.display().to_string()),
+            ("integrator", integrator.name().to_string()),
+            ("caster", caster.name().to_string()),
+            ("spp", stats.passes.to_string()),
+            ("seed", opts.seed.to_string()),
+            ("max_depth", opts.max_depth.to_string()),
+            ("seconds", format!("{:.3}", stats.seconds)),
+            ("interrupted", interrupted.to_string()),
+            ("version", env!("CARGO_PKG_VERSION").to_string()),
+        ];
         for out in &args.output {
-            film.write(out, args.exposure)?;
+            film.write_with(out, args.exposure, &metadata)?;
+        }
+        if interrupted {
+            eprintln!("interrupted after {} passes; the images hold those passes", stats.passes);
         }
         let outs: Vec<String> = args.output.iter().map(|p| p.display().to_string()).collect();
         println!(
@@ -215,7 +294,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         if film.rejected > 0 {
             eprintln!("warning: {} sample estimates were NaN, infinite or negative and were dropped", film.rejected);
         }
-        Ok(())
+        Ok(interrupted)
     })
 }
 
@@ -250,6 +329,18 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
         name.push(ext);
         PathBuf::from(name)
     };
+    // Everything that can be wrong is found before the reference is rendered.
+    let integrators = args.integrators.iter().map(|n| Variant::parse(n)).collect::<Result<Vec<_>>>()?;
+    check_outputs(&[with_ext(".csv")], &["csv"])?;
+    check_outputs(&[with_ext(".svg")], &["svg"])?;
+    check_outputs(&[with_ext(".png")], &["png"])?;
+    match &args.reference {
+        Some(r) if !r.is_file() => {
+            return Err(Error::BadSetting(format!("--reference {}: no such file", r.display())));
+        }
+        Some(_) => {}
+        None => check_outputs(&[with_ext("-reference.exr")], &["exr"])?,
+    }
     let pool = thread_pool(args.threads)?;
     pool.install(|| {
         let caster = warpray::cast::BvhCaster::new(&desc.scene);
@@ -290,7 +381,7 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
             }
         };
         let opts = ConvergeOptions {
-            integrators: args.integrators.iter().map(|n| Variant::parse(n)).collect::<Result<Vec<_>>>()?,
+            integrators,
             seconds: args.seconds,
             checkpoints: args.checkpoints,
             width,
@@ -348,10 +439,11 @@ fn main() -> ExitCode {
     let command = cli.command.unwrap_or(Command::Render(cli.render));
     let result = match command {
         Command::Render(args) => run_render(args),
-        Command::Converge(args) => run_converge(args),
+        Command::Converge(args) => run_converge(args).map(|()| false),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(false) => ExitCode::SUCCESS,
+        Ok(true) => ExitCode::from(INTERRUPTED),
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::FAILURE

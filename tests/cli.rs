@@ -123,3 +123,105 @@ fn converge_writes_csv_and_charts_and_reads_a_reference() {
         .unwrap();
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("24x16"));
 }
+
+/// The `warpray.KEY` attributes of an EXR, as a map.
+fn metadata(path: &std::path::Path) -> std::collections::HashMap<String, String> {
+    warpray::film::read_exr_metadata(path).unwrap().into_iter().collect()
+}
+
+#[test]
+fn the_exr_says_how_it_was_rendered() {
+    let dir = scratch("meta");
+    let exr = dir.join("m.exr");
+    let out = warpray()
+        .args(["--size", "16x16", "--spp", "3", "--seed", "7", "--integrator", "bdpt", "-q", "-o"])
+        .arg(&exr)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let m = metadata(&exr);
+    assert_eq!(m["spp"], "3");
+    assert_eq!(m["seed"], "7");
+    assert_eq!(m["integrator"], "bdpt");
+    assert_eq!(m["caster"], "bvh");
+    assert_eq!(m["interrupted"], "false");
+    assert_eq!(m["version"], env!("CARGO_PKG_VERSION"));
+    assert!(m["seconds"].parse::<f64>().unwrap() >= 0.0 && m.contains_key("scene") && m.contains_key("max_depth"));
+}
+
+#[test]
+fn outputs_and_names_are_checked_before_any_work() {
+    let dir = scratch("early");
+    // The dragon would take seconds to load; a bad output path must fail before that.
+    for (args, says) in [
+        (vec!["render", "cornell", "-o", "/nonexistent-warpray-dir/x.png"], "does not exist"),
+        (vec!["render", "cornell", "-o", "picture.jpg"], ".png or .exr"),
+    ] {
+        let start = std::time::Instant::now();
+        let out = warpray().args(&args).arg("-q").current_dir(&dir).output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.contains(says), "{args:?}: {stderr}");
+        assert!(start.elapsed().as_secs() < 10, "{args:?} took {:?}", start.elapsed());
+    }
+    // A folder given as the output file.
+    std::fs::create_dir(dir.join("d.png")).unwrap();
+    let out = warpray().args(["render", "-q", "-o"]).arg(dir.join("d.png")).output().unwrap();
+    assert!(String::from_utf8_lossy(&out.stderr).contains("is a folder"));
+    // converge: an unknown integrator is named before the 4096-spp reference is rendered.
+    let start = std::time::Instant::now();
+    let out = warpray()
+        .args(["converge", "--integrators", "path,foo", "--reference-spp", "100000", "-o"])
+        .arg(dir.join("c"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("foo"), "{stderr}");
+    assert!(start.elapsed().as_secs() < 10, "took {:?}", start.elapsed());
+    assert!(!dir.join("c-reference.exr").exists());
+    let out = warpray().args(["converge", "-o", "/nonexistent-warpray-dir/c"]).output().unwrap();
+    assert!(String::from_utf8_lossy(&out.stderr).contains("does not exist"));
+}
+
+#[cfg(unix)]
+#[test]
+fn ctrl_c_finishes_the_pass_and_writes_what_was_rendered() {
+    let dir = scratch("sigint");
+    let (exr, png) = (dir.join("i.exr"), dir.join("i.png"));
+    // Far more passes than can finish: only Ctrl-C ends this render.
+    let mut child = warpray()
+        .args(["--size", "32x32", "--spp", "10000000", "--threads", "1", "-q", "-o"])
+        .arg(&exr)
+        .arg("-o")
+        .arg(&png)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    // SAFETY: kill(2) on our own child.
+    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
+    // A render that ignores Ctrl-C must fail this test, not hang it.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > deadline {
+            child.kill().unwrap();
+            panic!("the render did not stop within 60 s of Ctrl-C");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "did not stop on Ctrl-C within 60 s? {stderr}");
+    assert!(stderr.contains("interrupted after"), "{stderr}");
+    let m = metadata(&exr);
+    let spp: u32 = m["spp"].parse().unwrap();
+    assert!(spp >= 1 && spp < 10_000_000, "{spp}");
+    assert_eq!(m["interrupted"], "true");
+    let (w, h, px) = warpray::converge::read_exr(&exr).unwrap();
+    assert_eq!((w, h, px.len()), (32, 32, 1024));
+    assert!(px.iter().all(|p| p.is_finite()) && px.iter().any(|p| p.max_element() > 0.0));
+    assert_eq!(image::open(&png).unwrap().width(), 32);
+    // No temporary files left beside the images.
+    let names: Vec<String> =
+        std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert_eq!(names.len(), 2, "{names:?}");
+}
