@@ -22,12 +22,17 @@ pub fn rmse(image: &[Vec3], reference: &[Vec3]) -> f64 {
 
 /// Relative MSE: mean of `(x − r)² / (r² + 0.01)` over pixels and channels.
 pub fn relmse(image: &[Vec3], reference: &[Vec3]) -> f64 {
+    relmse_eps(image, reference, 0.01)
+}
+
+/// Relative MSE with offset `eps`: mean of `(x − r)² / (r² + eps)`.
+pub fn relmse_eps(image: &[Vec3], reference: &[Vec3], eps: f64) -> f64 {
     let sum: f64 = image
         .iter()
         .zip(reference)
         .map(|(a, b)| {
             let (d, r) = ((*a - *b).as_dvec3(), b.as_dvec3());
-            (d * d / (r * r + 0.01)).element_sum()
+            (d * d / (r * r + eps)).element_sum()
         })
         .sum();
     sum / (3 * image.len().max(1)) as f64
@@ -260,6 +265,7 @@ fn chart<DB: plotters::prelude::DrawingBackend>(
 /// Reads a linear RGB EXR (e.g. a reference written by `warpray render -o ref.exr`).
 pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
     use exr::prelude::*;
+    crate::scene::input::open_regular(path)?;
     let image = read_first_rgba_layer_from_file(
         path,
         |res, _| (res.width(), res.height(), vec![Vec3::ZERO; res.width() * res.height()]),

@@ -227,7 +227,6 @@ mod tests {
         let path = dir.join("m.exr");
         let mut film = Film::new(3, 2).unwrap();
         film.add_pass(&[Vec3::ONE; 6]);
-        film.end_pass();
         film.write_with(&path, 1.0, &[("spp", "1".into()), ("scene", "Ünïcode ∞ scene".into())]).unwrap();
         let m = read_exr_metadata(&path).unwrap();
         assert_eq!(m, vec![("scene".to_string(), "Ünïcode ? scene".to_string()), ("spp".to_string(), "1".to_string())]);

@@ -29,6 +29,7 @@ pub mod bsdf;
 pub mod cast;
 pub mod cis;
 pub mod converge;
+pub mod diff;
 pub mod error;
 pub mod film;
 pub mod geometry;

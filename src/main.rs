@@ -9,7 +9,7 @@ use std::time::Duration;
 use warpray::cast::{BvhCaster, CasterKind, RayCaster, Traversal};
 use warpray::error::{Error, Result};
 use warpray::render::{Budget, IntegratorKind, RenderOptions, render};
-use warpray::scene::{SceneDesc, find_model, load_scene};
+use warpray::scene::{SceneDesc, load_scene};
 
 #[derive(Parser)]
 #[command(name = "warpray", version, about = "GPU ray-tracing algorithms on CPUs, measured as a GPU would be")]
@@ -29,6 +29,45 @@ enum Command {
     /// Speed against accuracy: error against a reference over time, per integrator,
     /// written as CSV and a log-log chart.
     Converge(ConvergeArgs),
+    /// Compare two images (EXR or PNG, same size): per-channel means, RMSE, relMSE,
+    /// largest difference.
+    Diff(DiffArgs),
+}
+
+#[derive(Args)]
+struct DiffArgs {
+    /// The reference image.
+    reference: PathBuf,
+    /// The image to compare with it.
+    test: PathBuf,
+    /// relMSE offset: (x − r)² / (r² + EPSILON).
+    #[arg(long, default_value_t = warpray::diff::DEFAULT_EPSILON)]
+    epsilon: f64,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Exit with status 1 when the RMSE is above this.
+    #[arg(long)]
+    fail_above: Option<f64>,
+}
+
+/// `warpray diff`; `Ok(true)` when `--fail-above` was exceeded.
+fn run_diff(args: DiffArgs) -> Result<bool> {
+    let d = warpray::diff::diff(&args.reference, &args.test, args.epsilon)?;
+    if args.json {
+        println!("{}", d.to_json());
+    } else {
+        let m = |v: [f64; 3]| format!("{:.6} {:.6} {:.6}", v[0], v[1], v[2]);
+        println!("{}x{} pixels", d.width, d.height);
+        println!("mean RGB  reference {}  test {}", m(d.mean_reference), m(d.mean_test));
+        println!("RMSE      {:.6e}", d.rmse);
+        println!("relMSE    {:.6e}  (ε = {})", d.relmse, d.epsilon);
+        println!("max |Δ|   {:.6e}  in {} differing pixels", d.max_abs, d.differing_pixels);
+        if d.non_finite != (0, 0) {
+            println!("NaN/Inf   {} in the reference, {} in the test (left out)", d.non_finite.0, d.non_finite.1);
+        }
+    }
+    Ok(args.fail_above.is_some_and(|limit| !(d.rmse <= limit)))
 }
 
 #[derive(Args)]
@@ -73,8 +112,10 @@ struct ConvergeArgs {
 
 #[derive(Args)]
 struct RenderArgs {
-    /// Scene: a .toml scene file, an .obj/.obj.gz file, a model name found in
-    /// $WARPRAY_MODELS (e.g. `cornell-box`), or `cornell` for the built-in box.
+    /// Scene: a .toml scene file, an .obj/.obj.gz file, a built-in scene (bunny, dragon,
+    /// conference, dabrovic-sponza: their models come from $WARPRAY_MODELS), a model
+    /// name found in $WARPRAY_MODELS (e.g. `cornell-box`), or `cornell` for the
+    /// built-in box.
     #[arg(default_value = "cornell")]
     scene: PathBuf,
     /// Light-transport algorithm [default: path].
@@ -124,14 +165,9 @@ fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
     Ok((w, h))
 }
 
-/// A scene argument: a file, a model name in $WARPRAY_MODELS, or `cornell`.
+/// A scene argument: a file, a built-in scene or model name, or `cornell` (all resolved
+/// by `load_scene`, as for library users).
 fn resolve_scene(arg: &Path) -> Result<SceneDesc> {
-    if arg.as_os_str() == "cornell" || arg.exists() {
-        return load_scene(arg);
-    }
-    if let Some(p) = arg.to_str().and_then(find_model) {
-        return load_scene(p);
-    }
     load_scene(arg)
 }
 
@@ -173,6 +209,15 @@ mod interrupt {
 
 /// Exit status of a render stopped by Ctrl-C (128 + SIGINT, as shells report it).
 const INTERRUPTED: u8 = 130;
+
+/// How a command that did not fail ended.
+enum Stop {
+    Done,
+    /// Ctrl-C: the images hold the passes done.
+    Interrupted,
+    /// `diff --fail-above` was exceeded.
+    Differs,
+}
 
 /// Every output path, checked before any work: a known extension, an existing folder,
 /// and one we may create files in (a probe file is made and removed).
@@ -438,12 +483,14 @@ fn main() -> ExitCode {
     // No subcommand: `warpray` alone renders the built-in scene with the defaults.
     let command = cli.command.unwrap_or(Command::Render(cli.render));
     let result = match command {
-        Command::Render(args) => run_render(args),
-        Command::Converge(args) => run_converge(args).map(|()| false),
+        Command::Render(args) => run_render(args).map(|i| if i { Stop::Interrupted } else { Stop::Done }),
+        Command::Converge(args) => run_converge(args).map(|()| Stop::Done),
+        Command::Diff(args) => run_diff(args).map(|over| if over { Stop::Differs } else { Stop::Done }),
     };
     match result {
-        Ok(false) => ExitCode::SUCCESS,
-        Ok(true) => ExitCode::from(INTERRUPTED),
+        Ok(Stop::Done) => ExitCode::SUCCESS,
+        Ok(Stop::Interrupted) => ExitCode::from(INTERRUPTED),
+        Ok(Stop::Differs) => ExitCode::from(1),
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::FAILURE

@@ -225,3 +225,70 @@ fn ctrl_c_finishes_the_pass_and_writes_what_was_rendered() {
         std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     assert_eq!(names.len(), 2, "{names:?}");
 }
+
+#[test]
+fn a_built_in_scene_renders_by_name_from_any_folder() {
+    let dir = scratch("named");
+    let models = std::fs::canonicalize(warpray::scene::models_dir()).expect("WARPRAY_MODELS must name the models folder");
+    let out = warpray()
+        .args(["render", "bunny", "--size", "12x12", "--spp", "1", "-q", "-o", "b.png"])
+        .env("WARPRAY_MODELS", &models)
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("69483 triangles"));
+    assert!(dir.join("b.png").is_file());
+}
+
+/// A `w`×`h` EXR of one colour.
+fn flat_exr(path: &std::path::Path, w: u32, h: u32, c: warpray::glam::Vec3) {
+    let mut film = warpray::film::Film::new(w, h).unwrap();
+    film.add_pass(&vec![c; (w * h) as usize]);
+    film.write(path, 1.0).unwrap();
+}
+
+/// The number after `"key":` in a one-line JSON object.
+fn json_number(json: &str, key: &str) -> f64 {
+    let rest = &json[json.find(&format!("\"{key}\":")).unwrap_or_else(|| panic!("{key} in {json}")) + key.len() + 3..];
+    rest[..rest.find([',', '}']).unwrap()].parse().unwrap()
+}
+
+#[test]
+fn diff_reports_known_differences() {
+    use warpray::glam::Vec3;
+    let dir = scratch("diff");
+    let (a, b, c, small) = (dir.join("a.exr"), dir.join("b.exr"), dir.join("c.exr"), dir.join("s.exr"));
+    flat_exr(&a, 4, 2, Vec3::new(1.0, 0.5, 0.25));
+    flat_exr(&b, 4, 2, Vec3::new(1.1, 0.5, 0.25));
+    flat_exr(&c, 4, 2, Vec3::new(1.0, 0.5, 0.25));
+    flat_exr(&small, 2, 2, Vec3::ONE);
+    let run = |args: &[&std::path::Path], extra: &[&str]| warpray().arg("diff").args(args).args(extra).output().unwrap();
+    let out = run(&[&a, &b], &["--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let j = String::from_utf8_lossy(&out.stdout).to_string();
+    // One channel of three is off by 0.1 in every pixel: RMSE = sqrt(0.01 / 3).
+    // Relative tolerance 1e-5 (the inputs are f32): a 1 % error anywhere, in ε too, fails.
+    let close = |x: f64, want: f64| (x - want).abs() < 1e-5 * want;
+    assert!(close(json_number(&j, "rmse"), (0.01f64 / 3.0).sqrt()), "{j}");
+    // relMSE = (0.01 / (1 + ε)) / 3 with ε = 0.01.
+    assert!(close(json_number(&j, "relmse"), 0.01 / 1.01 / 3.0), "{j}");
+    assert!(close(json_number(&j, "max_abs"), 0.1), "{j}");
+    assert_eq!(json_number(&j, "differing_pixels"), 8.0);
+    assert!(j.contains("\"mean_test\":[1.1"), "{j}");
+    // Identical images: zeros; the table form names the ε.
+    let out = run(&[&a, &c], &[]);
+    let t = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success() && t.contains("RMSE      0.000000e0") && t.contains("ε = 0.01"), "{t}");
+    // --fail-above: status 1 above the limit, 0 below.
+    assert_eq!(run(&[&a, &b], &["--fail-above", "0.01"]).status.code(), Some(1));
+    assert_eq!(run(&[&a, &b], &["--fail-above", "0.1"]).status.code(), Some(0));
+    // Different sizes, a missing file, a non-image: errors that name the files.
+    let e = String::from_utf8_lossy(&run(&[&a, &small], &[]).stderr).to_string();
+    assert!(e.contains("4x2") && e.contains("2x2"), "{e}");
+    let e = String::from_utf8_lossy(&run(&[&a, &dir.join("none.exr")], &[]).stderr).to_string();
+    assert!(e.contains("none.exr"), "{e}");
+    std::fs::write(dir.join("t.exr"), b"text").unwrap();
+    let out = run(&[&a, &dir.join("t.exr")], &[]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("t.exr"));
+}

@@ -116,3 +116,23 @@ fn example_scene_files_load_and_render() {
         assert!(film.image_mean().min_element() > 0.0);
     }
 }
+
+#[test]
+fn built_in_scenes_load_by_name_and_render() {
+    for (name, text) in warpray::scene::NAMED_SCENES {
+        // Each names its model; a missing one fails loudly here.
+        let model = text.lines().find_map(|l| l.strip_prefix("file = \"")).unwrap().split('"').next().unwrap();
+        require_model(model.trim_end_matches(".obj.gz"));
+        let desc = load_scene(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+        desc.scene.check_renderable().unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(desc.settings.spp.is_some(), "{name}: a [render] block");
+        let caster = BvhCaster::new(&desc.scene);
+        let opts = RenderOptions { width: 16, height: 12, budget: Budget::Samples(1), ..Default::default() };
+        let (film, _) = render(&desc.scene, &caster, &opts, |_, _| true).unwrap();
+        assert_eq!(film.rejected, 0, "{name}");
+        assert!(film.image_mean().max_element() > 0.0, "{name}: a black image");
+    }
+    // A name that is neither a file, a built-in scene nor a model says what it tried.
+    let e = load_scene("no-such-scene").unwrap_err().to_string();
+    assert!(e.contains("built-in scene") && e.contains("dragon") && e.contains("WARPRAY_MODELS"), "{e}");
+}

@@ -213,12 +213,48 @@ impl FileMaterial {
     }
 }
 
-/// Loads a scene from a `.toml` scene file, an `.obj`/`.obj.gz` file, or the name
-/// `cornell` (the built-in box).
+/// Scene files built into the library, by name, so that `warpray render dragon` (and
+/// `load_scene("dragon")`) work from any folder: each puts one standard model
+/// (`$WARPRAY_MODELS`) under lights and a camera. Their text is `assets/scenes/NAME.toml`.
+pub const NAMED_SCENES: &[(&str, &str)] = &[
+    ("bunny", include_str!("../../assets/scenes/bunny.toml")),
+    ("dragon", include_str!("../../assets/scenes/dragon.toml")),
+    ("conference", include_str!("../../assets/scenes/conference.toml")),
+    ("dabrovic-sponza", include_str!("../../assets/scenes/dabrovic-sponza.toml")),
+];
+
+/// Loads a scene: a `.toml` scene file, an `.obj`/`.obj.gz` file, `cornell` (the
+/// built-in box), the name of a built-in scene file ([`NAMED_SCENES`]: `bunny`,
+/// `dragon`, `conference`, `dabrovic-sponza`), or the name of a model in
+/// `$WARPRAY_MODELS` (`cornell-box`). An existing file wins over a name.
 pub fn load_scene(path: impl AsRef<Path>) -> Result<SceneDesc> {
     let path = path.as_ref();
     if path.as_os_str() == "cornell" {
         return Ok(SceneDesc { scene: cornell_box(), settings: RenderSettings::default() });
+    }
+    if !path.exists()
+        && let Some(name) = path.to_str()
+    {
+        if let Some((_, text)) = NAMED_SCENES.iter().find(|(n, _)| *n == name) {
+            return parse_scene_file(Path::new(&format!("{name}.toml (built in)")), text);
+        }
+        if let Some(model) = super::find_model(name) {
+            return load_scene(model);
+        }
+        if !name.contains(['/', '\\', '.']) {
+            let known: Vec<&str> = NAMED_SCENES.iter().map(|(n, _)| *n).collect();
+            return Err(Error::io(
+                path,
+                std::io::Error::new(
+                    std::io::ErrorKind::NotFound,
+                    format!(
+                        "no such file, built-in scene ({}, cornell) or model in {} (set WARPRAY_MODELS)",
+                        known.join(", "),
+                        super::models_dir().display()
+                    ),
+                ),
+            ));
+        }
     }
     let name = path.to_string_lossy().to_ascii_lowercase();
     if name.ends_with(".obj") || name.ends_with(".obj.gz") {

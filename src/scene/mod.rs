@@ -12,7 +12,7 @@ mod obj;
 
 pub use camera::Camera;
 pub use cornell::cornell_box;
-pub use file::{RenderSettings, SceneDesc, load_scene};
+pub use file::{NAMED_SCENES, RenderSettings, SceneDesc, load_scene};
 pub use material::{Coat, LayerBase, Layered, Material, metals};
 pub use obj::{ObjOptions, load_obj};
 
