@@ -91,8 +91,8 @@ fn main() {
 }
 
 fn load(name: &str) -> Result<Scene, String> {
-    let path =
-        find_model(name).ok_or_else(|| format!("model {name} not found in {}: set WARPRAY_MODELS", models_dir().display()))?;
+    let path = find_model(name)
+        .ok_or_else(|| format!("model {name} not found in {}: set WARPRAY_MODELS", models_dir().display()))?;
     load_obj(path, &ObjOptions::default()).map_err(|e| e.to_string())
 }
 
@@ -204,7 +204,10 @@ fn median(mut v: Vec<f64>) -> f64 {
 fn gpu_run(input: &Input, repeat: u32, cpu: &[String], brute_every: usize, json: bool) -> Result<(), String> {
     let p = params(input);
     let mut failed = 0usize;
-    println!("| model | batch | rays | GPU trace ms | GPU call ms | tests/ray | levels | keys = CPU PDACRT | brute-force sample | CPU casters (ms, {} threads) |", rayon::current_num_threads());
+    println!(
+        "| model | batch | rays | GPU trace ms | GPU call ms | tests/ray | levels | keys = CPU PDACRT | brute-force sample | CPU casters (ms, {} threads) |",
+        rayon::current_num_threads()
+    );
     println!("|---|---|---:|---:|---:|---:|---:|---|---|---|");
     for (model, scene, name, rays, shadow) in inputs(input)? {
         let tris = scene.triangle_vertices();
@@ -222,7 +225,11 @@ fn gpu_run(input: &Input, repeat: u32, cpu: &[String], brute_every: usize, json:
         let cpu_pdacrt = Pdacrt::from_triangles(&tris, p);
         let same = compare_keys(&gpu, &keys, &cpu_pdacrt, &rays, shadow);
         // Against brute force on a sample (by distance: equally valid ids may differ on shared edges).
-        let brute = if brute_every > 0 { brute_check(&gpu, &BruteForce::new(&scene), &rays, shadow, brute_every) } else { (0, 0) };
+        let brute = if brute_every > 0 {
+            brute_check(&gpu, &BruteForce::new(&scene), &rays, shadow, brute_every)
+        } else {
+            (0, 0)
+        };
         failed += same.1 + brute.1;
         let mut cpu_cells = vec![format!("pdacrt {:.1} (one run)", same.2 * 1e3)];
         for c in cpu {
@@ -304,7 +311,8 @@ fn brute_check(gpu: &GpuPdacrt, brute: &BruteForce, rays: &[Ray], shadow: bool, 
 mod tsv {
     use simt::{KernelSummary, RegionStats, Traffic};
 
-    const HEADER: &str = "name\tlaunches\tthreads\tissued\tactive\tld_req\tld_sec\tst_req\tst_sec\tat_req\tat_sec\tshared\tseconds";
+    const HEADER: &str =
+        "name\tlaunches\tthreads\tissued\tactive\tld_req\tld_sec\tst_req\tst_sec\tat_req\tat_sec\tshared\tseconds";
 
     pub fn write(rows: &[KernelSummary]) -> String {
         let mut s = format!("{HEADER}\n");

@@ -229,7 +229,8 @@ fn ctrl_c_finishes_the_pass_and_writes_what_was_rendered() {
 #[test]
 fn a_built_in_scene_renders_by_name_from_any_folder() {
     let dir = scratch("named");
-    let models = std::fs::canonicalize(warpray::scene::models_dir()).expect("WARPRAY_MODELS must name the models folder");
+    let models =
+        std::fs::canonicalize(warpray::scene::models_dir()).expect("WARPRAY_MODELS must name the models folder");
     let out = warpray()
         .args(["render", "bunny", "--size", "12x12", "--spp", "1", "-q", "-o", "b.png"])
         .env("WARPRAY_MODELS", &models)
@@ -263,7 +264,8 @@ fn diff_reports_known_differences() {
     flat_exr(&b, 4, 2, Vec3::new(1.1, 0.5, 0.25));
     flat_exr(&c, 4, 2, Vec3::new(1.0, 0.5, 0.25));
     flat_exr(&small, 2, 2, Vec3::ONE);
-    let run = |args: &[&std::path::Path], extra: &[&str]| warpray().arg("diff").args(args).args(extra).output().unwrap();
+    let run =
+        |args: &[&std::path::Path], extra: &[&str]| warpray().arg("diff").args(args).args(extra).output().unwrap();
     let out = run(&[&a, &b], &["--json"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let j = String::from_utf8_lossy(&out.stdout).to_string();

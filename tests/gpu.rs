@@ -71,7 +71,8 @@ fn check_against_cpu(scene: &Scene, params: PdacrtParams, rays: &[Ray]) {
     let g = gpu(scene, params);
     let cpu = Pdacrt::from_triangles(&scene.triangle_vertices(), params);
     let brute = BruteForce::new(scene);
-    let (mut gh, mut ch, mut bh) = (vec![Hit::MISS; rays.len()], vec![Hit::MISS; rays.len()], vec![Hit::MISS; rays.len()]);
+    let (mut gh, mut ch, mut bh) =
+        (vec![Hit::MISS; rays.len()], vec![Hit::MISS; rays.len()], vec![Hit::MISS; rays.len()]);
     g.closest(rays, &mut gh);
     cpu.closest(rays, &mut ch);
     brute.closest(rays, &mut bh);

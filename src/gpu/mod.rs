@@ -92,7 +92,14 @@ impl GpuPdacrt {
         let device = lib.device_name()?;
         let (flat, scene_box) = crate::pdacrt::flatten(tris);
         let handle = lib.create(&flat, scene_box)?;
-        Ok(GpuPdacrt { lib, handle: Mutex::new(handle), tris: flat, device, params, last: Mutex::new(GpuStats::default()) })
+        Ok(GpuPdacrt {
+            lib,
+            handle: Mutex::new(handle),
+            tris: flat,
+            device,
+            params,
+            last: Mutex::new(GpuStats::default()),
+        })
     }
 
     /// The GPU's name, compute capability and SM count.

@@ -192,7 +192,11 @@ pub fn relative(predicted: Option<f64>, measured: Option<f64>) -> Option<f64> {
 pub fn compare(simt: &[KernelSummary], gpu: &[GpuKernel]) -> Vec<Comparison> {
     gpu.iter()
         .filter_map(|g| {
-            simt.iter().find(|s| s.name == g.name).map(|s| Comparison { name: g.name.clone(), simt: s.clone(), gpu: g.clone() })
+            simt.iter().find(|s| s.name == g.name).map(|s| Comparison {
+                name: g.name.clone(),
+                simt: s.clone(),
+                gpu: g.clone(),
+            })
         })
         .collect()
 }
