@@ -3,13 +3,13 @@
 
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 use warpray::cast::{BvhCaster, CasterKind, RayCaster, Traversal};
 use warpray::error::{Error, Result};
 use warpray::render::{Budget, IntegratorKind, RenderOptions, render};
-use warpray::scene::{SceneDesc, load_scene};
+use warpray::scene::load_scene;
 
 #[derive(Parser)]
 #[command(name = "warpray", version, about = "GPU ray-tracing algorithms on CPUs, measured as a GPU would be")]
@@ -165,12 +165,6 @@ fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
     Ok((w, h))
 }
 
-/// A scene argument: a file, a built-in scene or model name, or `cornell` (all resolved
-/// by `load_scene`, as for library users).
-fn resolve_scene(arg: &Path) -> Result<SceneDesc> {
-    load_scene(arg)
-}
-
 /// Ctrl-C during a render: the first asks the render loop to stop after the pass it is
 /// in (the image is then written as usual), the second exits at once with status 130.
 /// Images are written under a temporary name and renamed, so neither leaves a
@@ -252,7 +246,7 @@ fn check_outputs(outputs: &[PathBuf], extensions: &[&str]) -> Result<()> {
 /// Renders; `Ok(true)` when Ctrl-C stopped it early (the image was still written).
 fn run_render(args: RenderArgs) -> Result<bool> {
     check_outputs(&args.output, &["png", "exr"])?;
-    let desc = resolve_scene(&args.scene)?;
+    let desc = load_scene(&args.scene)?;
     let s = &desc.settings;
     let (width, height) = args.size.unwrap_or((s.width.unwrap_or(512), s.height.unwrap_or(512)));
     let integrator = match (args.integrator, &s.integrator) {
@@ -359,7 +353,7 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
 
 fn run_converge(args: ConvergeArgs) -> Result<()> {
     use warpray::converge::{ConvergeOptions, Variant, read_exr, run, time_to_reach, write_chart, write_csv};
-    let desc = resolve_scene(&args.scene)?;
+    let desc = load_scene(&args.scene)?;
     let (width, height) = args.size;
     warpray::film::check_size(width, height)?;
     if !(args.seconds > 0.0 && args.seconds <= warpray::render::MAX_SECONDS) {

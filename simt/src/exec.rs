@@ -193,13 +193,15 @@ impl<'w> Block<'w> {
         if self.measure {
             let (at, addr) = (site(), v.address(i));
             let (size, width) = (std::mem::size_of::<T>() as u64, access_width::<T>());
-            self.for_each_thread(|t| {
-                if let Some(m) = t.meter {
-                    note_global(m, at, Kind::Load, addr, size, width);
-                }
+            // A load inside the block's flow, not a phase of threads: lanes are measured
+            // but not counted as threads again.
+            self.for_each_warp(|w| {
+                w.run_lanes(false, &mut |t: &Thread| {
+                    if let Some(m) = t.meter {
+                        note_global(m, at, Kind::Load, addr, size, width);
+                    }
+                })
             });
-            // A load, not a phase of its own: the block's threads were counted already.
-            self.worker.meter.get_mut().totals.threads -= self.block_dim as u64;
         }
         v.read(i)
     }
@@ -255,6 +257,11 @@ impl Warp<'_, '_> {
 
     /// Runs `f` for each active lane, in lane order: one lockstep step sequence.
     pub fn for_each_lane(&mut self, mut f: impl FnMut(&Thread)) {
+        self.run_lanes(true, &mut f)
+    }
+
+    /// The lane loop; `count_threads` adds the lanes to the launch's thread count.
+    fn run_lanes(&mut self, count_threads: bool, mut f: impl FnMut(&Thread)) {
         let b = self.block;
         let meter = &b.worker.meter;
         let thread = |lane: u32, meter| b.thread(self.warp_idx * WARP_SIZE + lane, meter);
@@ -273,7 +280,9 @@ impl Warp<'_, '_> {
                 f(&thread(lane, None));
             }
         }
-        meter.borrow_mut().totals.threads += self.lanes as u64;
+        if count_threads {
+            meter.borrow_mut().totals.threads += self.lanes as u64;
+        }
     }
 
     fn count_warp_op(&self) {
