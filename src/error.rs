@@ -55,7 +55,9 @@ pub enum Error {
     NonFinite { at: Location, what: String },
     #[error("{at}: the scene has no triangles")]
     EmptyMesh { at: Location },
-    #[error("{at}: the scene has no emitters (no Ke materials, no point lights); add a light in a scene file")]
+    #[error(
+        "{at}: the scene has no emitters (no Ke material on a triangle of positive area, no point light of positive intensity); add a light in a scene file"
+    )]
     NoEmitters { at: Location },
     #[error("{at}: {msg}")]
     SceneFile { at: Location, msg: String },

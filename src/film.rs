@@ -18,6 +18,12 @@ pub struct Film {
     /// Per pixel: sum of contributions splatted by light paths (light tracing, BDPT's
     /// camera connections), normalised so that it too is divided by `passes`.
     pub splat: Vec<Vec3>,
+    /// Per pixel: sum of the squares of each pass's estimate (its own estimate plus
+    /// that pass's splats), for the per-pixel sample variance.
+    pub sum_sq: Vec<Vec3>,
+    /// Per pixel: the splats of the pass in progress (folded into `sum_sq` when the
+    /// pass ends).
+    pass_splat: Vec<Vec3>,
     /// Number of passes (samples per pixel) accumulated.
     pub passes: u32,
     /// Estimates rejected because they were NaN, infinite or negative.
@@ -47,7 +53,22 @@ impl Film {
     pub fn new(width: u32, height: u32) -> Result<Film> {
         check_size(width, height)?;
         let n = (width * height) as usize;
-        Ok(Film { width, height, sum: vec![Vec3::ZERO; n], splat: vec![Vec3::ZERO; n], passes: 0, rejected: 0 })
+        let zeros = || vec![Vec3::ZERO; n];
+        Ok(Film {
+            width,
+            height,
+            sum: zeros(),
+            splat: zeros(),
+            sum_sq: zeros(),
+            pass_splat: zeros(),
+            passes: 0,
+            rejected: 0,
+        })
+    }
+
+    /// Bytes of the film's buffers.
+    pub fn memory_bytes(&self) -> usize {
+        (self.sum.len() + self.splat.len() + self.sum_sq.len() + self.pass_splat.len()) * size_of::<Vec3>()
     }
 
     pub fn pixel_count(&self) -> usize {
@@ -58,12 +79,18 @@ impl Film {
     /// estimates are replaced by zero and counted in `rejected`.
     pub fn add_pass(&mut self, estimates: &[Vec3]) {
         assert_eq!(estimates.len(), self.sum.len(), "one estimate per pixel");
-        for (s, &e) in self.sum.iter_mut().zip(estimates) {
-            if e.is_finite() && e.min_element() >= 0.0 {
+        for ((s, q), (&e, p)) in
+            self.sum.iter_mut().zip(&mut self.sum_sq).zip(estimates.iter().zip(&mut self.pass_splat))
+        {
+            let e = if e.is_finite() && e.min_element() >= 0.0 {
                 *s += e;
+                e
             } else {
                 self.rejected += 1;
-            }
+                Vec3::ZERO
+            };
+            let x = e + std::mem::take(p);
+            *q += x * x;
         }
         self.passes += 1;
     }
@@ -74,8 +101,9 @@ impl Film {
     pub fn add_splats(&mut self, splats: impl IntoIterator<Item = (u32, Vec3)>) {
         for (p, v) in splats {
             if v.is_finite() && v.min_element() >= 0.0 {
-                if let Some(s) = self.splat.get_mut(p as usize) {
+                if let (Some(s), Some(c)) = (self.splat.get_mut(p as usize), self.pass_splat.get_mut(p as usize)) {
                     *s += v;
+                    *c += v;
                 }
             } else {
                 self.rejected += 1;
@@ -85,7 +113,29 @@ impl Film {
 
     /// Ends a pass that added only splats.
     pub fn end_pass(&mut self) {
+        for (q, p) in self.sum_sq.iter_mut().zip(&mut self.pass_splat) {
+            let x = std::mem::take(p);
+            *q += x * x;
+        }
         self.passes += 1;
+    }
+
+    /// Per-pixel sample variance of the passes' estimates (unbiased: divided by
+    /// `passes − 1`; zero before the second pass). The variance of the mean is this
+    /// divided by `passes`.
+    pub fn variance(&self) -> Vec<Vec3> {
+        let n = self.passes as f64;
+        if self.passes < 2 {
+            return vec![Vec3::ZERO; self.sum.len()];
+        }
+        let (s, p, q) = (&self.sum, &self.splat, &self.sum_sq);
+        (0..s.len())
+            .map(|i| {
+                let total = (s[i] + p[i]).as_dvec3();
+                let v = (q[i].as_dvec3() - total * total / n) / (n - 1.0);
+                v.max(glam::DVec3::ZERO).as_vec3()
+            })
+            .collect()
     }
 
     /// The mean estimate per pixel.
@@ -139,9 +189,19 @@ impl Film {
     /// Linear EXR with `metadata` as `warpray.KEY` text attributes (characters outside
     /// Latin-1, which EXR text cannot hold, become `?`).
     pub fn write_exr_with(&self, path: &Path, metadata: &[(&str, String)]) -> Result<()> {
+        self.write_exr_aovs(path, metadata, &[])
+    }
+
+    /// As [`Film::write_exr_with`], with extra channels beside R, G, B: `(name, one value
+    /// per pixel)`, named as tev and pbrt-v4 group them (`Albedo.R`, `N.X`, `Z`,
+    /// `Variance.G`; see [`crate::aov`]). Every channel must have one value per pixel.
+    pub fn write_exr_aovs(&self, path: &Path, metadata: &[(&str, String)], aovs: &[(String, Vec<f32>)]) -> Result<()> {
         use exr::prelude::*;
-        let mean = self.mean();
         let (w, h) = (self.width as usize, self.height as usize);
+        if let Some((name, _)) = aovs.iter().find(|(_, v)| v.len() != w * h) {
+            let msg = format!("channel {name} does not have one value per pixel");
+            return Err(crate::error::Error::Output { path: path.into(), msg });
+        }
         let mut attributes = LayerAttributes::named("rgb");
         for (key, value) in metadata {
             let text = |s: &str| {
@@ -150,12 +210,16 @@ impl Film {
             };
             attributes.other.insert(text(&format!("warpray.{key}")), AttributeValue::Text(text(value)));
         }
+        let mean = self.mean();
+        let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+        for (i, name) in ["R", "G", "B"].into_iter().enumerate() {
+            list.push(AnyChannel::new(name, FlatSamples::F32(mean.iter().map(|c| c[i]).collect())));
+        }
+        for (name, values) in aovs {
+            list.push(AnyChannel::new(name.as_str(), FlatSamples::F32(values.clone())));
+        }
         atomic_write(path, |tmp| {
-            let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
-                let c = mean[p.y() * w + p.x()];
-                (c.x, c.y, c.z)
-            });
-            let layer = Layer::new((w, h), attributes, Encoding::SMALL_LOSSLESS, channels);
+            let layer = Layer::new((w, h), attributes, Encoding::SMALL_LOSSLESS, AnyChannels::sort(list));
             Image::from_layer(layer).write().to_file(tmp).map_err(|e| e.to_string())
         })
     }

@@ -25,6 +25,7 @@
 //! assert!((hits[0].t - 4.0).abs() < 1e-4); // the back wall at z = -1
 //! ```
 
+pub mod aov;
 pub mod bsdf;
 pub mod cast;
 pub mod cis;

@@ -156,6 +156,15 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
+    /// Auxiliary images to add to the EXR output as extra channels, comma-separated:
+    /// albedo (Albedo.R/G/B), normal (N.X/Y/Z), depth (Z), variance (Variance.R/G/B).
+    /// The first three come from 16 extra camera rays per pixel.
+    #[arg(long, value_enum, value_delimiter = ',')]
+    aov: Vec<warpray::aov::Aov>,
+    /// At the end, print what the render did: rays by kind, Mrays/s, cast against
+    /// shade time, memory, and the simt kernel table of the GPU methods.
+    #[arg(long)]
+    stats: bool,
 }
 
 fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
@@ -246,6 +255,10 @@ fn check_outputs(outputs: &[PathBuf], extensions: &[&str]) -> Result<()> {
 /// Renders; `Ok(true)` when Ctrl-C stopped it early (the image was still written).
 fn run_render(args: RenderArgs) -> Result<bool> {
     check_outputs(&args.output, &["png", "exr"])?;
+    let is_exr = |p: &PathBuf| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if !args.aov.is_empty() && !args.output.iter().any(is_exr) {
+        return Err(Error::BadSetting("--aov adds channels to an EXR: give an -o FILE.exr output".into()));
+    }
     let desc = load_scene(&args.scene)?;
     let s = &desc.settings;
     let (width, height) = args.size.unwrap_or((s.width.unwrap_or(512), s.height.unwrap_or(512)));
@@ -308,8 +321,23 @@ fn run_render(args: RenderArgs) -> Result<bool> {
             ("interrupted", interrupted.to_string()),
             ("version", env!("CARGO_PKG_VERSION").to_string()),
         ];
+        let aovs = if args.aov.is_empty() {
+            Vec::new()
+        } else {
+            let geometric = args.aov.iter().any(|a| *a != warpray::aov::Aov::Variance);
+            let gbuffer = if geometric {
+                Some(warpray::aov::render_gbuffer(&desc.scene, caster.as_ref(), width, height, AOV_SAMPLES, opts.seed)?)
+            } else {
+                None
+            };
+            warpray::aov::channels(&args.aov, &film, gbuffer.as_ref())
+        };
         for out in &args.output {
-            film.write_with(out, args.exposure, &metadata)?;
+            if is_exr(out) {
+                film.write_exr_aovs(out, &metadata, &aovs)?;
+            } else {
+                film.write_with(out, args.exposure, &metadata)?;
+            }
         }
         if interrupted {
             eprintln!("interrupted after {} passes; the images hold those passes", stats.passes);
@@ -330,12 +358,86 @@ fn run_render(args: RenderArgs) -> Result<bool> {
             caster.build_seconds(),
             outs.join(", ")
         );
+        if args.stats {
+            print!("{}", stats_report(&stats, caster.as_ref(), &desc.scene, &film, threads));
+        }
         if film.rejected > 0 {
             eprintln!("warning: {} sample estimates were NaN, infinite or negative and were dropped", film.rejected);
         }
         Ok(interrupted)
     })
 }
+
+/// `--stats`: what the render did, as a few aligned lines and the kernel table.
+fn stats_report(
+    stats: &warpray::render::RenderStats,
+    caster: &dyn RayCaster,
+    scene: &warpray::scene::Scene,
+    film: &warpray::film::Film,
+    threads: usize,
+) -> String {
+    use std::fmt::Write;
+    let mb = |b: usize| format!("{:.1} MB", b as f64 / 1e6);
+    let closest = stats.rays - stats.shadow_rays;
+    let per_call = if stats.cast_calls > 0 { stats.rays as f64 / stats.cast_calls as f64 } else { 0.0 };
+    let mut s = String::from("statistics\n");
+    let _ = writeln!(s, "  passes      {} ({} samples per pixel)", stats.passes, stats.passes);
+    let _ = writeln!(
+        s,
+        "  rays        {} = {} closest-hit (camera, bounce, light) + {} shadow/connection, in {} caster calls ({:.0} rays per call)",
+        stats.rays, closest, stats.shadow_rays, stats.cast_calls, per_call
+    );
+    let _ = writeln!(
+        s,
+        "  speed       {:.2} Mrays/s over the render's wall time; {:.2} ray-triangle tests per ray",
+        stats.rays_per_second() / 1e6,
+        if stats.rays > 0 { stats.tests as f64 / stats.rays as f64 } else { 0.0 }
+    );
+    // Calls made in parallel each count their own wall time, so the caster's sum can
+    // exceed the render's wall time; shading is what remains only when it does not.
+    let cast = stats.cast_seconds;
+    let shade = if cast <= stats.seconds {
+        format!("{:.3} s shading and the rest", stats.seconds - cast)
+    } else {
+        format!("casts overlapped on {threads} threads, so shading time is not the difference")
+    };
+    let _ = writeln!(
+        s,
+        "  time        {:.3} s wall: {:.3} s inside the caster (summed over calls), {shade}; caster build {:.3} s",
+        stats.seconds,
+        cast,
+        caster.build_seconds()
+    );
+    let _ = writeln!(
+        s,
+        "  memory      scene {}, caster structure {}, film {}, caster working peak {}{}",
+        mb(scene.memory_bytes()),
+        mb(caster.memory_bytes()),
+        mb(film.memory_bytes()),
+        mb(stats.peak_working_bytes),
+        peak_rss().map_or(String::new(), |b| format!(", process peak RSS {}", mb(b)))
+    );
+    if let Some((kernels, peak)) = &stats.device {
+        let _ = writeln!(s, "  simt device peak memory {}; kernels:", mb(*peak));
+        let mut rows = kernels.clone();
+        rows.sort_by(|a, b| b.seconds.total_cmp(&a.seconds));
+        for line in simt::stats::format_table(&rows).lines() {
+            let _ = writeln!(s, "    {line}");
+        }
+    }
+    s
+}
+
+/// The process's peak resident memory (Linux: `VmHWM` of /proc/self/status).
+fn peak_rss() -> Option<usize> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: usize = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Camera rays per pixel of the geometric AOVs (albedo, normal, depth).
+const AOV_SAMPLES: u32 = 16;
 
 /// Most worker threads `--threads` accepts (thousands of OS threads only thrash).
 const MAX_THREADS: usize = 1024;
@@ -487,6 +589,17 @@ fn main() -> ExitCode {
         Ok(Stop::Differs) => ExitCode::from(1),
         Err(e) => {
             eprintln!("error: {e}");
+            // The chain of causes (those the message above does not already quote).
+            let mut shown = e.to_string();
+            let mut cause = std::error::Error::source(&e);
+            while let Some(c) = cause {
+                let text = c.to_string();
+                if !shown.contains(&text) {
+                    eprintln!("  caused by: {text}");
+                }
+                shown = text;
+                cause = c.source();
+            }
             ExitCode::FAILURE
         }
     }

@@ -131,6 +131,28 @@ fn no_emitters_refuses_to_render() {
 }
 
 #[test]
+fn emitters_of_zero_area_or_intensity_do_not_count() {
+    let dir = scratch("degenerate-lamp");
+    // The lamp's triangle has two coincident corners; the lit scene differs in one vertex.
+    let text = |c: &str| obj(&format!("f 1 2 3\nv 2 0 0\nv 3 0 0\nv {c}\nusemtl lamp\nf 4 5 6\n"));
+    let s = load(&dir, &text("3 0 0")).unwrap();
+    let e = s.check_renderable().unwrap_err();
+    assert!(matches!(&e, Error::NoEmitters { at } if at.path.ends_with("scene.obj")), "{e}");
+    assert!(e.to_string().contains("positive area"), "{e}");
+    let caster = BvhCaster::new(&s);
+    let opts = RenderOptions { width: 4, height: 4, budget: Budget::Samples(1), ..Default::default() };
+    assert!(matches!(render(&s, &caster, &opts, |_, _| true), Err(Error::NoEmitters { .. })));
+    load(&dir, &text("2 1 0")).unwrap().check_renderable().unwrap();
+    // A point light of zero intensity lights nothing either.
+    let mut s = load(&dir, &obj("f 1 2 3\n")).unwrap();
+    s.point_lights
+        .push(warpray::scene::PointLight { position: warpray::glam::Vec3::ONE, intensity: warpray::glam::Vec3::ZERO });
+    assert!(matches!(s.check_renderable(), Err(Error::NoEmitters { .. })));
+    s.point_lights[0].intensity = warpray::glam::Vec3::splat(1.0);
+    s.check_renderable().unwrap();
+}
+
+#[test]
 fn zero_and_absurd_image_sizes() {
     for (w, h) in [(0, 10), (10, 0), (0, 0), (100_000, 10), (16_000, 16_000), (u32::MAX, u32::MAX)] {
         let e = Film::new(w, h).unwrap_err();

@@ -137,6 +137,8 @@ pub struct CountingCaster<'a> {
     tests: AtomicU64,
     nanos: AtomicU64,
     peak: AtomicUsize,
+    shadow: AtomicU64,
+    calls: AtomicU64,
 }
 
 impl<'a> CountingCaster<'a> {
@@ -148,7 +150,21 @@ impl<'a> CountingCaster<'a> {
             tests: AtomicU64::new(0),
             nanos: AtomicU64::new(0),
             peak: AtomicUsize::new(0),
+            shadow: AtomicU64::new(0),
+            calls: AtomicU64::new(0),
         }
+    }
+
+    /// Rays sent through `occluded` (shadow and connection rays) so far; the rest of
+    /// [`CastStats::rays`] went through `closest`.
+    pub fn shadow_rays(&self) -> u64 {
+        self.shadow.load(Relaxed)
+    }
+
+    /// Caster calls (batches) with at least one ray so far: rays per call is how
+    /// batch-friendly the caller is.
+    pub fn calls(&self) -> u64 {
+        self.calls.load(Relaxed)
     }
 
     /// Everything counted so far.
@@ -166,6 +182,7 @@ impl<'a> CountingCaster<'a> {
         self.tests.fetch_add(s.tests, Relaxed);
         self.nanos.fetch_add((s.seconds * 1e9) as u64, Relaxed);
         self.peak.fetch_max(s.peak_working_bytes, Relaxed);
+        self.calls.fetch_add((s.rays > 0) as u64, Relaxed);
         s
     }
 }
@@ -178,6 +195,7 @@ impl RayCaster for CountingCaster<'_> {
         self.add(self.inner.closest(rays, hits))
     }
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
+        self.shadow.fetch_add(rays.len() as u64, Relaxed);
         self.add(self.inner.occluded(rays, out))
     }
     fn memory_bytes(&self) -> usize {

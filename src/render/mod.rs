@@ -120,6 +120,16 @@ pub struct RenderStats {
     pub cast_seconds: f64,
     /// Ray–triangle tests the caster made.
     pub tests: u64,
+    /// Of `rays`, those cast by `occluded` (shadow and connection rays); the others
+    /// were closest-hit rays (camera, bounce and light-path rays).
+    pub shadow_rays: u64,
+    /// Caster calls: `rays / cast_calls` is the mean batch.
+    pub cast_calls: u64,
+    /// Largest working memory of any caster call, bytes (beyond its structure).
+    pub peak_working_bytes: usize,
+    /// The emulated device's kernel table when the render ran anything on one
+    /// (PDACRT casting, CIS-LBDPT), with its peak device memory in bytes.
+    pub device: Option<(Vec<simt::KernelSummary>, usize)>,
 }
 
 impl RenderStats {
@@ -144,6 +154,8 @@ pub struct Renderer<'a> {
     opts: RenderOptions,
     lights: Lights,
     integrator: Integrator,
+    /// (shadow rays, caster calls) of every pass so far.
+    counts: (u64, u64),
 }
 
 /// Longest time budget a render accepts, seconds (about 116 days; a `Duration` of
@@ -195,7 +207,7 @@ impl<'a> Renderer<'a> {
                 None => crate::cis::CisLbdpt::new(opts.cis),
             })),
         };
-        Ok(Renderer { scene, caster, opts: opts.clone(), lights, integrator })
+        Ok(Renderer { scene, caster, opts: opts.clone(), lights, integrator, counts: (0, 0) })
     }
 
     pub fn options(&self) -> &RenderOptions {
@@ -221,7 +233,14 @@ impl<'a> Renderer<'a> {
             Integrator::Cis(i) => i.render_pass(&ctx, pass, film),
         };
         let counted = counter.stats();
+        self.counts.0 += counter.shadow_rays();
+        self.counts.1 += counter.calls();
         CastStats { peak_working_bytes: counted.peak_working_bytes.max(own.peak_working_bytes), ..counted }
+    }
+
+    /// Shadow rays and caster calls of every pass so far (see [`RenderStats`]).
+    pub fn ray_counts(&self) -> (u64, u64) {
+        self.counts
     }
 
     /// The CIS-LBDPT integrator, when that is the one running (queue records, device).
@@ -264,11 +283,14 @@ pub fn render(
         stats.rays += pass.rays as u64;
         stats.cast_seconds += pass.seconds;
         stats.tests += pass.tests;
+        stats.peak_working_bytes = stats.peak_working_bytes.max(pass.peak_working_bytes);
         stats.passes += 1;
         if !on_pass(stats.passes, &film) {
             break;
         }
     }
     stats.seconds = start.elapsed().as_secs_f64();
+    (stats.shadow_rays, stats.cast_calls) = renderer.ray_counts();
+    stats.device = renderer.device().map(|d| (d.kernel_stats(), d.memory().peak));
     Ok((film, stats))
 }

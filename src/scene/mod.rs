@@ -12,7 +12,7 @@ mod obj;
 
 pub use camera::Camera;
 pub use cornell::cornell_box;
-pub use file::{NAMED_SCENES, RenderSettings, SceneDesc, load_scene};
+pub use file::{NAMED_SCENES, RenderSettings, SceneDesc, load_scene, parse_scene_file};
 pub use material::{Coat, LayerBase, Layered, Material, metals};
 pub use obj::{ObjOptions, load_obj};
 
@@ -97,8 +97,15 @@ impl Scene {
             + self.point_lights.len() * size_of::<PointLight>()
     }
 
+    /// Whether anything emits: a point light of positive intensity, or an emissive
+    /// triangle of positive area (a degenerate emitter cannot be sampled, so a scene
+    /// lit only by those would render black).
     pub fn has_emitters(&self) -> bool {
-        !self.point_lights.is_empty() || self.material_of.iter().any(|&m| self.emission[m as usize].max_element() > 0.0)
+        self.point_lights.iter().any(|l| l.intensity.max_element() > 0.0)
+            || self.material_of.iter().enumerate().any(|(i, &m)| {
+                let [a, b, c] = self.vertices(i as u32);
+                self.emission[m as usize].max_element() > 0.0 && (b - a).cross(c - a).length() > 0.0
+            })
     }
 
     /// Checks what every caster needs: at least one triangle, finite coordinates, indices
