@@ -43,9 +43,13 @@ impl Aov {
 /// The geometric AOVs of one image.
 #[derive(Clone, Debug)]
 pub struct GBuffer {
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
+    /// Directional albedo of the first surface (zero where nothing was hit).
     pub albedo: Vec<Vec3>,
+    /// Camera-facing normal of the first surface, averaged (zero where nothing was hit).
     pub normal: Vec<Vec3>,
     /// +∞ where no ray of the pixel hit anything.
     pub depth: Vec<f32>,

@@ -43,15 +43,20 @@ pub fn relmse_eps(image: &[Vec3], reference: &[Vec3], eps: f64) -> f64 {
 /// and `cis-nocompact` (no compaction or regeneration).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Variant {
+    /// The name in charts and CSV.
     pub label: &'static str,
+    /// The integrator.
     pub kind: IntegratorKind,
+    /// CIS-LBDPT switches (ablations).
     pub cis: crate::cis::CisParams,
 }
 
 impl Variant {
+    /// Every label [`Variant::parse`] accepts.
     pub const NAMES: [&'static str; 8] =
         ["path", "light", "bdpt", "lvc", "cis", "cis-nosort", "cis-nois", "cis-nocompact"];
 
+    /// The variant of a label (case-insensitive); an error lists the known ones.
     pub fn parse(name: &str) -> Result<Variant> {
         let label = Self::NAMES.iter().find(|n| n.eq_ignore_ascii_case(name)).copied().ok_or_else(|| {
             Error::BadSetting(format!("unknown integrator '{name}' (known: {})", Self::NAMES.join(", ")))
@@ -74,24 +79,34 @@ impl Variant {
 /// One measurement of one integrator's progress.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Checkpoint {
+    /// The variant's label.
     pub integrator: &'static str,
     /// Rendering time so far (error evaluation excluded).
     pub seconds: f64,
+    /// Passes done.
     pub spp: u32,
+    /// Root-mean-square error against the reference.
     pub rmse: f64,
+    /// Relative MSE against the reference (offset as in [`relmse_eps`]).
     pub relmse: f64,
 }
 
 #[derive(Clone, Debug)]
+/// What a `converge` run compares and how.
 pub struct ConvergeOptions {
+    /// The integrators, in order.
     pub integrators: Vec<Variant>,
     /// Time budget of each integrator, seconds.
     pub seconds: f64,
     /// Number of log-spaced checkpoints from `seconds / 200` to `seconds`.
     pub checkpoints: usize,
+    /// Image width.
     pub width: u32,
+    /// Image height.
     pub height: u32,
+    /// Largest number of bounces.
     pub max_depth: u32,
+    /// Seed of every integrator's render.
     pub seed: u64,
 }
 
@@ -177,6 +192,7 @@ pub fn time_to_reach(rows: &[Checkpoint], integrator: &str, target: f64) -> Opti
     })
 }
 
+/// Writes the checkpoints as CSV (`integrator,seconds,spp,rmse,relmse`).
 pub fn write_csv(path: &Path, rows: &[Checkpoint]) -> Result<()> {
     let mut text = String::from("integrator,seconds,spp,rmse,relmse\n");
     for r in rows {
@@ -266,6 +282,22 @@ fn chart<DB: plotters::prelude::DrawingBackend>(
 pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
     use exr::prelude::*;
     crate::scene::input::open_regular(path)?;
+    let unreadable = |e: exr::error::Error| match e {
+        exr::error::Error::Io(io) => crate::error::Error::io(path, io),
+        other => crate::error::Error::Output { path: path.into(), msg: format!("not a readable EXR: {other}") },
+    };
+    // The pixel buffer is sized from the header before any pixel is read, so a tiny
+    // file claiming a huge image would allocate without bound (found by fuzzing): the
+    // header's sizes must pass the film's own limits first.
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(unreadable)?;
+    for header in &meta.headers {
+        let (w, h) = (header.layer_size.width(), header.layer_size.height());
+        let side = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+        crate::film::check_size(side(w), side(h)).map_err(|e| crate::error::Error::Output {
+            path: path.into(),
+            msg: format!("not a readable EXR: its header claims {w}x{h} pixels ({e})"),
+        })?;
+    }
     let image = read_first_rgba_layer_from_file(
         path,
         |res, _| (res.width(), res.height(), vec![Vec3::ZERO; res.width() * res.height()]),
@@ -274,10 +306,7 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
             px.2[pos.y() * w + pos.x()] = Vec3::new(r, g, b);
         },
     )
-    .map_err(|e| match e {
-        exr::error::Error::Io(io) => crate::error::Error::io(path, io),
-        other => crate::error::Error::Output { path: path.into(), msg: format!("not a readable EXR: {other}") },
-    })?;
+    .map_err(unreadable)?;
     let (w, h, px) = image.layer_data.channel_data.pixels;
     Ok((w as u32, h as u32, px))
 }

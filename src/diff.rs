@@ -14,12 +14,17 @@ pub const DEFAULT_EPSILON: f64 = 0.01;
 /// What `warpray diff` reports.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Diff {
+    /// Image width.
     pub width: u32,
+    /// Image height.
     pub height: u32,
     /// Mean of each channel, reference then test.
     pub mean_reference: [f64; 3],
+    /// Mean of each channel of the test image.
     pub mean_test: [f64; 3],
+    /// Root-mean-square difference over all channels.
     pub rmse: f64,
+    /// Relative MSE: mean of `(x − r)² / (r² + ε)`.
     pub relmse: f64,
     /// The ε of the relMSE.
     pub epsilon: f64,

@@ -10,8 +10,11 @@ use glam::Vec3;
 use std::path::{Path, PathBuf};
 
 #[derive(Clone, Debug)]
+/// Accumulated radiance of a progressive render, per pixel, and its output as PNG or EXR.
 pub struct Film {
+    /// Width, pixels.
     pub width: u32,
+    /// Height, pixels.
     pub height: u32,
     /// Per pixel: sum of the radiance estimates of all passes.
     pub sum: Vec<Vec3>,
@@ -32,6 +35,7 @@ pub struct Film {
 
 /// Largest image accepted: 16384 pixels a side and 2^26 pixels (64 Mpx) in all.
 pub const MAX_SIDE: u32 = 16_384;
+/// Most pixels an image may have.
 pub const MAX_PIXELS: u64 = 1 << 26;
 
 /// Checks an image size before anything is allocated.
@@ -50,6 +54,7 @@ pub fn check_size(width: u32, height: u32) -> Result<()> {
 }
 
 impl Film {
+    /// An empty film (the size is checked first).
     pub fn new(width: u32, height: u32) -> Result<Film> {
         check_size(width, height)?;
         let n = (width * height) as usize;
@@ -71,6 +76,7 @@ impl Film {
         (self.sum.len() + self.splat.len() + self.sum_sq.len() + self.pass_splat.len()) * size_of::<Vec3>()
     }
 
+    /// Pixels.
     pub fn pixel_count(&self) -> usize {
         self.sum.len()
     }
@@ -167,6 +173,7 @@ impl Film {
         }
     }
 
+    /// sRGB 8-bit PNG of the mean, scaled by `exposure` and clamped.
     pub fn write_png(&self, path: &Path, exposure: f32) -> Result<()> {
         let bytes: Vec<u8> = self.mean().iter().flat_map(|c| (*c * exposure).to_array().map(encode_srgb8)).collect();
         atomic_write(path, |tmp| {
@@ -182,6 +189,7 @@ impl Film {
         })
     }
 
+    /// Linear f32 EXR of the mean.
     pub fn write_exr(&self, path: &Path) -> Result<()> {
         self.write_exr_with(path, &[])
     }
@@ -228,6 +236,7 @@ impl Film {
 /// The `warpray.KEY` text attributes of an EXR's first layer, as (KEY, value), sorted
 /// by key.
 pub fn read_exr_metadata(path: &Path) -> Result<Vec<(String, String)>> {
+    crate::scene::input::open_regular(path)?;
     let meta = exr::meta::MetaData::read_from_file(path, false)
         .map_err(|e| Error::Output { path: path.into(), msg: format!("not a readable EXR: {e}") })?;
     let mut out: Vec<(String, String)> = meta

@@ -18,9 +18,13 @@ use glam::Vec3;
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct Ray {
+    /// Where the ray starts.
     pub origin: Vec3,
+    /// Direction (unit length from the constructors).
     pub dir: Vec3,
+    /// Nearest distance that counts as a hit.
     pub t_min: f32,
+    /// Farthest distance that counts as a hit (a shadow ray's segment end).
     pub t_max: f32,
 }
 
@@ -35,6 +39,7 @@ impl Ray {
         Ray { origin, dir, t_min: 0.0, t_max }
     }
 
+    /// The point at distance `t`.
     pub fn at(&self, t: f32) -> Vec3 {
         self.origin + self.dir * t
     }
@@ -53,17 +58,23 @@ impl Ray {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct Hit {
+    /// Distance along the ray (in units of its direction's length).
     pub t: f32,
     /// Triangle index into the scene, or [`Hit::NONE`] for a miss.
     pub prim: u32,
+    /// Barycentric weight of the triangle's second vertex.
     pub u: f32,
+    /// Barycentric weight of the triangle's third vertex.
     pub v: f32,
 }
 
 impl Hit {
+    /// `prim` of a miss.
     pub const NONE: u32 = u32::MAX;
+    /// No hit.
     pub const MISS: Hit = Hit { t: f32::INFINITY, prim: Hit::NONE, u: 0.0, v: 0.0 };
 
+    /// Whether the ray hit something.
     pub fn is_hit(&self) -> bool {
         self.prim != Hit::NONE
     }
@@ -79,7 +90,9 @@ impl Default for Hit {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct Aabb {
+    /// Smallest corner.
     pub min: Vec3,
+    /// Largest corner.
     pub max: Vec3,
 }
 
@@ -93,28 +106,35 @@ impl Default for Aabb {
 }
 
 impl Aabb {
+    /// The box of nothing (the identity of `union`).
     pub const EMPTY: Aabb = Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
 
+    /// The box around `points`.
     pub fn from_points(points: &[Vec3]) -> Aabb {
         points.iter().fold(Aabb::EMPTY, |b, &p| b.grow(p))
     }
 
+    /// This box grown to hold `p`.
     pub fn grow(self, p: Vec3) -> Aabb {
         Aabb { min: self.min.min(p), max: self.max.max(p) }
     }
 
+    /// The box around both.
     pub fn union(self, o: Aabb) -> Aabb {
         Aabb { min: self.min.min(o.min), max: self.max.max(o.max) }
     }
 
+    /// Whether it holds no point.
     pub fn is_empty(&self) -> bool {
         self.min.cmpgt(self.max).any()
     }
 
+    /// `max − min`.
     pub fn extent(&self) -> Vec3 {
         (self.max - self.min).max(Vec3::ZERO)
     }
 
+    /// The midpoint.
     pub fn center(&self) -> Vec3 {
         (self.min + self.max) * 0.5
     }
@@ -208,6 +228,7 @@ pub struct RayShear {
 
 impl RayShear {
     #[inline]
+    /// The shear of a ray direction.
     pub fn new(dir: Vec3) -> RayShear {
         let a = dir.abs();
         let kz = if a.x >= a.y && a.x >= a.z {

@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! # warpray
 //!
 //! Two published GPU ray-tracing algorithms run on CPUs, through the [`simt`] crate,

@@ -10,16 +10,24 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
+/// A light source the integrators can sample.
 pub enum Light {
     /// An emissive triangle of the scene.
     Area {
+        /// The triangle.
         tri: u32,
+        /// Its area.
         area: f32,
+        /// Its unit normal (the emitting side).
         normal: Vec3,
+        /// Emitted radiance.
         radiance: Vec3,
     },
+    /// A point light.
     Point {
+        /// Position.
         position: Vec3,
+        /// Radiant intensity.
         intensity: Vec3,
     },
 }
@@ -27,6 +35,7 @@ pub enum Light {
 /// A point sampled on a light.
 #[derive(Clone, Copy, Debug)]
 pub struct LightSample {
+    /// The sampled point.
     pub position: Vec3,
     /// Unit normal of the emitting surface (zero for point lights).
     pub normal: Vec3,
@@ -35,13 +44,16 @@ pub struct LightSample {
     /// Probability of the choice times the area density (1/area); for point lights
     /// the selection probability alone.
     pub pdf: f32,
+    /// Whether the light is a point (no area: it cannot be hit).
     pub is_delta: bool,
     /// The emitting triangle (area lights), or `u32::MAX`.
     pub tri: u32,
 }
 
 #[derive(Clone, Debug, Default)]
+/// The scene's lights with a power-proportional selection distribution.
 pub struct Lights {
+    /// Every light: area lights in triangle order, then point lights.
     pub lights: Vec<Light>,
     /// Cumulative selection probabilities, `cdf[i]` = P(choice <= i).
     cdf: Vec<f32>,
@@ -50,6 +62,7 @@ pub struct Lights {
 }
 
 impl Lights {
+    /// The lights of `scene` (emissive triangles of positive area and point lights).
     pub fn new(scene: &Scene) -> Lights {
         let mut lights = Vec::new();
         let mut light_of_tri = vec![u32::MAX; scene.triangle_count()];
@@ -89,6 +102,7 @@ impl Lights {
         Lights { lights, cdf, light_of_tri }
     }
 
+    /// Whether there is no light.
     pub fn is_empty(&self) -> bool {
         self.lights.is_empty()
     }

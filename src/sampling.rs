@@ -38,6 +38,7 @@ impl Rng {
     }
 
     #[inline]
+    /// The next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
         self.counter += 1;
         mix64(self.key.wrapping_add(self.counter.wrapping_mul(0x9e37_79b9_7f4a_7c15)))
@@ -50,6 +51,7 @@ impl Rng {
     }
 
     #[inline]
+    /// Two uniform numbers in `[0, 1)`.
     pub fn uniform2(&mut self) -> Vec2 {
         Vec2::new(self.uniform(), self.uniform())
     }
@@ -67,12 +69,16 @@ impl Default for Rng {
 /// An orthonormal basis around a unit normal (Duff et al. 2017).
 #[derive(Clone, Copy, Debug)]
 pub struct Frame {
+    /// First tangent.
     pub s: Vec3,
+    /// Second tangent.
     pub t: Vec3,
+    /// Normal (the local `z` axis).
     pub n: Vec3,
 }
 
 impl Frame {
+    /// An orthonormal frame around unit normal `n`.
     pub fn from_normal(n: Vec3) -> Frame {
         let sign = 1.0f32.copysign(n.z);
         let a = -1.0 / (sign + n.z);
@@ -82,10 +88,12 @@ impl Frame {
         Frame { s, t, n }
     }
     #[inline]
+    /// World direction to local coordinates.
     pub fn to_local(&self, v: Vec3) -> Vec3 {
         Vec3::new(v.dot(self.s), v.dot(self.t), v.dot(self.n))
     }
     #[inline]
+    /// Local direction to world coordinates.
     pub fn to_world(&self, v: Vec3) -> Vec3 {
         self.s * v.x + self.t * v.y + self.n * v.z
     }
@@ -97,6 +105,7 @@ pub fn cosine_hemisphere(u: Vec2) -> Vec3 {
     Vec3::new(d.x, d.y, (1.0 - d.length_squared()).max(0.0).sqrt())
 }
 
+/// Density of [`cosine_hemisphere`] for a direction with this cosine.
 pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
     cos_theta.max(0.0) * FRAC_1_PI
 }

@@ -351,3 +351,16 @@ fn vectors_in_scene_files_have_exactly_three_numbers() {
         assert!(e.to_string().contains(key), "{e}");
     }
 }
+
+/// Inputs the `image` fuzz target found (docs/fuzz.md): EXR headers claiming images of
+/// terabytes, which the reader used to allocate before reading a pixel (an abort).
+#[test]
+fn exr_headers_claiming_huge_images_are_refused() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    for name in ["fuzz-exr-huge-header.exr", "fuzz-exr-oom.exr"] {
+        let path = data.join(name);
+        let e = warpray::diff::read_image(&path).unwrap_err();
+        assert!(matches!(&e, Error::Output { path: p, .. } if p == &path), "{e}");
+        assert!(e.to_string().contains("not a readable EXR"), "{e}");
+    }
+}

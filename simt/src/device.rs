@@ -32,9 +32,13 @@ impl Default for DeviceConfig {
 /// memory per block, and the names of the regions the kernel reports work in.
 #[derive(Clone, Debug)]
 pub struct LaunchConfig {
+    /// Blocks in the grid.
     pub grid: u32,
+    /// Threads per block (a multiple of the warp width is best).
     pub block: u32,
+    /// Dynamic shared memory per block, bytes.
     pub shared_bytes: usize,
+    /// Names of the work regions the kernel declares with `Thread::work`, in order.
     pub regions: &'static [&'static str],
 }
 
@@ -45,11 +49,13 @@ impl LaunchConfig {
         LaunchConfig { grid, block, shared_bytes: 0, regions: &[] }
     }
 
+    /// This configuration with `bytes` of shared memory per block.
     pub fn with_shared(mut self, bytes: usize) -> LaunchConfig {
         self.shared_bytes = bytes;
         self
     }
 
+    /// This configuration with named work regions.
     pub fn with_regions(mut self, regions: &'static [&'static str]) -> LaunchConfig {
         self.regions = regions;
         self
@@ -60,17 +66,42 @@ impl LaunchConfig {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum LaunchError {
     #[error("kernel '{kernel}' asks for {requested} bytes of shared memory per block; the device has {capacity}")]
-    SharedMemory { kernel: &'static str, requested: usize, capacity: usize },
+    /// A launch asked for more shared memory per block than the device has.
+    SharedMemory {
+        /// The kernel.
+        kernel: &'static str,
+        /// Bytes asked for.
+        requested: usize,
+        /// Bytes a block may have.
+        capacity: usize,
+    },
     #[error("kernel '{kernel}' has a block of {block} threads; blocks hold 1 to {MAX_BLOCK_DIM}")]
-    BlockSize { kernel: &'static str, block: u32 },
+    /// A launch asked for a block size of zero or above the limit.
+    BlockSize {
+        /// The kernel.
+        kernel: &'static str,
+        /// Threads per block asked for.
+        block: u32,
+    },
     #[error("kernel '{kernel}' names {regions} regions; at most {MAX_REGIONS}")]
-    Regions { kernel: &'static str, regions: usize },
+    /// A launch declared more work regions than a kernel may have.
+    Regions {
+        /// The kernel.
+        kernel: &'static str,
+        /// Regions declared.
+        regions: usize,
+    },
     /// Found in measured launches only (the kernel ran; its results are suspect).
     #[error(
         "kernel '{kernel}': shared-memory race ({}) on byte {} in block {}: threads {} and {} touch it with no sync_threads between them",
         race.hazard, race.byte, race.block, race.first, race.second
     )]
-    SharedRace { kernel: &'static str, race: Race },
+    SharedRace {
+        /// The kernel.
+        kernel: &'static str,
+        /// The first race found.
+        race: Race,
+    },
 }
 
 struct Inner {
@@ -108,11 +139,14 @@ impl Default for Device {
 /// Current and peak bytes of device memory.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MemoryStats {
+    /// Bytes allocated now.
     pub current: usize,
+    /// Most bytes allocated at once since the last reset.
     pub peak: usize,
 }
 
 impl Device {
+    /// A device with `config`.
     pub fn new(config: DeviceConfig) -> Device {
         let measure = AtomicBool::new(config.measure);
         let (mem, stats, pool) = (Arc::default(), Mutex::new(Stats::default()), Mutex::new(Vec::new()));
@@ -120,6 +154,7 @@ impl Device {
         Device { inner: Arc::new(Inner { config, measure, mem, stats, pool, buffers }) }
     }
 
+    /// The configuration it was made with.
     pub fn config(&self) -> &DeviceConfig {
         &self.inner.config
     }
@@ -129,6 +164,7 @@ impl Device {
         self.inner.measure.store(on, Relaxed);
     }
 
+    /// Whether launches are measured (SIMD efficiency, memory traffic) now.
     pub fn measuring(&self) -> bool {
         self.inner.measure.load(Relaxed)
     }
@@ -192,6 +228,7 @@ impl Device {
         r
     }
 
+    /// Device memory now and at its peak.
     pub fn memory(&self) -> MemoryStats {
         MemoryStats { current: self.inner.mem.current(), peak: self.inner.mem.peak() }
     }

@@ -48,9 +48,11 @@ impl<T> Clone for Shared<T> {
 }
 impl<T> Copy for Shared<T> {}
 impl<T> Shared<T> {
+    /// Elements.
     pub fn len(&self) -> usize {
         self.len as usize
     }
+    /// Whether it has no elements.
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }
@@ -112,12 +114,15 @@ impl<'w> Block<'w> {
         Block { block_idx, block_dim, grid_dim, measure, worker, shared_words, shared_used: 0, regs_used: 0 }
     }
 
+    /// `blockIdx.x`: this block's index in the grid.
     pub fn block_idx(&self) -> u32 {
         self.block_idx
     }
+    /// `blockDim.x`: threads per block.
     pub fn block_dim(&self) -> u32 {
         self.block_dim
     }
+    /// `gridDim.x`: blocks in the grid.
     pub fn grid_dim(&self) -> u32 {
         self.grid_dim
     }
@@ -244,6 +249,7 @@ pub struct Warp<'b, 'w> {
 }
 
 impl Warp<'_, '_> {
+    /// This warp's index within its block.
     pub fn warp_idx(&self) -> u32 {
         self.warp_idx
     }
@@ -443,6 +449,7 @@ impl Thread<'_> {
         self.thread_idx % WARP_SIZE
     }
     #[inline(always)]
+    /// The index of this thread's warp within its block.
     pub fn warp_id(&self) -> u32 {
         self.thread_idx / WARP_SIZE
     }

@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! # simt
 //!
 //! A SIMT (GPU) machine emulated on rayon, measured the way a GPU profiler would

@@ -201,10 +201,12 @@ impl<T: DeviceCopy> DeviceBuffer<T> {
         b
     }
 
+    /// Elements.
     pub fn len(&self) -> usize {
         self.len
     }
 
+    /// Whether it has no elements.
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }
@@ -246,6 +248,7 @@ impl<T: DeviceCopy> DeviceBuffer<T> {
         &mut self.data[..self.len]
     }
 
+    /// A host copy of the contents (a device-to-host transfer).
     pub fn to_vec(&self) -> Vec<T> {
         self.as_slice().to_vec()
     }
@@ -310,7 +313,9 @@ unsafe impl<T: DeviceCopy> Sync for GlobalMut<'_, T> {}
 
 /// What kernels can load from: both view kinds.
 pub trait Readable<T: DeviceCopy>: Copy + Send + Sync {
+    /// Elements.
     fn len(&self) -> usize;
+    /// Whether it has no elements.
     fn is_empty(&self) -> bool {
         self.len() == 0
     }

@@ -34,6 +34,7 @@ impl Traffic {
         (self.requests > 0).then(|| self.sectors as f64 / self.requests as f64)
     }
 
+    /// Adds another record's requests and sectors to this one.
     pub fn add(&mut self, o: &Traffic) {
         self.requests += o.requests;
         self.sectors += o.sectors;
@@ -123,11 +124,13 @@ struct Shadow {
 /// A shared-memory race: the first one found in a launch.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Race {
+    /// The block in which the race happened.
     pub block: u32,
     /// Byte offset in the block's shared memory.
     pub byte: usize,
     /// Thread that accessed the word first, and the one that raced with it.
     pub first: u32,
+    /// The thread that raced with `first`.
     pub second: u32,
     /// "read after write", "write after read" or "write after write".
     pub hazard: &'static str,

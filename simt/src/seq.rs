@@ -24,6 +24,7 @@ pub fn exclusive_scan<T: Copy>(input: &[T], init: T, op: impl Fn(T, T) -> T) -> 
     out
 }
 
+/// Folds `input` with `op`, starting from `init`.
 pub fn reduce<T: Copy>(input: &[T], init: T, op: impl Fn(T, T) -> T) -> T {
     input.iter().fold(init, |a, &b| op(a, b))
 }
@@ -56,20 +57,24 @@ pub fn sort_by_key_bits<V: Copy>(keys: &[u64], values: &[V], begin_bit: u32, end
     (idx.iter().map(|&i| keys[i]).collect(), idx.iter().map(|&i| values[i]).collect())
 }
 
+/// The elements for which `pred` holds, in order.
 pub fn copy_if<T: Copy>(input: &[T], pred: impl Fn(T) -> bool) -> Vec<T> {
     input.iter().copied().filter(|&x| pred(x)).collect()
 }
 
+/// `output[i] = input[map[i]]`.
 pub fn gather<T: Copy>(map: &[u32], input: &[T]) -> Vec<T> {
     map.iter().map(|&m| input[m as usize]).collect()
 }
 
+/// `output[map[i]] = input[i]`.
 pub fn scatter<T: Copy>(input: &[T], map: &[u32], output: &mut [T]) {
     for (&x, &m) in input.iter().zip(map) {
         output[m as usize] = x;
     }
 }
 
+/// `start, start + step, ...`, `n` values.
 pub fn sequence(n: usize, start: u32, step: u32) -> Vec<u32> {
     (0..n).map(|i| start.wrapping_add(step.wrapping_mul(i as u32))).collect()
 }

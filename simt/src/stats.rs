@@ -12,6 +12,7 @@ pub const LOG_CAPACITY: usize = 4096;
 /// Warp instructions issued and thread instructions executed, for one region.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct RegionStats {
+    /// The region's name (`ops` for the operations `simt` counts itself).
     pub name: &'static str,
     /// Warp instructions issued (Nsight: `smsp__inst_executed`).
     pub issued: u64,
@@ -37,13 +38,19 @@ impl RegionStats {
 /// What one launch did.
 #[derive(Clone, Debug)]
 pub struct LaunchRecord {
+    /// The kernel's name (`feature::stage`).
     pub name: &'static str,
+    /// Blocks launched.
     pub grid: u32,
+    /// Threads per block.
     pub block: u32,
+    /// Shared memory per block, bytes.
     pub shared_bytes: usize,
+    /// Wall time of the launch, seconds.
     pub seconds: f64,
     /// Whether SIMD efficiency and memory traffic were measured.
     pub measured: bool,
+    /// Threads launched (grid × block, less any the kernel asked not to count).
     pub threads: u64,
     /// Instructions of the operations lanes performed through `simt` (global and
     /// shared accesses, atomics, warp intrinsics).
@@ -52,8 +59,11 @@ pub struct LaunchRecord {
     pub regions: Vec<RegionStats>,
     /// Global loads, stores and atomics: warp-level requests and the sectors they touched.
     pub loads: Traffic,
+    /// Global stores.
     pub stores: Traffic,
+    /// Global atomics.
     pub atomics: Traffic,
+    /// Block-wide barriers (`sync_threads`) passed, per block, summed.
     pub barriers: u64,
 }
 
@@ -84,23 +94,34 @@ impl LaunchRecord {
 /// Totals of every launch of one kernel name.
 #[derive(Clone, Debug, Default)]
 pub struct KernelSummary {
+    /// The kernel's name.
     pub name: &'static str,
+    /// Launches summed.
     pub launches: u64,
+    /// Wall time of all launches, seconds.
     pub seconds: f64,
+    /// Threads of all launches.
     pub threads: u64,
     /// Launches that were measured (the efficiency and traffic figures cover these).
     pub measured_launches: u64,
+    /// Operations `simt` counted itself (memory, atomics, intrinsics).
     pub ops: RegionStats,
+    /// Declared work per named region.
     pub regions: Vec<RegionStats>,
+    /// Global loads.
     pub loads: Traffic,
+    /// Global stores.
     pub stores: Traffic,
+    /// Global atomics.
     pub atomics: Traffic,
     /// Largest shared memory per block of any launch.
     pub shared_bytes: usize,
+    /// Barriers passed.
     pub barriers: u64,
 }
 
 impl KernelSummary {
+    /// Active lanes per issued warp step over all regions, over the warp width.
     pub fn simd_efficiency(&self) -> Option<f64> {
         let mut all = self.ops.clone();
         self.regions.iter().for_each(|r| all.add(r));

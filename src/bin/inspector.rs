@@ -1,8 +1,40 @@
-//! `warpray-inspector [SCENE] [--start]`: the egui inspector (needs the `inspector`
-//! feature). `--start` begins rendering at once.
-//! `cargo run --release --features inspector --bin warpray-inspector`
+//! `warpray-inspector [SCENE]... [--start]`: the egui inspector (needs the `inspector`
+//! feature). `cargo run --release --features inspector --bin warpray-inspector -- --start`
 
+use clap::Parser;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use warpray::cast::CasterKind;
 use warpray::inspector::Inspector;
+use warpray::render::IntegratorKind;
+
+#[derive(Parser)]
+#[command(
+    name = "warpray-inspector",
+    version,
+    about = "The warpray inspector: images, PDACRT levels, CIS queues, simt kernels"
+)]
+struct Cli {
+    /// Scenes to add to the list, as for `warpray render`: a .toml scene file, an
+    /// .obj/.obj.gz, a built-in scene name or a model in $WARPRAY_MODELS. The last is
+    /// selected. Each is loaded once first, so a bad one is reported here.
+    scenes: Vec<PathBuf>,
+    /// Start rendering the selected scene at once.
+    #[arg(long)]
+    start: bool,
+    /// Integrator to select.
+    #[arg(long, value_enum)]
+    integrator: Option<IntegratorKind>,
+    /// Caster to select.
+    #[arg(long, value_enum)]
+    caster: Option<CasterKind>,
+    /// Samples per pixel of a render.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    spp: Option<u32>,
+    /// Image width and height, pixels.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(16..=1024))]
+    size: Option<u32>,
+}
 
 struct App(Inspector);
 
@@ -12,27 +44,36 @@ impl eframe::App for App {
     }
 }
 
-fn main() -> eframe::Result {
+fn main() -> ExitCode {
+    let cli = Cli::parse();
     let mut inspector = Inspector::new();
-    let mut start = false;
-    for arg in std::env::args().skip(1) {
-        match arg.as_str() {
-            "--start" => start = true,
-            "-h" | "--help" => {
-                println!(
-                    "warpray-inspector [SCENE] [--start]\n\nSCENE: a .toml scene file or an .obj/.obj.gz (default: the built-in Cornell box)"
-                );
-                return Ok(());
-            }
-            scene => inspector.add_scene(scene.into()),
+    for scene in &cli.scenes {
+        if let Err(e) = warpray::scene::load_scene(scene) {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
         }
+        inspector.add_scene(scene.clone());
     }
-    if start {
+    if let Some(i) = cli.integrator {
+        inspector.integrator = i;
+    }
+    if let Some(c) = cli.caster {
+        inspector.caster = c;
+    }
+    inspector.spp = cli.spp.unwrap_or(inspector.spp);
+    inspector.size = cli.size.unwrap_or(inspector.size);
+    if cli.start {
         inspector.start();
     }
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default().with_inner_size([1280.0, 800.0]).with_title("warpray inspector"),
         ..Default::default()
     };
-    eframe::run_native("warpray inspector", options, Box::new(|_| Ok(Box::new(App(inspector)))))
+    match eframe::run_native("warpray inspector", options, Box::new(|_| Ok(Box::new(App(inspector))))) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: cannot open a window: {e}");
+            ExitCode::FAILURE
+        }
+    }
 }

@@ -39,6 +39,7 @@ pub const SMOOTH: f32 = 1e-3;
 /// One dielectric coat over a thin absorbing film.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Coat {
+    /// Index of refraction of the coat.
     pub ior: f32,
     /// GGX α of the coat's surface; below [`SMOOTH`] the coat is a perfect interface.
     pub roughness: f32,
@@ -49,19 +50,35 @@ pub struct Coat {
 /// What lies under the coats.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LayerBase {
-    Diffuse { albedo: Vec3 },
-    Conductor { eta: Vec3, k: Vec3, roughness: f32 },
+    /// A Lambertian base.
+    Diffuse {
+        /// Reflectance.
+        albedo: Vec3,
+    },
+    /// A GGX conductor base.
+    Conductor {
+        /// Real part of the refractive index, per channel.
+        eta: Vec3,
+        /// Imaginary part (absorption), per channel.
+        k: Vec3,
+        /// GGX roughness α.
+        roughness: f32,
+    },
 }
 
 /// Up to two coats (`coats[0]` on top) over a base.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Layered {
+    /// The coats, outermost first (only the first `coat_count` are used).
     pub coats: [Coat; 2],
+    /// Coats in use (1 or 2).
     pub coat_count: u32,
+    /// What lies under the coats.
     pub base: LayerBase,
 }
 
 impl Layered {
+    /// The coats in use, outermost first.
     pub fn coats(&self) -> &[Coat] {
         &self.coats[..self.coat_count.min(2) as usize]
     }

@@ -9,10 +9,12 @@ use std::f32::consts::PI;
 /// GGX microfacet distribution of roughness `alpha`.
 #[derive(Clone, Copy, Debug)]
 pub struct Ggx {
+    /// GGX roughness α (width of the slope distribution).
     pub alpha: f32,
 }
 
 impl Ggx {
+    /// Microfacet normal distribution D(ωm).
     pub fn d(&self, wm: Vec3) -> f32 {
         if wm.z <= 0.0 {
             return 0.0;
@@ -32,10 +34,12 @@ impl Ggx {
         0.5 * ((1.0 + self.alpha * self.alpha * tan2).sqrt() - 1.0)
     }
 
+    /// Smith masking G1(ω).
     pub fn g1(&self, w: Vec3) -> f32 {
         1.0 / (1.0 + self.lambda(w))
     }
 
+    /// Height-correlated masking-shadowing G2(ωo, ωi).
     pub fn g2(&self, wo: Vec3, wi: Vec3) -> f32 {
         1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
     }

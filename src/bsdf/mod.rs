@@ -21,7 +21,9 @@ use std::f32::consts::FRAC_1_PI;
 /// Refraction scales radiance by 1/η² but not importance (Veach 1997, ch. 5).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TransportMode {
+    /// Light flowing toward the camera (paths traced from the camera).
     Radiance,
+    /// Importance flowing toward the lights (paths traced from the lights): adjoint BSDF.
     Importance,
 }
 
@@ -29,10 +31,15 @@ pub enum TransportMode {
 /// are the discrete probability and matching value, so the same identity holds.
 #[derive(Clone, Copy, Debug)]
 pub struct BsdfSample {
+    /// Sampled incident direction, local frame.
     pub wi: Vec3,
+    /// BSDF value for the pair.
     pub f: Vec3,
+    /// Density of `wi` (solid angle), or the discrete probability of a delta lobe.
     pub pdf: f32,
+    /// `f · |cos θi| / pdf`.
     pub weight: Vec3,
+    /// Whether a delta lobe was sampled.
     pub delta: bool,
 }
 

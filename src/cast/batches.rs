@@ -22,9 +22,11 @@ pub fn primary_rays(camera: &Camera, width: u32, height: u32) -> Vec<Ray> {
 /// Primary rays and the secondary batches made from their hits.
 #[derive(Clone, Debug, Default)]
 pub struct Batches {
+    /// Camera rays.
     pub primary: Vec<Ray>,
     /// Segments to a point light above the scene's centre (test with `occluded`).
     pub shadow: Vec<Ray>,
+    /// Mirror reflections of the primary rays at their hits.
     pub specular: Vec<Ray>,
     /// `ao_per_hit` rays per primary hit.
     pub ambient: Vec<Ray>,

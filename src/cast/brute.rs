@@ -6,15 +6,18 @@ use crate::geometry::{Hit, Ray, RayShear};
 use crate::scene::Scene;
 use rayon::prelude::*;
 
+/// Every ray against every triangle: slow, simple, and the oracle the other casters are tested against.
 pub struct BruteForce {
     tris: Triangles,
 }
 
 impl BruteForce {
+    /// The caster for a scene's triangles.
     pub fn new(scene: &Scene) -> Self {
         BruteForce { tris: scene.triangle_vertices() }
     }
 
+    /// The caster for a triangle list.
     pub fn from_triangles(tris: Triangles) -> Self {
         BruteForce { tris }
     }

@@ -29,6 +29,7 @@ use std::time::{Duration, Instant};
 /// fixed node epsilon.
 pub const NODE_EPSILON_SHIFT: f32 = 2e-4;
 
+/// obvhs' compressed wide BVH (CWBVH), with a robust re-check of misses (see [`Traversal`]).
 pub struct BvhCaster {
     /// How rays are traversed (see [`Traversal`]).
     pub traversal: Traversal,
@@ -45,10 +46,12 @@ pub struct BvhCaster {
 }
 
 impl BvhCaster {
+    /// Builds the BVH of a scene's triangles.
     pub fn new(scene: &Scene) -> Self {
         Self::from_triangles(scene.triangle_vertices())
     }
 
+    /// Builds the BVH of a triangle list.
     pub fn from_triangles(tris: Triangles) -> Self {
         let start = Instant::now();
         let regular = |t: &[Vec3; 3]| t.iter().all(|v| v.is_finite() && v.abs().max_element() <= OUTLIER_COORDINATE);

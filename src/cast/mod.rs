@@ -103,6 +103,7 @@ pub enum CasterKind {
 }
 
 impl CasterKind {
+    /// Builds the caster of this kind for `scene`.
     pub fn build(self, scene: &Scene) -> Box<dyn RayCaster> {
         match self {
             CasterKind::Bvh => Box::new(BvhCaster::new(scene)),

@@ -15,20 +15,28 @@ use simt::{DeviceCopy, Global, GlobalMut, Readable, Thread};
 pub const MAX_CAMERA_VERTICES: usize = MAX_PATH / 2;
 /// Pending contributions per slot and bounce: emitter, light sample, and connections.
 pub const MAX_DRAWS: usize = 8;
+/// Pending contributions per pool slot.
 pub const PENDING_PER_SLOT: usize = 2 + MAX_DRAWS;
 
 /// One camera sample in the pool.
 #[derive(Clone, Copy, Debug, Default)]
 #[repr(C)]
 pub struct Slot {
+    /// The sample's random stream.
     pub rng: Rng,
+    /// The ray to cast next.
     pub ray: Ray,
+    /// Throughput so far.
     pub beta: Vec3,
+    /// Radiance gathered so far.
     pub radiance: Vec3,
+    /// The pixel it belongs to.
     pub pixel: u32,
     /// Camera vertices stored so far (the camera itself is vertex 0).
     pub depth: u32,
+    /// 1 while the path goes on.
     pub alive: u32,
+    /// Padding to a 16-byte multiple.
     pub _pad: u32,
 }
 
@@ -36,8 +44,11 @@ pub struct Slot {
 #[derive(Clone, Copy, Debug, Default)]
 #[repr(C)]
 pub struct PendingData {
+    /// The shadow ray to test.
     pub ray: Ray,
+    /// What it adds when unblocked.
     pub value: Vec3,
+    /// 0 empty, 1 waiting for its shadow ray, 2 needs none.
     pub state: u32,
 }
 
@@ -108,15 +119,25 @@ pub fn material_key(
 /// What the shading kernel reads and writes.
 #[derive(Clone, Copy)]
 pub struct ShadeArgs<'a> {
+    /// Active slots in material order.
     pub order: Global<'a, u32>,
+    /// The active list.
     pub active: Global<'a, u32>,
+    /// Per active slot: its ray's hit.
     pub hits: Global<'a, Hit>,
+    /// The pool.
     pub slots: GlobalMut<'a, Slot>,
+    /// Camera vertices, `MAX_CAMERA_VERTICES` per slot.
     pub vertices: GlobalMut<'a, Vertex>,
+    /// Pending contributions, `PENDING_PER_SLOT` per slot.
     pub pending: GlobalMut<'a, PendingData>,
+    /// The light vertex cache's vertices.
     pub cache_vertices: Global<'a, Vertex>,
+    /// Per cache entry: its subpath's first vertex and `s`.
     pub cache_entries: Global<'a, [u32; 2]>,
+    /// Light subpaths per vertex count, for the MIS weights.
     pub counts: StrategyCounts,
+    /// How camera vertices pick cache vertices.
     pub connections: Connections,
 }
 

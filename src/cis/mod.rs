@@ -71,7 +71,9 @@ impl Default for CisParams {
 /// What one bounce of one iteration did: the inspector's queue panel.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct QueueRecord {
+    /// The iteration (pass).
     pub pass: u32,
+    /// The wavefront iteration within the pass (one per path vertex).
     pub bounce: u32,
     /// Samples in the active list when the bounce started.
     pub active: usize,
@@ -87,9 +89,12 @@ pub struct QueueRecord {
     pub shade_dispatch_simd: Option<f64>,
 }
 
+/// CIS-LBDPT: LVC-BDPT as a stream of kernels on the `simt` device, with material-sorted queues, compaction and regeneration, and resampled cache connections.
 pub struct CisLbdpt {
+    /// Its switches and sizes.
     pub params: CisParams,
     dev: Device,
+    /// One record per wavefront iteration of the last pass (the inspector's queue panel).
     pub records: Vec<QueueRecord>,
 }
 
@@ -114,6 +119,7 @@ impl CisLbdpt {
         &self.dev
     }
 
+    /// Renders one pass into `film`.
     pub fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let dev = &self.dev;
         let p = self.params;

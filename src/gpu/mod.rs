@@ -45,6 +45,7 @@ pub struct GpuStats {
     pub trace_ms: f64,
     /// Host wall time of the call, uploads and downloads included, milliseconds.
     pub call_ms: f64,
+    /// Ray–triangle tests made.
     pub tests: u64,
     /// Levels summed over chunks.
     pub levels: u32,

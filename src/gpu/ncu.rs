@@ -28,12 +28,15 @@ launch__shared_mem_per_block_static,launch__shared_mem_per_block_dynamic,gpu__ti
 pub struct GpuKernel {
     /// `pdacrt::filter_rays` for ours; CUB's kernels keep their own names (`cub::DeviceScanKernel`).
     pub name: String,
+    /// Launches profiled.
     pub launches: u64,
     /// Warp instructions issued.
     pub inst: f64,
     /// Thread instructions executed.
     pub thread_inst: f64,
+    /// Global loads.
     pub loads: Traffic,
+    /// Global stores.
     pub stores: Traffic,
     /// Atomics, with and without a returned value (`atom` and `red`).
     pub atomics: Traffic,
@@ -44,6 +47,7 @@ pub struct GpuKernel {
 }
 
 impl GpuKernel {
+    /// Thread instructions over 32 × warp instructions.
     pub fn simd_efficiency(&self) -> Option<f64> {
         (self.inst > 0.0).then(|| self.thread_inst / (32.0 * self.inst))
     }
@@ -175,8 +179,11 @@ pub fn parse_csv(text: &str) -> Result<Vec<GpuKernel>, String> {
 /// One kernel, predicted and measured.
 #[derive(Clone, Debug)]
 pub struct Comparison {
+    /// The kernel's name.
     pub name: String,
+    /// What `simt` measured.
     pub simt: KernelSummary,
+    /// What Nsight Compute measured.
     pub gpu: GpuKernel,
 }
 

@@ -26,15 +26,22 @@ use std::time::Instant;
 /// The inspector's panels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Panel {
+    /// The converging image (or the PDACRT heat map).
     Image,
+    /// PDACRT's recursion levels on the primary rays.
     Levels,
+    /// CIS-LBDPT's material queues per wavefront iteration.
     Queues,
+    /// The `simt` kernel tables.
     Kernels,
+    /// Error against time of every render.
     Convergence,
 }
 
 impl Panel {
+    /// Every panel, in tab order.
     pub const ALL: [Panel; 5] = [Panel::Image, Panel::Levels, Panel::Queues, Panel::Kernels, Panel::Convergence];
+    /// The tab's label.
     pub fn label(self) -> &'static str {
         match self {
             Panel::Image => "Image",
@@ -49,6 +56,7 @@ impl Panel {
 /// One render's error curve.
 #[derive(Clone, Debug, Default)]
 pub struct Series {
+    /// `integrator / caster`.
     pub label: String,
     /// (seconds, RMSE against the reference)
     pub points: Vec<(f64, f64)>,
@@ -57,36 +65,70 @@ pub struct Series {
 /// What the worker shares with the UI.
 #[derive(Default)]
 pub struct Shared {
+    /// The mean image so far.
     pub image: Vec<Vec3>,
+    /// Image width.
     pub width: u32,
+    /// Image height.
     pub height: u32,
+    /// Passes done.
     pub passes: u32,
+    /// Whether the worker is busy (analysing, rendering the reference, or rendering).
     pub running: bool,
+    /// What the worker is doing, with its progress.
     pub status: String,
+    /// Error curves, one per render since the inspector started.
     pub series: Vec<Series>,
+    /// PDACRT's levels on the primary rays.
     pub levels: Vec<LevelRecord>,
+    /// Per pixel: PDACRT terminal nodes that tested its primary ray.
     pub visits: Vec<u32>,
+    /// The scene's camera (to draw level boxes over the image).
     pub camera: Option<crate::scene::Camera>,
+    /// CIS-LBDPT queue records of the last pass.
     pub queues: Vec<QueueRecord>,
+    /// Material names of the scene, by index (for the queue panel).
+    pub material_names: Vec<String>,
     /// `cis::shade` SIMD efficiency of one pass, unsorted and sorted.
     pub sorting_effect: Option<(f64, f64)>,
+    /// Kernels of the chosen render's own device (PDACRT casting, CIS-LBDPT); empty
+    /// when the render runs nothing on one.
     pub kernels: Vec<KernelSummary>,
+    /// Kernels of the analysis before the render (PDACRT on the primary rays, one CIS
+    /// pass sorted), kept apart from the render's.
+    pub analysis_kernels: Vec<KernelSummary>,
     references: Vec<(String, u32, Vec<Vec3>)>,
 }
 
+/// The inspector's state: the choices in its controls and what the worker shares.
 pub struct Inspector {
+    /// (label, what `load_scene` is given) of every scene in the list.
     pub scenes: Vec<(String, PathBuf)>,
+    /// The selected scene.
     pub scene: usize,
+    /// The selected integrator.
     pub integrator: IntegratorKind,
+    /// The selected caster.
     pub caster: CasterKind,
+    /// Samples per pixel of a render.
     pub spp: u32,
+    /// Image width and height.
     pub size: u32,
+    /// The open panel.
     pub panel: Panel,
+    /// Exposure of the image panel.
     pub exposure: f32,
+    /// Zoom of the image panel.
     pub zoom: f32,
+    /// Whether the image panel shows the PDACRT heat map.
     pub heat_map: bool,
+    /// The level whose boxes are drawn over the image.
     pub selected_level: Option<usize>,
+    /// Kernel table sort: (column, descending).
     pub kernel_sort: (usize, bool),
+    /// Which kernel table the panel shows: the render's (false) or the analysis' (true).
+    pub analysis_table: bool,
+    /// What the worker shares.
     pub shared: Arc<Mutex<Shared>>,
     stop: Arc<AtomicBool>,
     worker: Option<JoinHandle<()>>,
@@ -104,16 +146,31 @@ fn lock(s: &Mutex<Shared>) -> std::sync::MutexGuard<'_, Shared> {
 }
 
 impl Inspector {
-    /// The built-in Cornell box and the scene files in `assets/scenes/`.
+    /// The built-in Cornell box, the built-in scenes of the shared models
+    /// ([`crate::scene::NAMED_SCENES`], whose models come from `$WARPRAY_MODELS`), and the
+    /// other scene files of this source tree's `assets/scenes/` when it is there. None
+    /// of it depends on the working directory.
     pub fn new() -> Self {
         let mut scenes = vec![("cornell (built-in)".to_string(), PathBuf::from("cornell"))];
-        if let Ok(dir) = std::fs::read_dir("assets/scenes") {
+        for (name, _) in crate::scene::NAMED_SCENES {
+            scenes.push((format!("{name} (built-in, model from WARPRAY_MODELS)"), PathBuf::from(name)));
+        }
+        let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes");
+        if let Ok(dir) = std::fs::read_dir(&assets) {
             let mut files: Vec<PathBuf> = dir
                 .filter_map(|e| e.ok().map(|e| e.path()))
                 .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+                .filter(|p| {
+                    let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("");
+                    !crate::scene::NAMED_SCENES.iter().any(|(n, _)| *n == stem)
+                })
                 .collect();
             files.sort();
-            scenes.extend(files.into_iter().map(|p| (p.display().to_string(), p)));
+            scenes.extend(
+                files
+                    .into_iter()
+                    .map(|p| (format!("{} (assets/scenes)", p.file_name().unwrap_or_default().to_string_lossy()), p)),
+            );
         }
         Inspector {
             scenes,
@@ -128,6 +185,7 @@ impl Inspector {
             heat_map: false,
             selected_level: None,
             kernel_sort: (2, true),
+            analysis_table: false,
             shared: Arc::new(Mutex::new(Shared::default())),
             stop: Arc::new(AtomicBool::new(false)),
             worker: None,
@@ -135,12 +193,25 @@ impl Inspector {
         }
     }
 
-    /// Adds a scene file (e.g. from the command line) and selects it.
+    /// Adds a scene (a file, or a name as `load_scene` resolves it) and selects it.
+    /// A scene already listed (the same name, or the same file by its canonical path)
+    /// is selected, not listed twice.
     pub fn add_scene(&mut self, path: PathBuf) {
-        self.scenes.push((path.display().to_string(), path));
-        self.scene = self.scenes.len() - 1;
+        let canonical = |p: &PathBuf| std::fs::canonicalize(p).ok();
+        let known = self
+            .scenes
+            .iter()
+            .position(|(_, p)| *p == path || (canonical(p).is_some() && canonical(p) == canonical(&path)));
+        self.scene = match known {
+            Some(i) => i,
+            None => {
+                self.scenes.push((path.display().to_string(), path));
+                self.scenes.len() - 1
+            }
+        };
     }
 
+    /// Whether the worker is busy.
     pub fn running(&self) -> bool {
         lock(&self.shared).running
     }
@@ -170,6 +241,7 @@ impl Inspector {
         }));
     }
 
+    /// Asks the worker to stop after the pass it is in.
     pub fn stop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
     }
@@ -281,6 +353,10 @@ impl Inspector {
             ui.add(egui::Slider::new(&mut self.zoom, 0.5..=16.0).logarithmic(true).text("zoom"));
             ui.checkbox(&mut self.heat_map, "heat map: terminal nodes per primary ray (PDACRT)");
         });
+        if self.heat_map {
+            let max = lock(&self.shared).visits.iter().copied().max().unwrap_or(0);
+            heat_legend(ui, max);
+        }
         self.refresh_texture(ui);
         let Some((tex, ..)) = &self.texture else {
             ui.label("Press Start to render.");
@@ -357,22 +433,30 @@ impl Inspector {
                 ui.end_row();
             }
         });
-        let rays: Vec<egui_plot::Bar> =
-            levels.iter().map(|l| egui_plot::Bar::new(l.level as f64 - 0.2, l.rays as f64).width(0.4)).collect();
-        let tris: Vec<egui_plot::Bar> = levels
-            .iter()
-            .map(|l| egui_plot::Bar::new(l.level as f64 + 0.2, l.triangle_refs as f64).width(0.4))
-            .collect();
-        egui_plot::Plot::new("level_chart").height(220.0).legend(egui_plot::Legend::default()).show(ui, |p| {
-            p.bar_chart(egui_plot::BarChart::new("rays", rays));
-            p.bar_chart(egui_plot::BarChart::new("triangle refs", tris));
-        });
+        // Counts span orders of magnitude (a few rays against millions of triangle
+        // references), so the chart is log10.
+        let bars = |offset: f64, count: fn(&LevelRecord) -> usize| -> Vec<egui_plot::Bar> {
+            levels
+                .iter()
+                .map(|l| egui_plot::Bar::new(l.level as f64 + offset, (count(l).max(1) as f64).log10()).width(0.27))
+                .collect()
+        };
+        egui_plot::Plot::new("level_chart")
+            .height(240.0)
+            .legend(egui_plot::Legend::default())
+            .x_axis_label("recursion level")
+            .y_axis_label("log10 count")
+            .show(ui, |p| {
+                p.bar_chart(egui_plot::BarChart::new("rays", bars(-0.28, |l| l.rays)));
+                p.bar_chart(egui_plot::BarChart::new("triangle refs", bars(0.0, |l| l.triangle_refs)));
+                p.bar_chart(egui_plot::BarChart::new("nodes", bars(0.28, |l| l.nodes)));
+            });
     }
 
     fn queues_panel(&mut self, ui: &mut Ui) {
-        let (records, effect) = {
+        let (records, effect, names) = {
             let s = lock(&self.shared);
-            (s.queues.clone(), s.sorting_effect)
+            (s.queues.clone(), s.sorting_effect, s.material_names.clone())
         };
         if let Some((unsorted, sorted)) = effect {
             ui.label(format!(
@@ -385,7 +469,9 @@ impl Inspector {
         }
         egui::ScrollArea::vertical().show(ui, |ui| {
             egui::Grid::new("queues").striped(true).show(ui, |ui| {
-                for h in ["pass", "bounce", "active", "queues (material: length)", "surviving", "shade SIMD"] {
+                for h in
+                    ["pass", "wavefront iteration", "active", "queues (material: length)", "surviving", "shade SIMD"]
+                {
                     ui.label(RichText::new(h).strong());
                 }
                 ui.end_row();
@@ -400,7 +486,7 @@ impl Inspector {
                             if *m == u32::MAX || *m as usize >= 1 << 20 {
                                 format!("miss: {n}")
                             } else {
-                                format!("{m}: {n}")
+                                names.get(*m as usize).map_or(format!("#{m}: {n}"), |name| format!("{name}: {n}"))
                             }
                         })
                         .collect();
@@ -414,9 +500,24 @@ impl Inspector {
     }
 
     fn kernels_panel(&mut self, ui: &mut Ui) {
-        let mut rows = lock(&self.shared).kernels.clone();
+        ui.horizontal(|ui| {
+            ui.selectable_value(&mut self.analysis_table, false, "This render's kernels");
+            ui.selectable_value(
+                &mut self.analysis_table,
+                true,
+                "Analysis kernels (PDACRT primary rays, CIS sorting probe)",
+            );
+        });
+        let mut rows = {
+            let s = lock(&self.shared);
+            if self.analysis_table { s.analysis_kernels.clone() } else { s.kernels.clone() }
+        };
         if rows.is_empty() {
-            ui.label("Kernel statistics appear once a render has started.");
+            ui.label(if self.analysis_table {
+                "Analysis kernels appear once a render has started."
+            } else {
+                "This render runs nothing on the simt device (choose the pdacrt caster or the cis integrator), or has not started."
+            });
             return;
         }
         let (col, desc) = self.kernel_sort;
@@ -480,6 +581,22 @@ impl Inspector {
                 }
             });
     }
+}
+
+/// The heat map's legend: the colour ramp from 0 to `max` terminal nodes.
+fn heat_legend(ui: &mut Ui, max: u32) {
+    ui.horizontal(|ui| {
+        ui.label("0");
+        let (rect, _) = ui.allocate_exact_size(egui::vec2(200.0, 12.0), egui::Sense::hover());
+        let steps = 50;
+        for i in 0..steps {
+            let x0 = rect.min.x + rect.width() * i as f32 / steps as f32;
+            let x1 = rect.min.x + rect.width() * (i + 1) as f32 / steps as f32;
+            let r = egui::Rect::from_min_max(egui::pos2(x0, rect.min.y), egui::pos2(x1, rect.max.y));
+            ui.painter().rect_filled(r, 0.0, heat((i as f32 + 0.5) / steps as f32));
+        }
+        ui.label(format!("{max} terminal nodes per primary ray"));
+    });
 }
 
 /// Blue → red colour map.
@@ -551,10 +668,13 @@ impl Job {
             let mut s = lock(shared);
             s.series
                 .push(Series { label: format!("{} / {}", self.integrator.name(), caster.name()), points: Vec::new() });
-            s.status = format!("rendering {} with {}", self.name, self.integrator.name());
+            s.status = format!("rendering {} with {}: 0/{} spp", self.name, self.integrator.name(), self.spp);
             s.passes = 0;
             s.width = w;
             s.height = h;
+            s.kernels.clear();
+            s.queues.clear();
+            s.material_names = scene.material_names.clone();
         }
         let start = Instant::now();
         let mut render_time = 0.0;
@@ -571,6 +691,8 @@ impl Job {
             let mut s = lock(shared);
             s.image = mean;
             s.passes = film.passes;
+            s.status =
+                format!("rendering {} with {}: {}/{} spp", self.name, self.integrator.name(), film.passes, self.spp);
             if let (Some(e), Some(series)) = (err, s.series.last_mut()) {
                 series.points.push((render_time, e));
             }
@@ -579,7 +701,7 @@ impl Job {
             }
             if let Some(dev) = renderer.device() {
                 // The render's own device: the caster's kernels and the integrator's.
-                merge_kernels(&mut s.kernels, dev.kernel_stats());
+                s.kernels = dev.kernel_stats();
             }
         }
         set_status(format!("done in {:.2} s", start.elapsed().as_secs_f64()));
@@ -589,7 +711,7 @@ impl Job {
     /// PDACRT on the primary rays (levels, work heat map, kernel statistics), and one
     /// CIS pass sorted and unsorted (what sorting does to the shading kernel).
     fn analyse(&self, scene: &Scene, shared: &Mutex<Shared>) -> crate::error::Result<()> {
-        lock(shared).status = "analysing: PDACRT levels".into();
+        lock(shared).status = "analysing (1 of 2): PDACRT on the primary rays".into();
         let (w, h) = (self.size, self.size);
         let rays = crate::cast::batches::primary_rays(&scene.camera, w, h);
         let pd = Pdacrt::from_triangles(
@@ -601,7 +723,7 @@ impl Job {
         let mut kernels = pd.device().kernel_stats();
         let mut effect = None;
         if scene.camera.aperture_radius == 0.0 {
-            lock(shared).status = "analysing: CIS sorting".into();
+            lock(shared).status = "analysing (2 of 2): one CIS-LBDPT pass unsorted and sorted".into();
             let bvh = BvhCaster::new(scene);
             let lights = crate::lights::Lights::new(scene);
             let mut eff = [0.0; 2];
@@ -631,7 +753,7 @@ impl Job {
         s.levels = pd.levels();
         s.visits = pd.visits();
         s.camera = Some(scene.camera);
-        s.kernels = kernels;
+        s.analysis_kernels = kernels;
         s.sorting_effect = effect;
         Ok(())
     }
@@ -646,7 +768,7 @@ impl Job {
         if let Some(r) = lock(shared).references.iter().find(|r| r.0 == self.name && r.1 == self.size) {
             return Ok(Some(r.2.clone()));
         }
-        lock(shared).status = "rendering the reference (path tracing, 256 spp)".into();
+        lock(shared).status = "rendering the reference (path tracing): 0/256 spp".into();
         let bvh = BvhCaster::new(scene);
         let o = RenderOptions {
             width: self.size,
@@ -655,7 +777,10 @@ impl Job {
             seed: 77,
             ..Default::default()
         };
-        let (film, _) = crate::render::render(scene, &bvh, &o, |_, _| !stop.load(Ordering::Relaxed))?;
+        let (film, _) = crate::render::render(scene, &bvh, &o, |pass, _| {
+            lock(shared).status = format!("rendering the reference (path tracing): {pass}/256 spp");
+            !stop.load(Ordering::Relaxed)
+        })?;
         if stop.load(Ordering::Relaxed) {
             return Ok(None);
         }

@@ -29,11 +29,14 @@ use std::f32::consts::{FRAC_1_PI, PI};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(u32)]
+/// What a subpath vertex is.
 pub enum VertexKind {
+    /// The camera (pinhole) vertex.
     Camera,
     /// A light sample (area light point or point light); for paths that reach an
     /// emitter from the camera side, the hit vertex is relabelled a light.
     Light,
+    /// A scattering surface.
     Surface,
 }
 
@@ -42,7 +45,9 @@ pub enum VertexKind {
 #[derive(Clone, Copy, Debug)]
 #[repr(C)]
 pub struct Vertex {
+    /// What the vertex is.
     pub kind: VertexKind,
+    /// Position.
     pub p: Vec3,
     /// Unit geometric normal (surfaces, area lights), the viewing direction (camera),
     /// or zero (point lights).
@@ -55,6 +60,7 @@ pub struct Vertex {
     pub le: Vec3,
     /// The lobe sampled here was a delta lobe (or: a point light).
     pub delta: bool,
+    /// Padding (plain-data layout).
     pub _pad: [u8; 3],
 }
 
@@ -69,6 +75,7 @@ impl Vertex {
     }
 
     #[allow(clippy::too_many_arguments)]
+    /// A vertex from its parts.
     pub fn new(kind: VertexKind, p: Vec3, n: Vec3, tri: u32, beta: Vec3, delta: bool, le: Vec3) -> Vertex {
         Vertex { kind, p, n, tri, beta, le, delta, _pad: [0; 3] }
     }
@@ -99,13 +106,16 @@ impl Default for VertexList {
 }
 
 impl VertexList {
+    /// Empties the list.
     pub fn clear(&mut self) {
         self.len = 0;
     }
+    /// Appends a vertex (the list holds `MAX_PATH`).
     pub fn push(&mut self, v: Vertex) {
         self.buf[self.len] = std::mem::MaybeUninit::new(v);
         self.len += 1;
     }
+    /// Appends vertices.
     pub fn extend<'a>(&mut self, vs: impl IntoIterator<Item = &'a Vertex>) {
         for v in vs {
             self.push(*v);
@@ -411,6 +421,7 @@ pub struct Bdpt;
 pub struct LightTracer;
 
 impl LightTracer {
+    /// Renders one pass: one light subpath per pixel, splatted through the camera.
     pub fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let (w, h) = (ctx.opts.width, ctx.opts.height);
         let max_vertices = ctx.opts.max_depth as usize + 1;
@@ -446,6 +457,7 @@ fn unoccluded(ctx: &Context, pending: &[(Vec3, u32, Ray)], rays: &mut usize) -> 
 }
 
 impl Bdpt {
+    /// Renders one pass: one camera and one light subpath per pixel, every connection weighted by MIS.
     pub fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let (w, h) = (ctx.opts.width, ctx.opts.height);
         let results: Vec<SampleResult> = (0..w * h)

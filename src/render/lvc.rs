@@ -45,6 +45,7 @@ pub struct LightVertexCache {
     /// Per cached vertex: the index of its subpath's first vertex, and `s` (its index
     /// in the subpath plus one).
     pub entries: Vec<(u32, u32)>,
+    /// Light subpaths traced into the cache.
     pub light_paths: u32,
 }
 
@@ -71,6 +72,7 @@ pub struct StrategyCounts {
 }
 
 impl StrategyCounts {
+    /// Sample count of strategy (s light vertices, t camera vertices) for the balance/power heuristic.
     pub fn count(&self, s: usize, t: usize) -> f64 {
         if t == 1 {
             self.splat
@@ -153,16 +155,19 @@ type PendingSplat = (Vec3, u32, crate::geometry::Ray);
 
 /// LVC-BDPT, one task per camera path.
 pub struct LvcBdpt {
+    /// Its settings.
     pub params: LvcParams,
     /// The cache of the last iteration (for the inspector and tests).
     pub last_cache: LightVertexCache,
 }
 
 impl LvcBdpt {
+    /// An LVC-BDPT integrator with `params`.
     pub fn new(params: LvcParams) -> Self {
         LvcBdpt { params, last_cache: LightVertexCache::default() }
     }
 
+    /// Renders one pass: trace and cache light subpaths, then one camera path per pixel connecting to the cache.
     pub fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let (w, h) = (ctx.opts.width, ctx.opts.height);
         let n_light = if self.params.light_paths == 0 { w * h } else { self.params.light_paths };
@@ -206,12 +211,20 @@ pub const MAX_CANDIDATES: usize = 32;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Connections {
     /// `n` entries drawn uniformly.
-    Uniform { n: u32 },
+    Uniform {
+        /// Entries per camera vertex.
+        n: u32,
+    },
     /// Resampled importance sampling (Talbot et al. 2005): `candidates` entries drawn
     /// uniformly, `draws` chosen among them with replacement in proportion to their
     /// unshadowed contribution, each weighted by `mean(p̂) / p̂(chosen)` so the
     /// estimate stays unbiased.
-    Resampled { candidates: u32, draws: u32 },
+    Resampled {
+        /// Entries drawn uniformly.
+        candidates: u32,
+        /// Connections chosen among them.
+        draws: u32,
+    },
 }
 
 impl Connections {

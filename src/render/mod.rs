@@ -37,6 +37,7 @@ pub enum IntegratorKind {
 }
 
 impl IntegratorKind {
+    /// The command-line name.
     pub fn name(self) -> &'static str {
         match self {
             IntegratorKind::Path => "path",
@@ -49,6 +50,7 @@ impl IntegratorKind {
 
     /// The unidirectional and bidirectional references (the light-transport core).
     pub const CORE: [IntegratorKind; 3] = [IntegratorKind::Path, IntegratorKind::Light, IntegratorKind::Bdpt];
+    /// Every integrator.
     pub const ALL: [IntegratorKind; 5] =
         [IntegratorKind::Path, IntegratorKind::Light, IntegratorKind::Bdpt, IntegratorKind::Lvc, IntegratorKind::Cis];
 }
@@ -80,12 +82,19 @@ pub enum Budget {
 }
 
 #[derive(Clone, Debug)]
+/// What to render and how.
 pub struct RenderOptions {
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
+    /// Samples per pixel or a time budget.
     pub budget: Budget,
+    /// Largest number of bounces (0: emitters only, 1: direct light).
     pub max_depth: u32,
+    /// Random seed: the same seed gives the same image at any thread count.
     pub seed: u64,
+    /// The light-transport algorithm.
     pub integrator: IntegratorKind,
     /// Light-vertex-cache settings (LVC-BDPT).
     pub lvc: LvcParams,
@@ -111,7 +120,9 @@ impl Default for RenderOptions {
 /// What a render did.
 #[derive(Clone, Debug, Default)]
 pub struct RenderStats {
+    /// Passes (samples per pixel) done.
     pub passes: u32,
+    /// Wall time of the render, seconds.
     pub seconds: f64,
     /// Rays cast (closest and shadow).
     pub rays: u64,
@@ -133,6 +144,7 @@ pub struct RenderStats {
 }
 
 impl RenderStats {
+    /// Rays cast per second of wall time.
     pub fn rays_per_second(&self) -> f64 {
         if self.seconds > 0.0 { self.rays as f64 / self.seconds } else { 0.0 }
     }
@@ -140,9 +152,13 @@ impl RenderStats {
 
 /// Everything one pass needs.
 pub struct Context<'a> {
+    /// The scene.
     pub scene: &'a Scene,
+    /// Its lights.
     pub lights: &'a Lights,
+    /// The caster every ray goes through.
     pub caster: &'a dyn RayCaster,
+    /// The render's settings.
     pub opts: &'a RenderOptions,
 }
 
@@ -210,6 +226,7 @@ impl<'a> Renderer<'a> {
         Ok(Renderer { scene, caster, opts: opts.clone(), lights, integrator, counts: (0, 0) })
     }
 
+    /// The settings it renders with.
     pub fn options(&self) -> &RenderOptions {
         &self.opts
     }

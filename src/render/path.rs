@@ -38,6 +38,7 @@ pub struct PathTracer {
 }
 
 impl PathTracer {
+    /// A path tracer with buffers for the render's image size.
     pub fn new(ctx: &Context) -> Self {
         let n = (ctx.opts.width * ctx.opts.height) as usize;
         PathTracer {

@@ -5,7 +5,9 @@ use crate::sampling::concentric_disk;
 use glam::{Vec2, Vec3};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
+/// A pinhole or thin-lens camera.
 pub struct Camera {
+    /// Eye position.
     pub position: Vec3,
     /// Unit viewing direction.
     pub forward: Vec3,
@@ -49,12 +51,14 @@ impl Camera {
         }
     }
 
+    /// This camera with a thin lens of `aperture_radius` focused at `focus_distance`.
     pub fn with_lens(mut self, aperture_radius: f32, focus_distance: f32) -> Camera {
         self.aperture_radius = aperture_radius;
         self.focus_distance = focus_distance;
         self
     }
 
+    /// Checks every number (finite, unit axes, field of view in (0, 180), lens values).
     pub fn validate(&self) -> Result<(), String> {
         let finite = self.position.is_finite() && self.forward.is_finite() && self.right.is_finite();
         if !finite {

@@ -15,19 +15,28 @@ use std::path::{Path, PathBuf};
 #[derive(Clone, Debug, Default, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct RenderSettings {
+    /// Image width.
     pub width: Option<u32>,
+    /// Image height.
     pub height: Option<u32>,
+    /// Samples per pixel.
     pub spp: Option<u32>,
+    /// Time budget, seconds.
     pub seconds: Option<f64>,
+    /// Largest number of bounces.
     pub max_depth: Option<u32>,
+    /// Integrator name.
     pub integrator: Option<String>,
+    /// Random seed.
     pub seed: Option<u64>,
 }
 
 /// A loaded scene and the settings its file asked for.
 #[derive(Clone, Debug)]
 pub struct SceneDesc {
+    /// The scene.
     pub scene: Scene,
+    /// The `[render]` block, if any.
     pub settings: RenderSettings,
 }
 
@@ -304,6 +313,7 @@ fn check_vectors(path: &Path, text: &str) -> Result<()> {
     }
 }
 
+/// Parses scene-file text; `path` locates meshes and names the file in errors.
 pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
     check_vectors(path, text)?;
     let file: FileScene = toml::from_str(text).map_err(|e| Error::SceneFile {

@@ -20,9 +20,13 @@ use glam::Vec3;
 /// (tabulated optical constants, as renderers usually ship them).
 pub mod metals {
     use glam::Vec3;
+    /// Gold.
     pub const GOLD: (Vec3, Vec3) = (Vec3::new(0.143, 0.374, 1.442), Vec3::new(3.983, 2.385, 1.603));
+    /// Copper.
     pub const COPPER: (Vec3, Vec3) = (Vec3::new(0.200, 0.924, 1.102), Vec3::new(3.912, 2.452, 2.142));
+    /// Silver.
     pub const SILVER: (Vec3, Vec3) = (Vec3::new(0.155, 0.117, 0.138), Vec3::new(4.828, 3.122, 2.147));
+    /// Aluminium.
     pub const ALUMINIUM: (Vec3, Vec3) = (Vec3::new(1.657, 0.880, 0.521), Vec3::new(9.224, 6.270, 4.837));
 
     /// By name (`gold`, `copper`, `silver`, `aluminium`/`aluminum`).
@@ -38,26 +42,60 @@ pub mod metals {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
+/// What a surface does with light.
 pub enum Material {
     /// Lambertian reflector.
-    Diffuse { albedo: Vec3 },
+    Diffuse {
+        /// Reflectance.
+        albedo: Vec3,
+    },
     /// Lambertian base plus a GGX specular lobe (no Fresnel: `specular` is the lobe's
     /// reflectance at all angles, as in the MTL model it comes from).
-    Glossy { diffuse: Vec3, specular: Vec3, roughness: f32 },
+    Glossy {
+        /// Lambertian reflectance.
+        diffuse: Vec3,
+        /// Reflectance of the GGX lobe.
+        specular: Vec3,
+        /// GGX α of the lobe.
+        roughness: f32,
+    },
     /// Perfect specular reflector.
-    Mirror { reflectance: Vec3 },
+    Mirror {
+        /// Reflectance.
+        reflectance: Vec3,
+    },
     /// Smooth dielectric interface with Fresnel reflection and refraction.
-    Glass { ior: f32, tint: Vec3 },
+    Glass {
+        /// Index of refraction.
+        ior: f32,
+        /// Transmission colour.
+        tint: Vec3,
+    },
     /// Conductor with complex index `eta + i k`: GGX of roughness α, smooth below 1e-3.
-    Conductor { eta: Vec3, k: Vec3, roughness: f32 },
+    Conductor {
+        /// Real part of the refractive index.
+        eta: Vec3,
+        /// Imaginary part (absorption).
+        k: Vec3,
+        /// GGX α (below 1e-3: a smooth mirror).
+        roughness: f32,
+    },
     /// Rough dielectric interface (GGX reflection and transmission, Walter et al. 2007).
-    RoughGlass { ior: f32, roughness: f32, tint: Vec3 },
+    RoughGlass {
+        /// Index of refraction.
+        ior: f32,
+        /// GGX α.
+        roughness: f32,
+        /// Transmission colour.
+        tint: Vec3,
+    },
     /// One or two dielectric coats over a diffuse or conductor base (see
     /// [`crate::bsdf::layered`] for the model and its energy behaviour).
     Layered(Layered),
 }
 
 impl Material {
+    /// What surfaces without a material get: 0.8 grey Lambertian.
     pub const DEFAULT: Material = Material::Diffuse { albedo: Vec3::splat(0.8) };
 
     /// Short kind name, for statistics and the inspector's material queues.
@@ -73,6 +111,7 @@ impl Material {
         }
     }
 
+    /// Checks every number (finite and in range).
     pub fn validate(&self) -> Result<(), String> {
         let colour_ok = |c: Vec3| c.is_finite() && c.min_element() >= 0.0 && c.max_element() <= 1.0;
         match *self {

@@ -24,11 +24,14 @@ use std::path::{Path, PathBuf};
 /// An isotropic point light: `intensity` is radiant intensity (W/sr) per channel.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PointLight {
+    /// Position.
     pub position: Vec3,
+    /// Radiant intensity, W/sr per channel.
     pub intensity: Vec3,
 }
 
 #[derive(Clone, Debug)]
+/// A scene as flat arrays: triangles, per-triangle materials, emission, point lights and a camera.
 pub struct Scene {
     /// Vertex positions.
     pub positions: Vec<Vec3>,
@@ -36,18 +39,23 @@ pub struct Scene {
     pub triangles: Vec<[u32; 3]>,
     /// Per triangle: index into `materials`.
     pub material_of: Vec<u32>,
+    /// The materials.
     pub materials: Vec<Material>,
+    /// Per material: its name (from the MTL or scene file).
     pub material_names: Vec<String>,
     /// Per material: emitted radiance from the front face (the side the winding's
     /// normal points to). Zero for non-emitters.
     pub emission: Vec<Vec3>,
+    /// Point lights.
     pub point_lights: Vec<PointLight>,
+    /// The camera.
     pub camera: Camera,
     /// Where the scene came from, for error messages (`<built-in>` for the Cornell box).
     pub source: PathBuf,
 }
 
 impl Scene {
+    /// Triangles.
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
     }
@@ -72,15 +80,18 @@ impl Scene {
     }
 
     #[inline]
+    /// The material of a triangle.
     pub fn material(&self, tri: u32) -> &Material {
         &self.materials[self.material_of[tri as usize] as usize]
     }
 
     #[inline]
+    /// Radiance a triangle emits from its front face.
     pub fn emission_of(&self, tri: u32) -> Vec3 {
         self.emission[self.material_of[tri as usize] as usize]
     }
 
+    /// The box around every vertex.
     pub fn bounds(&self) -> Aabb {
         self.triangles.iter().flat_map(|t| t.iter().map(|&i| self.positions[i as usize])).fold(Aabb::EMPTY, Aabb::grow)
     }

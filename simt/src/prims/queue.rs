@@ -6,6 +6,7 @@ use crate::Device;
 use crate::exec::Thread;
 use crate::memory::{DeviceBuffer, DeviceCopy, GlobalMut, Readable};
 
+/// A device-side queue: a buffer and an atomic length that kernels push to (`QueuePusher`).
 pub struct WorkQueue<T: DeviceCopy> {
     items: DeviceBuffer<T>,
     count: DeviceBuffer<u32>,
@@ -19,6 +20,7 @@ impl<T: DeviceCopy + Default> WorkQueue<T> {
 }
 
 impl<T: DeviceCopy> WorkQueue<T> {
+    /// Most items it can hold.
     pub fn capacity(&self) -> usize {
         self.items.len()
     }
@@ -28,6 +30,7 @@ impl<T: DeviceCopy> WorkQueue<T> {
         (self.count.as_slice()[0] as usize).min(self.capacity())
     }
 
+    /// Whether nothing has been pushed since the last clear.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
@@ -47,6 +50,7 @@ impl<T: DeviceCopy> WorkQueue<T> {
         &self.items
     }
 
+    /// Empties the queue (the storage is kept).
     pub fn clear(&mut self) {
         self.count.as_mut_slice()[0] = 0;
     }

@@ -131,7 +131,9 @@ where
 #[derive(Clone, Copy, Debug, Default)]
 #[repr(C, packed(4))]
 pub struct Flagged<V> {
+    /// Nonzero when the value is selected.
     pub flag: u32,
+    /// The value.
     pub value: V,
 }
 unsafe impl<V: DeviceCopy> crate::DeviceCopy for Flagged<V> {}

@@ -17,6 +17,7 @@ const WARPS: usize = BLOCK as usize / 32;
 
 /// Keys the radix sort understands: unsigned integers.
 pub trait RadixKey: DeviceCopy + Ord + Default {
+    /// Bits of the key that take part in the sort.
     const BITS: u32;
     /// Bits `shift..shift + width` of the key (`width` at most 16).
     fn digit(self, shift: u32, width: u32) -> u32;
