@@ -7,27 +7,40 @@
 //! `cargo run --release --example cis_kernels -- [SCENE] [--spp 16] [--size 128]`
 //! (SCENE: `cornell` or a scene file; default `cornell`).
 
+use clap::Parser;
+use std::path::PathBuf;
+use std::process::ExitCode;
 use std::time::Instant;
 use warpray::prelude::*;
 use warpray::render::Renderer;
 
-fn main() -> Result<()> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let value = |flag: &str, default: u32| -> Result<u32> {
-        match args.iter().position(|a| a == flag) {
-            None => Ok(default),
-            Some(i) => args
-                .get(i + 1)
-                .and_then(|v| v.parse().ok())
-                .ok_or_else(|| Error::BadSetting(format!("{flag} wants a whole number"))),
+#[derive(Parser)]
+#[command(about = "CIS-LBDPT's kernel table beside LVC-BDPT on one scene")]
+struct Args {
+    /// Scene, as for `warpray render`.
+    #[arg(default_value = "cornell")]
+    scene: PathBuf,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    spp: u32,
+    /// Image width and height.
+    #[arg(long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    size: u32,
+}
+
+fn main() -> ExitCode {
+    match run(Args::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
         }
-    };
-    let (spp, size) = (value("--spp", 16)?, value("--size", 128)?);
-    let scene_arg = args.iter().find(|a| !a.starts_with("--") && a.parse::<u32>().is_err());
-    let scene = match scene_arg.map(String::as_str) {
-        None | Some("cornell") => cornell_box(),
-        Some(path) => load_scene(std::path::Path::new(path))?.scene,
-    };
+    }
+}
+
+fn run(args: Args) -> Result<()> {
+    let (spp, size) = (args.spp, args.size);
+    let scene = load_scene(&args.scene)?.scene;
     let caster = BvhCaster::new(&scene);
     println!("{size}x{size}, {spp} spp, {} threads", rayon::current_num_threads());
     println!("{:<6} {:>9} {:>12}", "", "total s", "rays");

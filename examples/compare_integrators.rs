@@ -1,13 +1,39 @@
 //! Renders one scene with every integrator at the same sample count and prints the
 //! image means and the relative MSE between each pair: a quick consistency check.
 //! `cargo run --release --example compare_integrators -- [SCENE] [SPP] [SIZE]`
+use clap::Parser;
+use std::path::PathBuf;
+use std::process::ExitCode;
 use warpray::prelude::*;
 use warpray::render::IntegratorKind;
-fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let scene = load_scene(args.first().map(String::as_str).unwrap_or("cornell")).unwrap().scene;
-    let spp: u32 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(64);
-    let size: u32 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(64);
+
+#[derive(Parser)]
+#[command(about = "Every integrator on one scene: image means and relMSE between each pair")]
+struct Args {
+    /// Scene, as for `warpray render`.
+    #[arg(default_value = "cornell")]
+    scene: PathBuf,
+    /// Samples per pixel.
+    #[arg(default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    spp: u32,
+    /// Image width and height.
+    #[arg(default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    size: u32,
+}
+
+fn main() -> ExitCode {
+    match run(Args::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(args: Args) -> Result<()> {
+    let (spp, size) = (args.spp, args.size);
+    let scene = load_scene(&args.scene)?.scene;
     let caster = BvhCaster::new(&scene);
     let mut images = Vec::new();
     for kind in IntegratorKind::ALL {
@@ -19,7 +45,7 @@ fn main() {
             max_depth: 8,
             ..Default::default()
         };
-        let (film, stats) = render(&scene, &caster, &opts, |_, _| true).unwrap();
+        let (film, stats) = render(&scene, &caster, &opts, |_, _| true)?;
         println!(
             "{:>6}: mean {:?} ({:.2} s, rejected {})",
             kind.name(),
@@ -44,4 +70,5 @@ fn main() {
             println!("relMSE {} vs {}: {rel:.4}", images[i].0.name(), images[j].0.name());
         }
     }
+    Ok(())
 }
