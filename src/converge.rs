@@ -298,15 +298,24 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
             msg: format!("not a readable EXR: its header claims {w}x{h} pixels ({e})"),
         })?;
     }
-    let image = read_first_rgba_layer_from_file(
-        path,
-        |res, _| (res.width(), res.height(), vec![Vec3::ZERO; res.width() * res.height()]),
-        |px: &mut (usize, usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-            let w = px.0;
-            px.2[pos.y() * w + pos.x()] = Vec3::new(r, g, b);
-        },
-    )
-    .map_err(unreadable)?;
+    // Decoded on this thread: exr's parallel decoder builds a thread pool per call,
+    // whose threads outlive the call (the fuzzer saw them as leaks), and our images
+    // are small enough that one thread decodes them in milliseconds.
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |res, _| (res.width(), res.height(), vec![Vec3::ZERO; res.width() * res.height()]),
+            |px: &mut (usize, usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                let w = px.0;
+                px.2[pos.y() * w + pos.x()] = Vec3::new(r, g, b);
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .non_parallel()
+        .from_file(path)
+        .map_err(unreadable)?;
     let (w, h, px) = image.layer_data.channel_data.pixels;
     Ok((w as u32, h as u32, px))
 }

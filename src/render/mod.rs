@@ -100,6 +100,22 @@ pub struct RenderOptions {
     pub lvc: LvcParams,
     /// CIS-LBDPT settings and switches.
     pub cis: crate::cis::CisParams,
+    /// BDPT only: keep one strategy's contributions and drop the rest (pbrt-v4's
+    /// strategy images), for tests that check each strategy on its own.
+    pub strategy: Option<Strategy>,
+}
+
+/// One bidirectional strategy: `s` light-subpath vertices joined to `t` camera-subpath
+/// vertices. Unweighted, its image alone estimates all light of path depth `s + t − 2`
+/// that the strategy can sample; weighted (MIS), the strategies of one depth sum to it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Strategy {
+    /// Light-subpath vertices.
+    pub s: u32,
+    /// Camera-subpath vertices.
+    pub t: u32,
+    /// Whether its MIS weight is applied.
+    pub weighted: bool,
 }
 
 impl Default for RenderOptions {
@@ -113,6 +129,7 @@ impl Default for RenderOptions {
             integrator: IntegratorKind::Path,
             lvc: LvcParams::default(),
             cis: crate::cis::CisParams::default(),
+            strategy: None,
         }
     }
 }
@@ -206,6 +223,12 @@ impl<'a> Renderer<'a> {
         if opts.integrator != IntegratorKind::Path && scene.camera.aperture_radius > 0.0 {
             return Err(Error::BadSetting(format!(
                 "the {} integrator connects to a pinhole camera; set the aperture radius to 0",
+                opts.integrator.name()
+            )));
+        }
+        if opts.strategy.is_some() && opts.integrator != IntegratorKind::Bdpt {
+            return Err(Error::BadSetting(format!(
+                "strategy images are a BDPT feature; the {} integrator has none",
                 opts.integrator.name()
             )));
         }
