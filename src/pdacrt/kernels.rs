@@ -437,7 +437,7 @@ pub(crate) fn scatter_ref(
 /// Triangles staged in shared memory per round of the brute-force kernel.
 pub(crate) const STAGE: usize = 128;
 
-/// Shared memory of one brute-force block: [`STAGE`] triangles (36 bytes) and their
+/// Shared memory of one brute-force block: `STAGE` (128) triangles (36 bytes) and their
 /// ids (4 bytes).
 pub const BRUTE_FORCE_SHARED_BYTES: usize = STAGE * 40;
 

@@ -1,0 +1,26 @@
+//! What every target shares: a private directory on a RAM disk for the files a loader
+//! must open by path (the loaders refuse anything but regular files, so the input is
+//! written out rather than handed over as a pipe).
+
+use std::path::PathBuf;
+
+/// A directory of this process's own, created once.
+pub fn scratch() -> PathBuf {
+    static DIR: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    DIR.get_or_init(|| {
+        let base = if std::path::Path::new("/dev/shm").is_dir() { PathBuf::from("/dev/shm") } else { std::env::temp_dir() };
+        let dir = base.join(format!("warpray-fuzz-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("scratch directory");
+        dir
+    })
+    .clone()
+}
+
+#[allow(dead_code)] // not every target splits its input
+/// Splits `data` at the first `sep`: (before, after); all of it before when absent.
+pub fn split<'a>(data: &'a [u8], sep: &[u8]) -> (&'a [u8], &'a [u8]) {
+    match data.windows(sep.len()).position(|w| w == sep) {
+        Some(i) => (&data[..i], &data[i + sep.len()..]),
+        None => (data, &[]),
+    }
+}
