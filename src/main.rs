@@ -377,7 +377,9 @@ fn stats_report(
     threads: usize,
 ) -> String {
     use std::fmt::Write;
-    let mb = |b: usize| format!("{:.1} MB", b as f64 / 1e6);
+    let mb = |b: usize| {
+        if b < 1_000_000 { format!("{:.1} kB", b as f64 / 1e3) } else { format!("{:.1} MB", b as f64 / 1e6) }
+    };
     let closest = stats.rays - stats.shadow_rays;
     let per_call = if stats.cast_calls > 0 { stats.rays as f64 / stats.cast_calls as f64 } else { 0.0 };
     let mut s = String::from("statistics\n");
@@ -419,6 +421,12 @@ fn stats_report(
     );
     if let Some((kernels, peak)) = &stats.device {
         let _ = writeln!(s, "  simt device peak memory {}; kernels:", mb(*peak));
+        if kernels.iter().all(|k| k.measured_launches == 0) {
+            let _ = writeln!(
+                s,
+                "    (measurement off, as renders run it for speed: SIMD efficiency and sectors per request are shown by the inspector and the kernel examples)"
+            );
+        }
         let mut rows = kernels.clone();
         rows.sort_by(|a, b| b.seconds.total_cmp(&a.seconds));
         for line in simt::stats::format_table(&rows).lines() {

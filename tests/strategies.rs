@@ -81,17 +81,19 @@ fn check(what: &str, (mean, se): (f64, f64), want: f64, precision: f64, failures
     line
 }
 
+/// The strategies (s, t) of path depth `k` that BDPT uses (t ≥ 1; (0, 1) would need
+/// a path to hit the pinhole).
+fn strategies(k: u32) -> impl Iterator<Item = (u32, u32)> {
+    (1..=k + 2).map(move |t| (k + 2 - t, t)).filter(|&(s, t)| s > 0 || t >= 2)
+}
+
 #[test]
 fn every_unweighted_strategy_matches_the_furnace() {
     let scene = furnace();
     let caster = BvhCaster::new(&scene);
     let mut failures = Vec::new();
     for k in 0..=MAX_DEPTH {
-        for t in 1..=k + 2 {
-            let s = k + 2 - t;
-            if s == 0 && t < 2 {
-                continue;
-            }
+        for (s, t) in strategies(k) {
             // Light tracing strategies (t = 1) land on the film only when their vertex
             // is in view, and are noisier: more samples, and a looser guard on their
             // standard error (they see errors of about 3 % alone; the weighted sums
@@ -115,11 +117,7 @@ fn weighted_strategies_of_each_depth_add_up_to_the_furnace() {
     // the standard error taken over seeds).
     for k in 0..=MAX_DEPTH {
         let mut sums = vec![0.0; SEEDS as usize];
-        for t in 1..=k + 2 {
-            let s = k + 2 - t;
-            if s == 0 && t < 2 {
-                continue;
-            }
+        for (s, t) in strategies(k) {
             let means = seed_means(&scene, &caster, Some(Strategy { s, t, weighted: true }), 8);
             sums.iter_mut().zip(means).for_each(|(a, m)| *a += m);
         }
