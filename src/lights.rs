@@ -3,7 +3,6 @@
 //! on the chosen triangle.
 
 use crate::film::luminance;
-use crate::geometry::triangle_normal;
 use crate::sampling::uniform_triangle;
 use crate::scene::Scene;
 use glam::{Vec2, Vec3};
@@ -67,16 +66,9 @@ impl Lights {
         let mut lights = Vec::new();
         let mut light_of_tri = vec![u32::MAX; scene.triangle_count()];
         for tri in 0..scene.triangle_count() as u32 {
-            let radiance = scene.emission_of(tri);
-            if radiance.max_element() <= 0.0 {
-                continue;
-            }
-            let [a, b, c] = scene.vertices(tri);
-            let n = triangle_normal(a, b, c);
-            let area = 0.5 * n.length();
-            if area > 0.0 && area.is_finite() {
+            if let Some((n, area)) = scene.area_emitter(tri) {
                 light_of_tri[tri as usize] = lights.len() as u32;
-                lights.push(Light::Area { tri, area, normal: n.normalize(), radiance });
+                lights.push(Light::Area { tri, area, normal: n.normalize(), radiance: scene.emission_of(tri) });
             }
         }
         lights.extend(scene.point_lights.iter().map(|p| Light::Point { position: p.position, intensity: p.intensity }));

@@ -143,6 +143,14 @@ fn emitters_of_zero_area_or_intensity_do_not_count() {
     let opts = RenderOptions { width: 4, height: 4, budget: Budget::Samples(1), ..Default::default() };
     assert!(matches!(render(&s, &caster, &opts, |_, _| true), Err(Error::NoEmitters { .. })));
     load(&dir, &text("2 1 0")).unwrap().check_renderable().unwrap();
+    // Finite corners whose area overflows f32 (built by hand: the OBJ loader already
+    // refuses such a file, whose framed camera overflows): no light can be made of it.
+    let mut s = load(&dir, &text("2 1 0")).unwrap();
+    for (p, huge) in s.positions[3..6].iter_mut().zip([[0.0, 0.0], [3e19, 0.0], [0.0, 3e19]]) {
+        *p = warpray::glam::Vec3::new(huge[0], huge[1], 0.0);
+    }
+    assert!(matches!(s.check_renderable(), Err(Error::NoEmitters { .. })));
+    assert!(warpray::lights::Lights::new(&s).is_empty());
     // A point light of zero intensity lights nothing either.
     let mut s = load(&dir, &obj("f 1 2 3\n")).unwrap();
     s.point_lights

@@ -113,10 +113,20 @@ impl Scene {
     /// lit only by those would render black).
     pub fn has_emitters(&self) -> bool {
         self.point_lights.iter().any(|l| l.intensity.max_element() > 0.0)
-            || self.material_of.iter().enumerate().any(|(i, &m)| {
-                let [a, b, c] = self.vertices(i as u32);
-                self.emission[m as usize].max_element() > 0.0 && (b - a).cross(c - a).length() > 0.0
-            })
+            || (0..self.triangle_count() as u32).any(|tri| self.area_emitter(tri).is_some())
+    }
+
+    /// A triangle that is an area light: its (unnormalised) winding normal and its
+    /// area, when it emits and its area is positive and finite. The one rule for what
+    /// the lights are ([`crate::lights::Lights::new`]) and for whether a scene has any.
+    pub fn area_emitter(&self, tri: u32) -> Option<(Vec3, f32)> {
+        if self.emission_of(tri).max_element() <= 0.0 {
+            return None;
+        }
+        let [a, b, c] = self.vertices(tri);
+        let n = crate::geometry::triangle_normal(a, b, c);
+        let area = 0.5 * n.length();
+        (area > 0.0 && area.is_finite()).then_some((n, area))
     }
 
     /// Checks what every caster needs: at least one triangle, finite coordinates, indices
