@@ -116,9 +116,10 @@ fn first_surface(scene: &Scene, ray: &Ray, hit: &Hit, seed: u64, pixel: u64, sam
     let normal = if ng.dot(wo) < 0.0 { -ng } else { ng };
     let frame = Frame::from_normal(ng);
     let mut rng = Rng::for_sample(seed ^ AOV_STREAM, pixel, sample).derive(1);
+    let wo_local = frame.to_local(wo);
     let albedo = scene
-        .material(hit.prim)
-        .sample_f(frame.to_local(wo), rng.uniform(), rng.uniform2(), TransportMode::Radiance)
+        .bsdf(hit.prim, wo_local)
+        .sample_f(wo_local, rng.uniform(), rng.uniform2(), TransportMode::Radiance)
         .map_or(Vec3::ZERO, |s| s.weight);
     let z = hit.t * ray.dir.dot(scene.camera.forward);
     Some((albedo, normal, z))

@@ -77,6 +77,14 @@ pub enum Error {
         /// What is wrong with the line.
         msg: String,
     },
+    /// A PLY file is malformed.
+    #[error("{at}: malformed PLY: {msg}")]
+    MalformedPly {
+        /// File and line (0 when the parser does not know it).
+        at: Location,
+        /// What is wrong.
+        msg: String,
+    },
     /// An OBJ names a material library that does not exist.
     #[error("{at}: material library '{mtl}' not found (looked for {looked})")]
     MissingMtl {

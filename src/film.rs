@@ -6,7 +6,8 @@
 //! rounded to 8 bits. EXR: linear f32 RGB (ZIP compression), no tone map.
 
 use crate::error::{Error, Result};
-use glam::Vec3;
+use crate::filter::Filter;
+use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
 
 #[derive(Clone, Debug)]
@@ -31,6 +32,9 @@ pub struct Film {
     pub passes: u32,
     /// Estimates rejected because they were NaN, infinite or negative.
     pub rejected: u64,
+    /// The reconstruction filter splats are spread with (camera samples apply it when
+    /// they are drawn: [`Filter::sample`]).
+    pub filter: Filter,
 }
 
 /// Largest image accepted: 16384 pixels a side and 2^26 pixels (64 Mpx) in all.
@@ -68,6 +72,7 @@ impl Film {
             pass_splat: zeros(),
             passes: 0,
             rejected: 0,
+            filter: Filter::Box,
         })
     }
 
@@ -101,16 +106,18 @@ impl Film {
         self.passes += 1;
     }
 
-    /// Adds splatted contributions `(pixel, value)` in the order given (so that the
-    /// result does not depend on thread scheduling). Non-finite or negative values are
-    /// dropped and counted. Call once or more per pass, before [`Film::end_pass`].
-    pub fn add_splats(&mut self, splats: impl IntoIterator<Item = (u32, Vec3)>) {
+    /// Adds splatted contributions `(film position in pixels, value)` in the order given
+    /// (so that the result does not depend on thread scheduling), spread over the pixels
+    /// the film's filter covers. Non-finite or negative values are dropped and counted.
+    /// Call once or more per pass, before [`Film::end_pass`].
+    pub fn add_splats(&mut self, splats: impl IntoIterator<Item = (Vec2, Vec3)>) {
+        let (w, h, filter) = (self.width, self.height, self.filter);
         for (p, v) in splats {
-            if v.is_finite() && v.min_element() >= 0.0 {
-                if let (Some(s), Some(c)) = (self.splat.get_mut(p as usize), self.pass_splat.get_mut(p as usize)) {
-                    *s += v;
-                    *c += v;
-                }
+            if v.is_finite() && v.min_element() >= 0.0 && p.is_finite() {
+                filter.splat(p, w, h, |i, wt| {
+                    self.splat[i as usize] += v * wt;
+                    self.pass_splat[i as usize] += v * wt;
+                });
             } else {
                 self.rejected += 1;
             }
@@ -300,6 +307,7 @@ mod tests {
         let path = dir.join("m.exr");
         let mut film = Film::new(3, 2).unwrap();
         film.add_pass(&[Vec3::ONE; 6]);
+        film.add_splats([(Vec2::new(2.5, 1.5), Vec3::ONE)]);
         film.write_with(&path, 1.0, &[("spp", "1".into()), ("scene", "Ünïcode ∞ scene".into())]).unwrap();
         let m = read_exr_metadata(&path).unwrap();
         assert_eq!(m, vec![("scene".to_string(), "Ünïcode ? scene".to_string()), ("spp".to_string(), "1".to_string())]);

@@ -34,6 +34,7 @@ pub mod converge;
 pub mod diff;
 pub mod error;
 pub mod film;
+pub mod filter;
 pub mod geometry;
 #[cfg(feature = "cuda")]
 pub mod gpu;

@@ -133,6 +133,10 @@ struct RenderArgs {
     /// Largest number of bounces (0: emitters only, 1: direct light) [default: 8].
     #[arg(long)]
     max_depth: Option<u32>,
+    /// Pixel filter: box, gaussian (sigma 0.5, radius 2, Mitsuba's) or
+    /// gaussian:SIGMA:RADIUS [default: box, or the scene file's].
+    #[arg(long)]
+    filter: Option<warpray::filter::Filter>,
     /// Worker threads [default: all cores].
     #[arg(long)]
     threads: Option<usize>,
@@ -284,6 +288,7 @@ fn run_render(args: RenderArgs) -> Result<bool> {
         max_depth: args.max_depth.or(s.max_depth).unwrap_or(8),
         seed: args.seed.or(s.seed).unwrap_or(0),
         integrator,
+        filter: args.filter.or(s.filter).unwrap_or_default(),
         ..Default::default()
     };
     warpray::film::check_size(width, height)?;
@@ -317,6 +322,7 @@ fn run_render(args: RenderArgs) -> Result<bool> {
             ("spp", stats.passes.to_string()),
             ("seed", opts.seed.to_string()),
             ("max_depth", opts.max_depth.to_string()),
+            ("filter", format!("{:?}", opts.filter)),
             ("seconds", format!("{:.3}", stats.seconds)),
             ("interrupted", interrupted.to_string()),
             ("version", env!("CARGO_PKG_VERSION").to_string()),

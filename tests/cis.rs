@@ -22,7 +22,7 @@ fn opts(kind: IntegratorKind, spp: u32, cis: CisParams, lvc: LvcParams) -> Rende
         seed: 13,
         lvc,
         cis,
-        strategy: None,
+        ..Default::default()
     }
 }
 

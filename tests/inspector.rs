@@ -109,6 +109,7 @@ fn scene_list_needs_no_working_directory_and_lists_a_scene_once() {
         assert!(names.contains(&n), "{n} missing from {names:?}");
     }
     assert!(app.scenes.iter().any(|(l, _)| l.contains("slit.toml")), "assets/scenes files are listed");
+    assert!(app.scenes.iter().any(|(l, _)| l.contains("mitsuba-cbox.xml")), "Mitsuba XML scenes are listed too");
     let before = app.scenes.len();
     app.add_scene("bunny".into());
     assert_eq!((app.scenes.len(), app.scenes[app.scene].1.to_str()), (before, Some("bunny")));

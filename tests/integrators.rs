@@ -5,7 +5,7 @@ mod common;
 use common::*;
 use warpray::cast::BvhCaster;
 use warpray::film::Film;
-use warpray::glam::Vec3;
+use warpray::glam::{Vec2, Vec3};
 use warpray::lights::Lights;
 use warpray::render::bdpt::{Vertex, VertexKind, mis_weight};
 use warpray::render::{Budget, Context, IntegratorKind, RenderOptions, render};
@@ -142,8 +142,8 @@ fn mis_weights_of_all_strategies_sum_to_one() {
 fn the_film_guards_against_nan_and_inf() {
     let mut film = Film::new(2, 2).unwrap();
     film.add_pass(&[Vec3::ONE, Vec3::NAN, Vec3::splat(f32::INFINITY), Vec3::new(-1.0, 0.0, 0.0)]);
-    film.add_splats([(0, Vec3::NAN), (1, Vec3::ONE)]);
-    assert_eq!(film.rejected, 4);
+    film.add_splats([(Vec2::new(0.5, 0.5), Vec3::NAN), (Vec2::new(1.5, 0.5), Vec3::ONE), (Vec2::NAN, Vec3::ONE)]);
+    assert_eq!(film.rejected, 5);
     assert!(film.mean().iter().all(|v| v.is_finite()));
     assert_eq!(film.mean()[0], Vec3::ONE);
     assert_eq!(film.mean()[1], Vec3::ONE);

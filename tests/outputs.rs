@@ -141,7 +141,7 @@ fn film_variance_is_the_unbiased_sample_variance_of_each_pass() {
     // Pixel 0: estimates 1, 2, 3, 6 (mean 3, sample variance 14/3). Pixel 1: the same
     // values arriving as splats, as light tracing delivers them.
     for x in [1.0f32, 2.0, 3.0, 6.0] {
-        film.add_splats([(1, Vec3::splat(x - 1.0)), (1, Vec3::splat(1.0))]);
+        film.add_splats([(Vec2::new(1.5, 0.5), Vec3::splat(x - 1.0)), (Vec2::new(1.2, 0.9), Vec3::splat(1.0))]);
         film.add_pass(&[Vec3::splat(x), Vec3::ZERO]);
     }
     let v = film.variance();
@@ -150,7 +150,7 @@ fn film_variance_is_the_unbiased_sample_variance_of_each_pass() {
     // Splat-only passes (end_pass) count the same way.
     let mut film = Film::new(1, 1).unwrap();
     for x in [2.0f32, 4.0] {
-        film.add_splats([(0, Vec3::splat(x))]);
+        film.add_splats([(Vec2::new(0.5, 0.5), Vec3::splat(x))]);
         film.end_pass();
     }
     assert!((film.variance()[0].x - 2.0).abs() < 1e-6);

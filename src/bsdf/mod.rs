@@ -70,6 +70,12 @@ impl Material {
         if d + s > 0.0 { s / (d + s) } else { 0.0 }
     }
 
+    /// True for interfaces between two media (glass, rough glass), which scatter on
+    /// both sides whatever the scene says about sidedness.
+    pub fn is_dielectric(&self) -> bool {
+        matches!(self, Material::Glass { .. } | Material::RoughGlass { .. })
+    }
+
     /// True when the material scatters only into discrete directions (no light
     /// sampling is possible at such a vertex).
     pub fn is_delta(&self) -> bool {

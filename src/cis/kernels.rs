@@ -2,6 +2,7 @@
 //! and light tables by reference). None allocates, forks, launches or casts rays; the
 //! host in `mod.rs` does the ray casting through the caster trait between launches.
 
+use crate::filter::Filter;
 use crate::geometry::{Hit, Ray, offset_ray_origin};
 use crate::render::Context;
 use crate::render::bdpt::{MAX_PATH, Pending, Vertex, VertexKind, VertexList};
@@ -85,7 +86,7 @@ pub fn generate(
     first_pixel: u32,
     pass: u32,
     seed: u64,
-    cam: &Camera,
+    (cam, filter): (&Camera, Filter),
     (width, height): (u32, u32),
     slots: &GlobalMut<Slot>,
     vertices: &GlobalMut<Vertex>,
@@ -93,11 +94,15 @@ pub fn generate(
     let slot = t.load(free, i) as usize;
     let pixel = first_pixel + i as u32;
     let mut rng = Rng::for_sample(seed, pixel as u64, pass as u64);
-    let film = Vec2::new((pixel % width) as f32, (pixel / width) as f32) + rng.uniform2();
+    let (film, weight) = filter.sample(pixel % width, pixel / width, rng.uniform2());
     let ray = cam.generate_ray(film, width, height, Vec2::ZERO);
     let v0 = Vertex::new(VertexKind::Camera, cam.position, cam.forward, u32::MAX, Vec3::ONE, false, Vec3::ZERO);
     t.store(vertices, slot * MAX_CAMERA_VERTICES, v0);
-    t.store(slots, slot, Slot { rng, ray, beta: Vec3::ONE, radiance: Vec3::ZERO, pixel, depth: 1, alive: 1, _pad: 0 });
+    t.store(
+        slots,
+        slot,
+        Slot { rng, ray, beta: Vec3::splat(weight), radiance: Vec3::ZERO, pixel, depth: 1, alive: 1, _pad: 0 },
+    );
 }
 
 /// `cis::material_keys`: the queue key of active sample `i` (its hit's material, or
@@ -221,7 +226,12 @@ pub fn shade(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
     let sample = if t_len >= max_vertices || t_len >= MAX_CAMERA_VERTICES {
         None
     } else {
-        material.sample_f(wo, slot.rng.uniform(), slot.rng.uniform2(), crate::bsdf::TransportMode::Radiance)
+        scene.bsdf(hit.prim, wo).sample_f(
+            wo,
+            slot.rng.uniform(),
+            slot.rng.uniform2(),
+            crate::bsdf::TransportMode::Radiance,
+        )
     };
     cam[t_len - 1].delta = sample.is_some_and(|s| s.delta);
     t.store(&a.vertices, vbase + depth, cam[t_len - 1]);

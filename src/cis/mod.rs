@@ -159,7 +159,7 @@ impl CisLbdpt {
                     let cam = ctx.scene.camera;
                     let (first, seed) = (next_pixel, ctx.opts.seed);
                     dev.for_each("cis::generate", k, |t, i| {
-                        generate(t, i, &fv, first, pass, seed, &cam, (w, h), &sv, &vv)
+                        generate(t, i, &fv, first, pass, seed, (&cam, ctx.opts.filter), (w, h), &sv, &vv)
                     });
                     let mut grown = dev.alloc_pooled::<u32>(active.len() + k);
                     let (av, fv, gv) = (active.view(), free.view(), grown.view_mut());

@@ -159,7 +159,7 @@ impl Inspector {
         if let Ok(dir) = std::fs::read_dir(&assets) {
             let mut files: Vec<PathBuf> = dir
                 .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+                .filter(|p| p.extension().is_some_and(|e| e == "toml" || e == "xml"))
                 .filter(|p| {
                     let stem = p.file_stem().and_then(|s| s.to_str()).unwrap_or("");
                     !crate::scene::NAMED_SCENES.iter().any(|(n, _)| *n == stem)

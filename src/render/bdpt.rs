@@ -139,8 +139,10 @@ impl std::ops::DerefMut for VertexList {
 }
 
 /// Pinhole camera importance toward direction `w` (unit): `(We, pdf of the direction,
-/// film position in pixels)`, or `None` outside the image.
-pub fn camera_importance(cam: &Camera, w: Vec3, width: u32, height: u32) -> Option<(f32, f32, Vec2)> {
+/// film position in pixels)`, or `None` outside the image grown by `margin` pixels on
+/// every side (the reach of the pixel filter: [`crate::filter::Filter::margin`]). `We`
+/// and the pdf are normalised over the image itself, as the camera samples it.
+pub fn camera_importance(cam: &Camera, w: Vec3, width: u32, height: u32, margin: f32) -> Option<(f32, f32, Vec2)> {
     let cos = w.dot(cam.forward);
     if cos <= 0.0 {
         return None;
@@ -149,19 +151,14 @@ pub fn camera_importance(cam: &Camera, w: Vec3, width: u32, height: u32) -> Opti
     let aspect = width as f32 / height as f32;
     let p = w / cos;
     let (sx, sy) = (p.dot(cam.right) / (tan_half * aspect), p.dot(cam.up) / tan_half);
-    if !(sx.abs() <= 1.0 && sy.abs() <= 1.0) {
+    let film = Vec2::new((sx + 1.0) * 0.5 * width as f32, (1.0 - sy) * 0.5 * height as f32);
+    let inside = |v: f32, n: u32| v >= -margin && v <= n as f32 + margin;
+    if !(inside(film.x, width) && inside(film.y, height)) {
         return None;
     }
-    let film = Vec2::new((sx + 1.0) * 0.5 * width as f32, (1.0 - sy) * 0.5 * height as f32);
     let area = 4.0 * tan_half * tan_half * aspect;
     let cos2 = cos * cos;
     Some((1.0 / (area * cos2 * cos2), 1.0 / (area * cos2 * cos), film))
-}
-
-fn pixel_of(film: Vec2, width: u32, height: u32) -> u32 {
-    let x = (film.x as u32).min(width - 1);
-    let y = (film.y as u32).min(height - 1);
-    y * width + x
 }
 
 /// `|cos|` between a vertex's normal and `w` (1 for point lights).
@@ -183,7 +180,8 @@ fn pdf_area(ctx: &Context, prev: Option<&Vertex>, cur: &Vertex, next: &Vertex) -
     let w = d / d2.sqrt();
     let pdf_dir = match cur.kind {
         VertexKind::Camera => {
-            camera_importance(&ctx.scene.camera, w, ctx.opts.width, ctx.opts.height).map_or(0.0, |(_, pdf, _)| pdf)
+            camera_importance(&ctx.scene.camera, w, ctx.opts.width, ctx.opts.height, ctx.opts.filter.margin())
+                .map_or(0.0, |(_, pdf, _)| pdf)
         }
         VertexKind::Light if cur.n == Vec3::ZERO => 1.0 / (4.0 * PI),
         VertexKind::Light => cur.n.dot(w).max(0.0) * FRAC_1_PI,
@@ -193,8 +191,8 @@ fn pdf_area(ctx: &Context, prev: Option<&Vertex>, cur: &Vertex, next: &Vertex) -
             }
             let Some(prev) = prev else { return 0.0 };
             let frame = Frame::from_normal(cur.n);
-            let wo = (prev.p - cur.p).normalize();
-            ctx.scene.material(cur.tri).pdf(frame.to_local(wo), frame.to_local(w))
+            let wo = frame.to_local((prev.p - cur.p).normalize());
+            ctx.scene.bsdf(cur.tri, wo).pdf(wo, frame.to_local(w))
         }
     };
     let cos_next = match next.kind {
@@ -295,7 +293,7 @@ pub(crate) fn random_walk(
         }
         let frame = Frame::from_normal(n);
         let wo = frame.to_local(-ray.dir.normalize());
-        let Some(s) = ctx.scene.material(hit.prim).sample_f(wo, rng.uniform(), rng.uniform2(), mode) else { break };
+        let Some(s) = ctx.scene.bsdf(hit.prim, wo).sample_f(wo, rng.uniform(), rng.uniform2(), mode) else { break };
         verts.last_mut().unwrap().delta = s.delta;
         beta *= s.weight;
         bounces += 1;
@@ -355,7 +353,7 @@ pub(crate) fn vertex_f(ctx: &Context, v: &Vertex, prev: Option<&Vertex>, toward:
             let Some(prev) = prev else { return Vec3::ZERO };
             let frame = Frame::from_normal(v.n);
             let wo = frame.to_local((prev.p - v.p).normalize());
-            ctx.scene.material(v.tri).f(wo, frame.to_local(w), mode)
+            ctx.scene.bsdf(v.tri, wo).f(wo, frame.to_local(w), mode)
         }
         VertexKind::Camera => Vec3::ZERO,
     }
@@ -381,7 +379,7 @@ pub(crate) fn connectible(ctx: &Context, v: &Vertex) -> bool {
 
 /// A contribution waiting for its shadow ray: value, and where it goes (`None`: this
 /// sample's pixel; `Some(p)`: a splat on pixel `p`).
-pub(crate) type Pending = (Option<Ray>, Vec3, Option<u32>);
+pub(crate) type Pending = (Option<Ray>, Vec3, Option<Vec2>);
 
 /// The t = 1 strategy for light vertex `s - 1`: its contribution to the pixel it projects on.
 ///
@@ -390,7 +388,12 @@ pub(crate) type Pending = (Option<Ray>, Vec3, Option<u32>);
 /// be a Dirac spike on one pixel, growing with the resolution), and no other strategy
 /// can produce it. Point lights are invisible to the camera, as in the path tracer,
 /// pbrt and Mitsuba.
-pub(crate) fn connect_to_camera(ctx: &Context, light: &[Vertex], s: usize, cam_v: &Vertex) -> Option<(Vec3, u32, Ray)> {
+pub(crate) fn connect_to_camera(
+    ctx: &Context,
+    light: &[Vertex],
+    s: usize,
+    cam_v: &Vertex,
+) -> Option<(Vec3, Vec2, Ray)> {
     let v = &light[s - 1];
     if !connectible(ctx, v) || (s == 1 && v.is_point_light()) {
         return None;
@@ -398,12 +401,13 @@ pub(crate) fn connect_to_camera(ctx: &Context, light: &[Vertex], s: usize, cam_v
     let d = v.p - cam_v.p;
     let d2 = d.length_squared();
     let w = d / d2.sqrt();
-    let (we, _, film) = camera_importance(&ctx.scene.camera, w, ctx.opts.width, ctx.opts.height)?;
+    let (we, _, film) =
+        camera_importance(&ctx.scene.camera, w, ctx.opts.width, ctx.opts.height, ctx.opts.filter.margin())?;
     let cos_cam = w.dot(cam_v.n);
     let prev = if s >= 2 { light.get(s - 2) } else { None };
     let f = vertex_f(ctx, v, prev, cam_v.p, TransportMode::Importance);
     let l = v.beta * f * cos_at(v, -w) * we * cos_cam / d2;
-    (l.max_element() > 0.0).then(|| (l, pixel_of(film, ctx.opts.width, ctx.opts.height), shadow_ray(v, cam_v)))
+    (l.max_element() > 0.0).then(|| (l, film, shadow_ray(v, cam_v)))
 }
 
 /// The camera vertex at the sample's eye point.
@@ -412,7 +416,7 @@ pub(crate) fn camera_vertex(cam: &Camera) -> Vertex {
 }
 
 /// One pixel sample's estimate, its splats, and the rays it cast.
-type SampleResult = (Vec3, Vec<(u32, Vec3)>, usize);
+type SampleResult = (Vec3, Vec<(Vec2, Vec3)>, usize);
 
 /// Bidirectional path tracing, one camera and one light subpath per pixel sample.
 pub struct Bdpt;
@@ -426,12 +430,12 @@ impl LightTracer {
         let (w, h) = (ctx.opts.width, ctx.opts.height);
         let max_vertices = ctx.opts.max_depth as usize + 1;
         let cam_v = camera_vertex(&ctx.scene.camera);
-        let results: Vec<(Vec<(u32, Vec3)>, usize)> = (0..w * h)
+        let results: Vec<(Vec<(Vec2, Vec3)>, usize)> = (0..w * h)
             .into_par_iter()
             .map_init(Vec::new, |verts, path| {
                 let mut rng = Rng::for_sample(ctx.opts.seed ^ 0x4c54, path as u64, pass as u64);
                 let mut rays = light_subpath(ctx, &mut rng, max_vertices, verts);
-                let pending: Vec<(Vec3, u32, Ray)> =
+                let pending: Vec<(Vec3, Vec2, Ray)> =
                     (1..=verts.len()).filter_map(|s| connect_to_camera(ctx, verts, s, &cam_v)).collect();
                 let splats = unoccluded(ctx, &pending, &mut rays);
                 (splats, rays)
@@ -448,7 +452,7 @@ impl LightTracer {
 }
 
 /// The pending splats whose shadow rays are clear, cast as one batch.
-fn unoccluded(ctx: &Context, pending: &[(Vec3, u32, Ray)], rays: &mut usize) -> Vec<(u32, Vec3)> {
+fn unoccluded(ctx: &Context, pending: &[(Vec3, Vec2, Ray)], rays: &mut usize) -> Vec<(Vec2, Vec3)> {
     let shadow: Vec<Ray> = pending.iter().map(|p| p.2).collect();
     let mut blocked = vec![false; shadow.len()];
     ctx.caster.occluded(&shadow, &mut blocked);
@@ -582,14 +586,14 @@ pub(crate) fn camera_subpath(ctx: &Context, pixel: u32, rng: &mut Rng, cam: &mut
     let camera = &ctx.scene.camera;
     cam.clear();
     cam.push(camera_vertex(camera));
-    let film_pos = Vec2::new((pixel % w) as f32, (pixel / w) as f32) + rng.uniform2();
+    let (film_pos, weight) = ctx.opts.filter.sample(pixel % w, pixel / w, rng.uniform2());
     let ray = camera.generate_ray(film_pos, w, h, Vec2::ZERO);
-    random_walk(ctx, ray, Vec3::ONE, TransportMode::Radiance, rng, ctx.opts.max_depth as usize + 2, cam)
+    random_walk(ctx, ray, Vec3::splat(weight), TransportMode::Radiance, rng, ctx.opts.max_depth as usize + 2, cam)
 }
 
 /// Casts the shadow rays of one sample's pending contributions as one batch and sums
 /// the visible ones: `(pixel estimate, splats, rays cast)`.
-pub(crate) fn resolve_pending(ctx: &Context, pending: Vec<Pending>) -> (Vec3, Vec<(u32, Vec3)>, usize) {
+pub(crate) fn resolve_pending(ctx: &Context, pending: Vec<Pending>) -> (Vec3, Vec<(Vec2, Vec3)>, usize) {
     let shadow: Vec<Ray> = pending.iter().filter_map(|p| p.0).collect();
     let mut blocked = vec![false; shadow.len()];
     ctx.caster.occluded(&shadow, &mut blocked);
@@ -615,7 +619,7 @@ fn sample_pixel(
     cam: &mut Vec<Vertex>,
     light: &mut Vec<Vertex>,
     path: &mut VertexList,
-) -> (Vec3, Vec<(u32, Vec3)>, usize) {
+) -> (Vec3, Vec<(Vec2, Vec3)>, usize) {
     let max_depth = ctx.opts.max_depth as usize;
     let cam_v = camera_vertex(&ctx.scene.camera);
     let mut rays = camera_subpath(ctx, pixel, rng, cam);

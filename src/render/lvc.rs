@@ -18,7 +18,7 @@ use crate::cast::CastStats;
 use crate::film::Film;
 use crate::film::luminance;
 use crate::sampling::Rng;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 /// Parameters of [`LvcBdpt`].
@@ -92,7 +92,7 @@ pub(crate) fn build_cache(
     pass: u32,
     n_light: u32,
     n_c: u32,
-) -> (LightVertexCache, StrategyCounts, Vec<(u32, Vec3)>, usize) {
+) -> (LightVertexCache, StrategyCounts, Vec<(Vec2, Vec3)>, usize) {
     let max_vertices = ctx.opts.max_depth as usize + 1;
     let paths: Vec<(Vec<Vertex>, usize)> = (0..n_light)
         .into_par_iter()
@@ -124,7 +124,7 @@ pub(crate) fn build_cache(
     let scale = (pixels / n_light as f64) as f32;
     // Each path's splats, with their shadow rays cast as one batch per path, in parallel;
     // then merged in path order (deterministic).
-    let per_path: Vec<(Vec<(u32, Vec3)>, usize)> = paths
+    let per_path: Vec<(Vec<(Vec2, Vec3)>, usize)> = paths
         .par_iter()
         .map_init(VertexList::default, |path, (verts, _)| {
             let pending: Vec<PendingSplat> = (1..=verts.len())
@@ -151,7 +151,7 @@ pub(crate) fn build_cache(
 }
 
 /// A light vertex's camera splat waiting for its shadow ray: value, pixel, ray.
-type PendingSplat = (Vec3, u32, crate::geometry::Ray);
+type PendingSplat = (Vec3, Vec2, crate::geometry::Ray);
 
 /// LVC-BDPT, one task per camera path.
 pub struct LvcBdpt {

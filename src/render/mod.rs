@@ -103,6 +103,8 @@ pub struct RenderOptions {
     /// BDPT only: keep one strategy's contributions and drop the rest (pbrt-v4's
     /// strategy images), for tests that check each strategy on its own.
     pub strategy: Option<Strategy>,
+    /// Pixel reconstruction filter (box by default; Mitsuba scenes ask for a Gaussian).
+    pub filter: crate::filter::Filter,
 }
 
 /// One bidirectional strategy: `s` light-subpath vertices joined to `t` camera-subpath
@@ -130,6 +132,7 @@ impl Default for RenderOptions {
             lvc: LvcParams::default(),
             cis: crate::cis::CisParams::default(),
             strategy: None,
+            filter: crate::filter::Filter::Box,
         }
     }
 }
@@ -256,7 +259,9 @@ impl<'a> Renderer<'a> {
 
     /// An empty film of the render's size.
     pub fn film(&self) -> Result<Film> {
-        Film::new(self.opts.width, self.opts.height)
+        let mut film = Film::new(self.opts.width, self.opts.height)?;
+        film.filter = self.opts.filter;
+        Ok(film)
     }
 
     /// Adds pass number `pass` (one sample per pixel) to `film`.

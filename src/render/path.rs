@@ -9,7 +9,7 @@ use crate::cast::CastStats;
 use crate::film::Film;
 use crate::geometry::{Hit, Ray, offset_ray_origin};
 use crate::sampling::{Frame, Rng, power_heuristic};
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
 
 #[derive(Clone, Copy, Debug)]
@@ -61,13 +61,13 @@ impl PathTracer {
             .into_par_iter()
             .map(|pixel| {
                 let mut rng = Rng::for_sample(seed, pixel as u64, pass as u64);
-                let film_pos = Vec2::new((pixel % w) as f32, (pixel / w) as f32) + rng.uniform2();
+                let (film_pos, weight) = ctx.opts.filter.sample(pixel % w, pixel / w, rng.uniform2());
                 let ray = cam.generate_ray(film_pos, w, h, rng.uniform2());
                 PathState {
                     pixel,
                     rng,
                     ray,
-                    throughput: Vec3::ONE,
+                    throughput: Vec3::splat(weight),
                     radiance: Vec3::ZERO,
                     prev_pdf: 0.0,
                     prev_delta: true,
@@ -155,9 +155,9 @@ fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) {
         return;
     }
 
-    let material = scene.material(hit.prim);
     let frame = Frame::from_normal(ng);
     let wo_local = frame.to_local(wo);
+    let material = scene.bsdf(hit.prim, wo_local);
     let mode = TransportMode::Radiance;
 
     // Next-event estimation.

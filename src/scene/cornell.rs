@@ -14,10 +14,7 @@ struct Builder {
 
 impl Builder {
     fn material(&mut self, name: &str, m: Material, emission: Vec3) -> u32 {
-        self.scene.materials.push(m);
-        self.scene.material_names.push(name.to_string());
-        self.scene.emission.push(emission);
-        self.scene.materials.len() as u32 - 1
+        self.scene.add_material(name, m, emission)
     }
 
     /// A planar quad `a b c d` (in order around its edge) as two triangles whose

@@ -29,6 +29,17 @@ pub struct RenderSettings {
     pub integrator: Option<String>,
     /// Random seed.
     pub seed: Option<u64>,
+    /// Pixel filter: `"box"`, `"gaussian"` or `"gaussian:STDDEV:RADIUS"` in scene
+    /// files; Mitsuba scenes set it from their `rfilter`.
+    #[serde(default, deserialize_with = "filter_from_text")]
+    pub filter: Option<crate::filter::Filter>,
+}
+
+fn filter_from_text<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> std::result::Result<Option<crate::filter::Filter>, D::Error> {
+    let text = String::deserialize(d)?;
+    text.parse().map(Some).map_err(serde::de::Error::custom)
 }
 
 /// A loaded scene and the settings its file asked for.
@@ -271,6 +282,9 @@ pub fn load_scene(path: impl AsRef<Path>) -> Result<SceneDesc> {
         return Ok(SceneDesc { scene, settings: RenderSettings::default() });
     }
     let text = super::input::read_text(path, super::input::max_input_bytes())?;
+    if name.ends_with(".xml") {
+        return super::parse_mitsuba(path, &text);
+    }
     parse_scene_file(path, &text)
 }
 
@@ -364,7 +378,7 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
                 ),
             ));
         }
-        let opts = ObjOptions { scale: mesh.scale, translate: Vec3::from_array(mesh.translate), max_bytes: None };
+        let opts = ObjOptions { scale: mesh.scale, translate: Vec3::from_array(mesh.translate), ..Default::default() };
         let mut part = load_obj(&found, &opts)?;
         if let Some(mname) = &mesh.material {
             let (_, m, e) = named.iter().find(|(n, ..)| n == mname).ok_or_else(|| {
@@ -373,6 +387,7 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
             part.materials = vec![*m];
             part.material_names = vec![mname.clone()];
             part.emission = vec![*e];
+            part.two_sided = vec![true];
             part.material_of.iter_mut().for_each(|id| *id = 0);
         }
         scene.append(part);

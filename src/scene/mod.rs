@@ -8,12 +8,15 @@ mod cornell;
 mod file;
 pub mod input;
 mod material;
+mod mitsuba;
 mod obj;
+mod ply;
 
 pub use camera::Camera;
 pub use cornell::cornell_box;
 pub use file::{NAMED_SCENES, RenderSettings, SceneDesc, load_scene, parse_scene_file};
 pub use material::{Coat, LayerBase, Layered, Material, metals};
+pub use mitsuba::parse_mitsuba;
 pub use obj::{ObjOptions, load_obj};
 
 use crate::error::{Error, Location, Result};
@@ -46,6 +49,11 @@ pub struct Scene {
     /// Per material: emitted radiance from the front face (the side the winding's
     /// normal points to). Zero for non-emitters.
     pub emission: Vec<Vec3>,
+    /// Per material: whether it scatters on both sides (warpray's and pbrt's
+    /// convention, `true`) or only on the front, the winding's side (Mitsuba's opaque
+    /// BSDFs outside a `twosided` wrapper): seen from behind such a surface is black.
+    /// Dielectrics always use both sides.
+    pub two_sided: Vec<bool>,
     /// Point lights.
     pub point_lights: Vec<PointLight>,
     /// The camera.
@@ -85,6 +93,29 @@ impl Scene {
         &self.materials[self.material_of[tri as usize] as usize]
     }
 
+    /// What scatters at triangle `tri` for outgoing direction `wo_local` (in the frame
+    /// whose `+z` is the winding normal): its material, or black when the material is
+    /// one-sided and `wo` lies behind it.
+    #[inline]
+    pub fn bsdf(&self, tri: u32, wo_local: Vec3) -> &Material {
+        const BLACK: Material = Material::Diffuse { albedo: Vec3::ZERO };
+        let m = self.material_of[tri as usize] as usize;
+        if wo_local.z < 0.0 && !self.two_sided[m] && !self.materials[m].is_dielectric() {
+            &BLACK
+        } else {
+            &self.materials[m]
+        }
+    }
+
+    /// Appends a material (two-sided) and returns its index.
+    pub fn add_material(&mut self, name: impl Into<String>, material: Material, emission: Vec3) -> u32 {
+        self.materials.push(material);
+        self.material_names.push(name.into());
+        self.emission.push(emission);
+        self.two_sided.push(true);
+        self.materials.len() as u32 - 1
+    }
+
     #[inline]
     /// Radiance a triangle emits from its front face.
     pub fn emission_of(&self, tri: u32) -> Vec3 {
@@ -104,6 +135,7 @@ impl Scene {
             + self.material_of.len() * size_of::<u32>()
             + self.materials.len() * size_of::<Material>()
             + self.emission.len() * size_of::<Vec3>()
+            + self.two_sided.len()
             + self.material_names.iter().map(|n| n.len()).sum::<usize>()
             + self.point_lights.len() * size_of::<PointLight>()
     }
@@ -140,7 +172,8 @@ impl Scene {
         if self.material_of.len() != self.triangles.len() {
             return Err(Error::SceneFile { at: at(), msg: "one material index per triangle is required".into() });
         }
-        if self.material_names.len() != self.materials.len() || self.emission.len() != self.materials.len() {
+        let n = self.materials.len();
+        if self.material_names.len() != n || self.emission.len() != n || self.two_sided.len() != n {
             return Err(Error::SceneFile { at: at(), msg: "material table arrays differ in length".into() });
         }
         let nv = self.positions.len() as u32;
@@ -194,6 +227,7 @@ impl Scene {
         self.materials.extend(other.materials);
         self.material_names.extend(other.material_names);
         self.emission.extend(other.emission);
+        self.two_sided.extend(other.two_sided);
         self.point_lights.extend(other.point_lights);
     }
 
@@ -206,6 +240,7 @@ impl Scene {
             materials: Vec::new(),
             material_names: Vec::new(),
             emission: Vec::new(),
+            two_sided: Vec::new(),
             point_lights: Vec::new(),
             camera: Camera::default(),
             source: source.as_ref().to_path_buf(),

@@ -22,6 +22,9 @@ pub struct ObjOptions {
     /// Bytes read from the OBJ and from each MTL at most, after decompression
     /// (default: [`super::input::max_input_bytes`]).
     pub max_bytes: Option<u64>,
+    /// Skip `mtllib` statements: every triangle gets the default material (Mitsuba's
+    /// OBJ shapes take their BSDF from the scene, not from the file).
+    pub ignore_materials: bool,
 }
 
 /// A regular file's text (decompressed when it ends in `.gz`), cut off after `limit`
@@ -143,6 +146,9 @@ pub fn load_obj(path: impl AsRef<Path>, opts: &ObjOptions) -> Result<Scene> {
     let load_opts =
         tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
     let result = tobj::load_obj_buf(&mut reader, &load_opts, |mtl_path: &Path| {
+        if opts.ignore_materials {
+            return Ok(Default::default());
+        }
         load_mtl(&dir, mtl_path, path, lines_read.get(), limit, &mtl_error)
     });
     if let Some(e) = mtl_error.into_inner() {
@@ -168,14 +174,10 @@ pub fn load_obj(path: impl AsRef<Path>, opts: &ObjOptions) -> Result<Scene> {
     let mut scene = Scene::empty(path);
     for m in &materials {
         let (mat, ke) = Material::from_mtl(m);
-        scene.materials.push(mat);
-        scene.material_names.push(m.name.clone());
-        scene.emission.push(ke);
+        scene.add_material(m.name.clone(), mat, ke);
     }
     let default_material = scene.materials.len() as u32;
-    scene.materials.push(Material::DEFAULT);
-    scene.material_names.push("default".into());
-    scene.emission.push(Vec3::ZERO);
+    scene.add_material("default", Material::DEFAULT, Vec3::ZERO);
 
     let scale = if opts.scale == 0.0 { 1.0 } else { opts.scale };
     for model in &models {

@@ -42,9 +42,7 @@ pub fn scene_from_triangles(tris: &[[Vec3; 3]]) -> Scene {
         s.triangles.push([base, base + 1, base + 2]);
         s.material_of.push(0);
     }
-    s.materials.push(Material::DEFAULT);
-    s.material_names.push("default".into());
-    s.emission.push(Vec3::ZERO);
+    s.add_material("default", Material::DEFAULT, Vec3::ZERO);
     s
 }
 
@@ -70,64 +68,7 @@ pub fn quad_grid(n: u32) -> Vec<[Vec3; 3]> {
 
 /// An icosphere of radius 1 with shared (indexed) vertices: a closed mesh.
 pub fn icosphere(subdivisions: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let t = (1.0 + 5f32.sqrt()) / 2.0;
-    let mut v: Vec<Vec3> = [
-        (-1., t, 0.),
-        (1., t, 0.),
-        (-1., -t, 0.),
-        (1., -t, 0.),
-        (0., -1., t),
-        (0., 1., t),
-        (0., -1., -t),
-        (0., 1., -t),
-        (t, 0., -1.),
-        (t, 0., 1.),
-        (-t, 0., -1.),
-        (-t, 0., 1.),
-    ]
-    .iter()
-    .map(|&(x, y, z)| Vec3::new(x, y, z).normalize())
-    .collect();
-    let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..subdivisions {
-        let mut mid = std::collections::HashMap::new();
-        let mut midpoint = |a: u32, b: u32, v: &mut Vec<Vec3>| -> u32 {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                v.push(((v[a as usize] + v[b as usize]) * 0.5).normalize());
-                v.len() as u32 - 1
-            })
-        };
-        let mut next = Vec::new();
-        for [a, b, c] in f {
-            let ab = midpoint(a, b, &mut v);
-            let bc = midpoint(b, c, &mut v);
-            let ca = midpoint(c, a, &mut v);
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        f = next;
-    }
-    (v, f)
+    warpray::geometry::icosphere(subdivisions)
 }
 
 /// The Cornell box with glossy, metallic, layered and rough-glass surfaces (no delta
