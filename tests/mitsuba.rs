@@ -275,3 +275,18 @@ fn gaussian_filtered_images_are_unbiased_up_to_the_border() {
         }
     }
 }
+
+#[test]
+fn scene_files_and_the_command_line_name_a_filter() {
+    let text = "base = \"cornell\"\n[render]\nfilter = \"gaussian:0.5:1.5\"\n";
+    let d = warpray::scene::parse_scene_file(Path::new("f.toml"), text).unwrap();
+    assert_eq!(d.settings.filter, Some(Filter::gaussian(0.5, 1.5).unwrap()));
+    let bad = warpray::scene::parse_scene_file(Path::new("f.toml"), "[render]\nfilter = \"tent\"\n").unwrap_err();
+    assert!(bad.to_string().contains("f.toml:2") && bad.to_string().contains("tent"), "{bad}");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_warpray"))
+        .args(["render", "--filter", "gaussian:0:2", "--spp", "1"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("stddev"), "{}", String::from_utf8_lossy(&out.stderr));
+}
