@@ -352,3 +352,69 @@ fn every_integrator_agrees_on_the_mitsuba_cornell_box() {
         assert!((m / reference - 1.0).abs() < 0.005, "{kind:?}: {m} vs path {reference}");
     }
 }
+
+mod mangled {
+    //! Damaged files never panic the loader: random edits of the shipped XML and random
+    //! bytes in a PLY it names each give a scene or a typed error.
+    use super::*;
+    use proptest::prelude::*;
+
+    const CBOX: &str = include_str!("../assets/scenes/mitsuba-cbox.xml");
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 256, failure_persistence: None, ..ProptestConfig::default() })]
+
+        #[test]
+        fn edited_xml_gives_a_scene_or_an_error(edits in prop::collection::vec((0usize..4000, 0u8..4, "[ -~]{0,6}"), 1..6)) {
+            let mut text = CBOX.to_string();
+            for (at, kind, insert) in edits {
+                let mut at = at % (text.len() + 1);
+                while !text.is_char_boundary(at) {
+                    at -= 1;
+                }
+                let end = (at + insert.len().max(1)).min(text.len());
+                let end = (end..=text.len()).find(|&e| text.is_char_boundary(e)).unwrap_or(text.len());
+                match kind {
+                    0 => text.insert_str(at, &insert),
+                    1 => text.replace_range(at..end, ""),
+                    2 => text.replace_range(at..end, &insert),
+                    // Numbers are where the values live: swap one for something odd.
+                    _ => {
+                        if let Some(i) = text[at..].find(|c: char| c.is_ascii_digit()) {
+                            let odd = ["nan", "-1", "1e39", "0", "inf", "-0", "99999999999"][insert.len() % 7];
+                            text.replace_range(at + i..at + i + 1, odd);
+                        }
+                    }
+                }
+            }
+            let _ = parse(&text);
+        }
+
+        #[test]
+        fn random_ply_bytes_give_a_scene_or_an_error(body in prop::collection::vec(any::<u8>(), 0..400), ascii in any::<bool>(), count in prop_oneof![0u64..6, 0u64..1_000_000_000_000]) {
+            let dir = scratch("fuzz-ply");
+            let format = if ascii { "ascii" } else { "binary_little_endian" };
+            let mut bytes = format!(
+                "ply\nformat {format} 1.0\nelement vertex {count}\nproperty float x\nproperty float y\nproperty float z\n\
+                 element face {count}\nproperty list uchar int vertex_indices\nend_header\n"
+            )
+            .into_bytes();
+            if ascii {
+                // Plausible tokens, so that many files parse and reach the checks on
+                // what they say (short faces, indices out of range, odd numbers).
+                const TOKENS: [&str; 10] = ["0", "1", "2", "3", "4", "-1", "nan", "1e40", "\n", " "];
+                for b in &body {
+                    bytes.extend_from_slice(TOKENS[*b as usize % TOKENS.len()].as_bytes());
+                    bytes.push(b' ');
+                }
+            } else {
+                bytes.extend_from_slice(&body);
+            }
+            std::fs::write(dir.join("m.ply"), &bytes).unwrap();
+            let xml = r#"<scene version="3.0.0"><shape type="ply"><string name="filename" value="m.ply"/></shape></scene>"#;
+            let path = dir.join("s.xml");
+            std::fs::write(&path, xml).unwrap();
+            let _ = load_scene(&path);
+        }
+    }
+}
