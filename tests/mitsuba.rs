@@ -217,6 +217,16 @@ fn unsupported_or_bad_input_is_an_error_naming_the_element_and_line() {
         (wrap(&rect("<ref id=\"nothing\"/>")), "test.xml:3", "nothing"),
         (wrap("<shape type=\"cylinder\"/>"), "test.xml:2", "cylinder"),
         (
+            wrap(&rect("<bsdf type=\"plastic\"><boolean name=\"nonlinear\" value=\"true\"/></bsdf>")),
+            "test.xml:3",
+            "nonlinear",
+        ),
+        (
+            wrap(&rect("<bsdf type=\"diffuse\"><point name=\"reflectance\" value=\"1, 0, 0\"/></bsdf>")),
+            "test.xml:3",
+            "expected a colour",
+        ),
+        (
             wrap("<integrator type=\"path\"><integer name=\"max_depth\" value=\"0\"/></integrator>"),
             "test.xml:2",
             "max_depth",
@@ -290,9 +300,7 @@ fn gaussian_filtered_images_are_unbiased_up_to_the_border() {
             all.push(film.image_mean().y as f64);
         }
         for (what, m) in [("border", &border), ("image", &all)] {
-            let n = m.len() as f64;
-            let mean = m.iter().sum::<f64>() / n;
-            let se = (m.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+            let (mean, se) = common::statistics(m);
             let z = (mean - 1.0) / se.max(1e-9);
             assert!(z.abs() < 5.0 && se < 0.005, "{integrator:?} {what}: {mean:.5} ± {se:.5} (z = {z:.1})");
         }
@@ -325,7 +333,7 @@ fn every_integrator_agrees_on_the_mitsuba_cornell_box() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/mitsuba-cbox.xml");
     let desc = load_scene(&path).unwrap();
     let caster = BvhCaster::new(&desc.scene);
-    let lum = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722)) as f64;
+    let lum = |c: Vec3| warpray::film::luminance(c) as f64;
     let mean = |integrator: IntegratorKind, spp: u32| {
         let opts = RenderOptions {
             width: 32,

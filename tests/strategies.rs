@@ -60,14 +60,6 @@ fn seed_means(scene: &Scene, caster: &BvhCaster, strategy: Option<Strategy>, spp
         .collect()
 }
 
-/// (mean, standard error of the mean) of per-seed values.
-fn statistics(means: &[f64]) -> (f64, f64) {
-    let n = means.len() as f64;
-    let mean = means.iter().sum::<f64>() / n;
-    let var = means.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    (mean, (var / n).sqrt())
-}
-
 /// Checks `(mean, se)` against `want`, and that the standard error is below
 /// `precision` of it (so the test can see an error of a few of those); the line
 /// describing it.

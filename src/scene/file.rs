@@ -288,7 +288,8 @@ pub fn load_scene(path: impl AsRef<Path>) -> Result<SceneDesc> {
     parse_scene_file(path, &text)
 }
 
-fn line_of(text: &str, offset: usize) -> usize {
+/// The 1-based line of byte `offset` in `text` (scene-file and XML errors).
+pub(crate) fn line_of(text: &str, offset: usize) -> usize {
     text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
 }
 

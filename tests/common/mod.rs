@@ -95,3 +95,11 @@ pub fn glossy_glass_box() -> Scene {
     );
     s
 }
+
+/// (mean, standard error of the mean) of per-seed values.
+pub fn statistics(means: &[f64]) -> (f64, f64) {
+    let n = means.len() as f64;
+    let mean = means.iter().sum::<f64>() / n;
+    let var = means.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, (var / n).sqrt())
+}

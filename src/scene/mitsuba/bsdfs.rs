@@ -149,7 +149,9 @@ impl Builder<'_, '_> {
                 if p.color_or("specular_reflectance", Vec3::ONE)? != Vec3::ONE {
                     return Err(doc.err(node, "specular_reflectance other than 1 is not supported for plastic"));
                 }
-                p.ignore(&["nonlinear"]);
+                if p.bool_or("nonlinear", false)? {
+                    return Err(doc.err(node, "nonlinear plastic is not supported"));
+                }
                 let coat = Coat { ior: ior as f32, roughness, absorption: Vec3::ZERO };
                 Material::Layered(Layered { coats: [coat; 2], coat_count: 1, base: LayerBase::Diffuse { albedo } })
             }

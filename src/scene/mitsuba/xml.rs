@@ -31,8 +31,7 @@ pub(crate) enum Value {
 impl<'a> Doc<'a> {
     /// The 1-based line where `node` starts.
     pub fn line(&self, node: Node) -> usize {
-        let offset = node.range().start.min(self.text.len());
-        self.text[..offset].bytes().filter(|&b| b == b'\n').count() + 1
+        crate::scene::file::line_of(self.text, node.range().start)
     }
 
     /// An error at `node`, naming it as `<tag type="...">`.
@@ -245,13 +244,18 @@ impl<'d, 'a, 'input> Props<'d, 'a, 'input> {
         Some((entry.1.clone(), entry.2))
     }
 
-    /// A number property.
-    pub fn number(&mut self, name: &str) -> Result<Option<f64>> {
+    /// A property of one type: `pick` takes the value it accepts, anything else is an
+    /// error saying what was `expected`.
+    fn typed<T>(&mut self, name: &str, expected: &str, pick: impl Fn(Value) -> Option<T>) -> Result<Option<T>> {
         match self.take(name) {
             None => Ok(None),
-            Some((Value::Number(v), _)) => Ok(Some(v)),
-            Some((_, n)) => Err(self.doc.err(n, "expected a number (<float> or <integer>)")),
+            Some((v, n)) => pick(v).map(Some).ok_or_else(|| self.doc.err(n, format!("expected {expected}"))),
         }
+    }
+
+    /// A number property.
+    pub fn number(&mut self, name: &str) -> Result<Option<f64>> {
+        self.typed(name, "a number (<float> or <integer>)", |v| if let Value::Number(x) = v { Some(x) } else { None })
     }
 
     /// A number property with a default.
@@ -261,20 +265,13 @@ impl<'d, 'a, 'input> Props<'d, 'a, 'input> {
 
     /// A boolean property with a default.
     pub fn bool_or(&mut self, name: &str, default: bool) -> Result<bool> {
-        match self.take(name) {
-            None => Ok(default),
-            Some((Value::Bool(v), _)) => Ok(v),
-            Some((_, n)) => Err(self.doc.err(n, "expected a <boolean>")),
-        }
+        let b = self.typed(name, "a <boolean>", |v| if let Value::Bool(x) = v { Some(x) } else { None })?;
+        Ok(b.unwrap_or(default))
     }
 
     /// A string property.
     pub fn text(&mut self, name: &str) -> Result<Option<String>> {
-        match self.take(name) {
-            None => Ok(None),
-            Some((Value::Text(v), _)) => Ok(Some(v)),
-            Some((_, n)) => Err(self.doc.err(n, "expected a <string>")),
-        }
+        self.typed(name, "a <string>", |v| if let Value::Text(x) = v { Some(x) } else { None })
     }
 
     /// A colour (`rgb`, single-valued `spectrum`, or a number as a grey).
@@ -286,30 +283,24 @@ impl<'d, 'a, 'input> Props<'d, 'a, 'input> {
         {
             return Err(self.doc.err(tex, "textures are not supported; give an <rgb> value"));
         }
-        match self.take(name) {
-            None => Ok(default),
-            Some((Value::Color(c) | Value::Point(c), _)) => Ok(c),
-            Some((Value::Number(v), _)) => Ok(Vec3::splat(v as f32)),
-            Some((_, n)) => Err(self.doc.err(n, "expected a colour (<rgb> or <spectrum>)")),
-        }
+        let colour = self.typed(name, "a colour (<rgb> or <spectrum>)", |v| match v {
+            Value::Color(c) => Some(c),
+            Value::Number(x) => Some(Vec3::splat(x as f32)),
+            _ => None,
+        })?;
+        Ok(colour.unwrap_or(default))
     }
 
     /// A point property.
     pub fn point(&mut self, name: &str) -> Result<Option<Vec3>> {
-        match self.take(name) {
-            None => Ok(None),
-            Some((Value::Point(p), _)) => Ok(Some(p)),
-            Some((_, n)) => Err(self.doc.err(n, "expected a <point>")),
-        }
+        self.typed(name, "a <point>", |v| if let Value::Point(x) = v { Some(x) } else { None })
     }
 
     /// The `to_world` transform (identity when absent).
     pub fn to_world(&mut self) -> Result<Mat4> {
-        match self.take("to_world") {
-            None => Ok(Mat4::IDENTITY),
-            Some((Value::Transform(m), _)) => Ok(m),
-            Some((_, n)) => Err(self.doc.err(n, "to_world must be a <transform>")),
-        }
+        let m =
+            self.typed("to_world", "a <transform>", |v| if let Value::Transform(x) = v { Some(x) } else { None })?;
+        Ok(m.unwrap_or(Mat4::IDENTITY))
     }
 
     /// Marks properties that are accepted and have no effect here.
