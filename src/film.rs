@@ -6,7 +6,7 @@
 //! rounded to 8 bits. EXR: linear f32 RGB (ZIP compression), no tone map.
 
 use crate::error::{Error, Result};
-use crate::filter::Filter;
+use crate::filter::{Filter, FilterMode, pixel_offset};
 use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
 
@@ -17,8 +17,12 @@ pub struct Film {
     pub width: u32,
     /// Height, pixels.
     pub height: u32,
-    /// Per pixel: sum of the radiance estimates of all passes.
+    /// Per pixel: sum of the radiance estimates of all passes (with
+    /// [`FilterMode::Splat`], of the filter-weighted estimates splatted onto it).
     pub sum: Vec<Vec3>,
+    /// Per pixel, [`FilterMode::Splat`] only: the summed filter weights `sum` is divided
+    /// by (empty otherwise).
+    pub weight: Vec<f32>,
     /// Per pixel: sum of contributions splatted by light paths (light tracing, BDPT's
     /// camera connections), normalised so that it too is divided by `passes`.
     pub splat: Vec<Vec3>,
@@ -35,6 +39,11 @@ pub struct Film {
     /// The reconstruction filter splats are spread with (camera samples apply it when
     /// they are drawn: [`Filter::sample`]).
     pub filter: Filter,
+    /// How camera samples are reconstructed: with [`FilterMode::Splat`] the film places
+    /// each pass's samples itself ([`pixel_offset`] under `seed`).
+    pub mode: FilterMode,
+    /// The render's seed (for [`FilterMode::Splat`]).
+    pub seed: u64,
 }
 
 /// Largest image accepted: 16384 pixels a side and 2^26 pixels (64 Mpx) in all.
@@ -73,12 +82,26 @@ impl Film {
             passes: 0,
             rejected: 0,
             filter: Filter::Box,
+            mode: FilterMode::Sample,
+            seed: 0,
+            weight: Vec::new(),
         })
+    }
+
+    /// A film whose camera samples follow `filter` in `mode` under `seed`.
+    pub fn with_filter(mut self, filter: Filter, mode: FilterMode, seed: u64) -> Film {
+        (self.filter, self.mode, self.seed) = (filter, mode, seed);
+        self.weight = match mode {
+            FilterMode::Splat => vec![0.0; self.sum.len()],
+            FilterMode::Sample => Vec::new(),
+        };
+        self
     }
 
     /// Bytes of the film's buffers.
     pub fn memory_bytes(&self) -> usize {
         (self.sum.len() + self.splat.len() + self.sum_sq.len() + self.pass_splat.len()) * size_of::<Vec3>()
+            + self.weight.len() * size_of::<f32>()
     }
 
     /// Pixels.
@@ -86,24 +109,89 @@ impl Film {
         self.sum.len()
     }
 
-    /// Adds one pass: one estimate per pixel, in pixel order. Non-finite or negative
-    /// estimates are replaced by zero and counted in `rejected`.
-    pub fn add_pass(&mut self, estimates: &[Vec3]) {
+    /// Adds pass number `pass`: one estimate per pixel, in pixel order, for the camera
+    /// sample [`Filter::camera_sample`] placed. Non-finite or negative estimates count
+    /// as zero and are counted in `rejected`.
+    pub fn add_pass(&mut self, pass: u32, estimates: &[Vec3]) {
         assert_eq!(estimates.len(), self.sum.len(), "one estimate per pixel");
-        for ((s, q), (&e, p)) in
-            self.sum.iter_mut().zip(&mut self.sum_sq).zip(estimates.iter().zip(&mut self.pass_splat))
-        {
-            let e = if e.is_finite() && e.min_element() >= 0.0 {
-                *s += e;
+        let mut valid = |e: Vec3| {
+            if e.is_finite() && e.min_element() >= 0.0 {
                 e
             } else {
                 self.rejected += 1;
                 Vec3::ZERO
-            };
-            let x = e + std::mem::take(p);
-            *q += x * x;
+            }
+        };
+        match self.mode {
+            FilterMode::Sample => {
+                for ((s, q), (&e, p)) in
+                    self.sum.iter_mut().zip(&mut self.sum_sq).zip(estimates.iter().zip(&mut self.pass_splat))
+                {
+                    let e = valid(e);
+                    *s += e;
+                    let x = e + std::mem::take(p);
+                    *q += x * x;
+                }
+            }
+            FilterMode::Splat => {
+                let clean: Vec<Vec3> = estimates.iter().map(|&e| valid(e)).collect();
+                self.splat_pass(pass, &clean);
+            }
         }
         self.passes += 1;
+    }
+
+    /// [`FilterMode::Splat`]: every pixel gathers the camera samples of this pass whose
+    /// filter reaches it, weighted, in a fixed order (the same sums at any thread count).
+    /// Works in bands of rows so that the per-sample weights stay a small buffer.
+    fn splat_pass(&mut self, pass: u32, estimates: &[Vec3]) {
+        use rayon::prelude::*;
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (filter, seed) = (self.filter, self.seed);
+        let k = filter.splat_reach() as usize;
+        let n = 2 * k + 1;
+        const BAND: usize = 32;
+        let mut weights = vec![0.0f32; (BAND + 2 * k) * w * 2 * n];
+        for y0 in (0..h).step_by(BAND) {
+            let y1 = (y0 + BAND).min(h);
+            // Sample rows that reach the band, and their per-axis weights.
+            let (r0, r1) = (y0.saturating_sub(k), (y1 + k).min(h));
+            weights[..(r1 - r0) * w * 2 * n].par_chunks_mut(w * 2 * n).enumerate().for_each(|(row, out)| {
+                let qy = r0 + row;
+                for (qx, out) in out.chunks_exact_mut(2 * n).enumerate() {
+                    let q = (qy * w + qx) as u32;
+                    let p = Vec2::new(qx as f32, qy as f32) + pixel_offset(seed, q, pass);
+                    let (wx, wy) = out.split_at_mut(n);
+                    filter.splat_weights(p, wx, wy);
+                }
+            });
+            let weights = &weights;
+            let rows = self.sum[y0 * w..y1 * w]
+                .par_chunks_mut(w)
+                .zip(self.weight[y0 * w..y1 * w].par_chunks_mut(w))
+                .zip(self.sum_sq[y0 * w..y1 * w].par_chunks_mut(w))
+                .zip(self.pass_splat[y0 * w..y1 * w].par_chunks_mut(w));
+            rows.enumerate().for_each(|(row, (((sum, weight), sum_sq), pass_splat))| {
+                let y = y0 + row;
+                for x in 0..w {
+                    let (mut num, mut den) = (Vec3::ZERO, 0.0f32);
+                    for qy in y.saturating_sub(k)..(y + k + 1).min(h) {
+                        for qx in x.saturating_sub(k)..(x + k + 1).min(w) {
+                            let base = ((qy - r0) * w + qx) * 2 * n;
+                            // Sample q's weight for pixel (x, y): index k + (x − qx).
+                            let wt = weights[base + k + x - qx] * weights[base + n + k + y - qy];
+                            num += estimates[qy * w + qx] * wt;
+                            den += wt;
+                        }
+                    }
+                    sum[x] += num;
+                    weight[x] += den;
+                    let own = if den > 0.0 { num / den } else { Vec3::ZERO };
+                    let v = own + std::mem::take(&mut pass_splat[x]);
+                    sum_sq[x] += v * v;
+                }
+            });
+        }
     }
 
     /// Adds splatted contributions `(film position in pixels, value)` in the order given
@@ -135,17 +223,19 @@ impl Film {
 
     /// Per-pixel sample variance of the passes' estimates (unbiased: divided by
     /// `passes − 1`; zero before the second pass). The variance of the mean is this
-    /// divided by `passes`.
+    /// divided by `passes`. With [`FilterMode::Splat`] a pass's estimate is that pass's
+    /// own weighted average (plus its splats), taken about the film's mean: close to,
+    /// not exactly, the variance of the ratio the film reports.
     pub fn variance(&self) -> Vec<Vec3> {
         let n = self.passes as f64;
         if self.passes < 2 {
             return vec![Vec3::ZERO; self.sum.len()];
         }
-        let (s, p, q) = (&self.sum, &self.splat, &self.sum_sq);
-        (0..s.len())
+        let mean = self.mean();
+        (0..mean.len())
             .map(|i| {
-                let total = (s[i] + p[i]).as_dvec3();
-                let v = (q[i].as_dvec3() - total * total / n) / (n - 1.0);
+                let mean = mean[i].as_dvec3();
+                let v = (self.sum_sq[i].as_dvec3() - mean * mean * n) / (n - 1.0);
                 v.max(glam::DVec3::ZERO).as_vec3()
             })
             .collect()
@@ -154,7 +244,15 @@ impl Film {
     /// The mean estimate per pixel.
     pub fn mean(&self) -> Vec<Vec3> {
         let inv = if self.passes > 0 { 1.0 / self.passes as f32 } else { 0.0 };
-        self.sum.iter().zip(&self.splat).map(|(&s, &p)| (s + p) * inv).collect()
+        match self.mode {
+            FilterMode::Sample => self.sum.iter().zip(&self.splat).map(|(&s, &p)| (s + p) * inv).collect(),
+            FilterMode::Splat => (0..self.sum.len())
+                .map(|i| {
+                    let own = if self.weight[i] > 0.0 { self.sum[i] / self.weight[i] } else { Vec3::ZERO };
+                    own + self.splat[i] * inv
+                })
+                .collect(),
+        }
     }
 
     /// Mean of all pixels' means (per channel).
@@ -306,7 +404,7 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("m.exr");
         let mut film = Film::new(3, 2).unwrap();
-        film.add_pass(&[Vec3::ONE; 6]);
+        film.add_pass(0, &[Vec3::ONE; 6]);
         film.add_splats([(Vec2::new(2.5, 1.5), Vec3::ONE)]);
         film.write_with(&path, 1.0, &[("spp", "1".into()), ("scene", "Ünïcode ∞ scene".into())]).unwrap();
         let m = read_exr_metadata(&path).unwrap();

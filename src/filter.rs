@@ -15,7 +15,20 @@
 //!   are σ = 0.5 pixels and radius 4σ; pbrt-v4's are σ = 0.5, radius 1.5. Offsets are
 //!   drawn from the untruncated Gaussian (Box–Muller) and weighted by `h / pdf`; the
 //!   rare offset beyond the radius has weight 0.
+//!
+//! How camera samples meet the filter is a [`FilterMode`]: drawn from it and weighted
+//! (`Sample`, above; pbrt-v4's way, unbiased, each pixel's noise its own), or placed
+//! uniformly in their pixel and spread over every pixel the filter covers, each pixel
+//! dividing by the weights it received (`Splat`; Mitsuba 3's and pbrt-v3's way, a ratio
+//! estimator: consistent, biased by O(1/spp), and its neighbouring pixels share
+//! samples, so each is less noisy). With the box filter the two are the same estimator.
+//! Light-path splats (light tracing, BDPT's camera connections) are weighted by `h` and
+//! divided by the pass count in both modes; under `Splat` the camera samples of a pixel
+//! within the filter's radius of the image edge are normalised by the weight that
+//! reached it, so there a bidirectional image mixes two border treatments (Mitsuba's
+//! light tracer does the same); interior pixels are unaffected.
 
+use crate::sampling::Rng;
 use glam::Vec2;
 use std::f32::consts::TAU;
 
@@ -162,6 +175,94 @@ impl Filter {
                 }
             }
         }
+    }
+}
+
+/// How camera samples are reconstructed into pixels (see the module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FilterMode {
+    /// Filter importance sampling: offsets drawn from the filter, weight `h / pdf`,
+    /// each sample belongs to its own pixel (pbrt-v4).
+    #[default]
+    Sample,
+    /// Uniform offsets in the pixel, each sample splatted with weight `h` to every pixel
+    /// the filter covers; a pixel is its weighted sum over its summed weights (Mitsuba 3).
+    Splat,
+}
+
+impl std::str::FromStr for FilterMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<FilterMode, String> {
+        match s {
+            "sample" => Ok(FilterMode::Sample),
+            "splat" => Ok(FilterMode::Splat),
+            _ => Err(format!("unknown filter mode '{s}' (sample, splat)")),
+        }
+    }
+}
+
+impl FilterMode {
+    /// Its name on the command line and in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            FilterMode::Sample => "sample",
+            FilterMode::Splat => "splat",
+        }
+    }
+}
+
+/// The uniform `[0,1)²` number that places camera sample `pass` of `pixel` (under
+/// `seed`) on the film: its own stream, so the film can recompute it when it splats
+/// (`Film::add_pass`) without the integrator handing positions over.
+#[inline]
+pub fn pixel_offset(seed: u64, pixel: u32, pass: u32) -> Vec2 {
+    Rng::for_sample(seed, pixel as u64, pass as u64).derive(0x6669_6c6d).uniform2()
+}
+
+impl Filter {
+    /// Camera sample `pass` of pixel `(x, y)` under `mode`: its film position and the
+    /// weight its estimate is multiplied by.
+    #[inline]
+    pub fn camera_sample(&self, mode: FilterMode, seed: u64, (x, y): (u32, u32), width: u32, pass: u32) -> (Vec2, f32) {
+        let u = pixel_offset(seed, y * width + x, pass);
+        match mode {
+            FilterMode::Sample => self.sample(x, y, u),
+            FilterMode::Splat => (Vec2::new(x as f32, y as f32) + u, 1.0),
+        }
+    }
+
+    /// The weights one camera sample at film position `p` gives the pixels around it,
+    /// per axis: `wx[i]` for pixel column `floor(p.x) − k + i` (and `wy` for rows), where
+    /// `k` is [`Filter::splat_reach`]. Unnormalised by the image edge.
+    #[inline]
+    pub(crate) fn splat_weights(&self, p: Vec2, wx: &mut [f32], wy: &mut [f32]) {
+        let k = self.splat_reach() as i32;
+        let (cx, cy) = (p.x.floor(), p.y.floor());
+        let offset = |i: usize| (i as i32 - k) as f32 + 0.5;
+        match *self {
+            Filter::Box => {
+                for i in 0..wx.len() {
+                    wx[i] = self.eval_1d(p.x - (cx + offset(i)));
+                    wy[i] = self.eval_1d(p.y - (cy + offset(i)));
+                }
+            }
+            Filter::Gaussian { stddev, radius, integral } => {
+                // eval_1d with its constants hoisted out of the loop.
+                let a = -1.0 / (2.0 * stddev * stddev);
+                let (bias, inv) = ((a * radius * radius).exp(), 1.0 / integral);
+                let g = |x: f32| if x.abs() >= radius { 0.0 } else { ((a * x * x).exp() - bias).max(0.0) * inv };
+                for i in 0..wx.len() {
+                    wx[i] = g(p.x - (cx + offset(i)));
+                    wy[i] = g(p.y - (cy + offset(i)));
+                }
+            }
+        }
+    }
+
+    /// How many pixels beyond its own a camera sample can reach along each axis.
+    #[inline]
+    pub(crate) fn splat_reach(&self) -> u32 {
+        (self.radius() + 0.5).ceil() as u32 - 1
     }
 }
 

@@ -137,6 +137,11 @@ struct RenderArgs {
     /// gaussian:SIGMA:RADIUS [default: box, or the scene file's].
     #[arg(long)]
     filter: Option<warpray::filter::Filter>,
+    /// How camera samples meet the filter: sample (drawn from the filter and weighted,
+    /// pbrt-v4) or splat (spread over the pixels it covers and normalised, Mitsuba 3)
+    /// [default: sample, or the scene file's; Mitsuba XML scenes: splat].
+    #[arg(long)]
+    filter_mode: Option<warpray::filter::FilterMode>,
     /// Worker threads [default: all cores].
     #[arg(long)]
     threads: Option<usize>,
@@ -146,10 +151,11 @@ struct RenderArgs {
     /// Ray caster.
     #[arg(long, value_enum, default_value = "bvh")]
     caster: CasterKind,
-    /// How the BVH caster traverses: `checked` re-checks every miss and unblocked
-    /// shadow ray so no ray slips through a shared vertex (docs/bvh.md); `fast` is
-    /// obvhs' traversal alone; `robust` is the robust traversal for every ray.
-    #[arg(long, value_enum, default_value = "checked")]
+    /// How the BVH caster traverses: `fast` is obvhs' traversal over boxes padded so
+    /// that its rounding never rejects a box a ray enters (docs/bvh.md); `checked`
+    /// also re-checks every miss and unblocked shadow ray with the robust traversal;
+    /// `robust` is the robust traversal for every ray.
+    #[arg(long, value_enum, default_value = "fast")]
     bvh_traversal: Traversal,
     /// Output files; the extension (.png or .exr) picks the format. May be repeated.
     #[arg(short, long = "output", default_values = ["out.png", "out.exr"])]
@@ -289,6 +295,7 @@ fn run_render(args: RenderArgs) -> Result<bool> {
         seed: args.seed.or(s.seed).unwrap_or(0),
         integrator,
         filter: args.filter.or(s.filter).unwrap_or_default(),
+        filter_mode: args.filter_mode.or(s.filter_mode).unwrap_or_default(),
         ..Default::default()
     };
     warpray::film::check_size(width, height)?;
@@ -323,6 +330,7 @@ fn run_render(args: RenderArgs) -> Result<bool> {
             ("seed", opts.seed.to_string()),
             ("max_depth", opts.max_depth.to_string()),
             ("filter", format!("{:?}", opts.filter)),
+            ("filter_mode", opts.filter_mode.name().to_string()),
             ("seconds", format!("{:.3}", stats.seconds)),
             ("interrupted", interrupted.to_string()),
             ("version", env!("CARGO_PKG_VERSION").to_string()),

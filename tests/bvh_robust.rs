@@ -139,12 +139,31 @@ fn rays_from_inside_closed_spheres_never_escape() {
 }
 
 #[test]
+fn rays_through_the_vertices_of_a_small_sphere_far_from_the_origin() {
+    // Rounding in obvhs' node test grows with the coordinates' magnitude, not the
+    // sphere's size: a unit sphere at 1000 has node boxes whose planes are 1e-4 apart in
+    // relative terms. Rays from the centre through every vertex and edge midpoint, and
+    // from far outside the padded region (the robust traversal's cases) at every vertex.
+    let (v, f) = icosphere(4);
+    let centre = Vec3::new(1000.0, -500.0, 250.0);
+    let v: Vec<Vec3> = v.iter().map(|&p| centre + p * 0.5).collect();
+    let tris: Vec<[Vec3; 3]> = f.iter().map(|t| t.map(|i| v[i as usize])).collect();
+    let mut rays: Vec<Ray> = v.iter().map(|&p| Ray::new(centre, p - centre)).collect();
+    rays.extend(
+        tris.iter().flat_map(|t| [0.5 * (t[0] + t[1]), 0.5 * (t[1] + t[2])]).map(|p| Ray::new(centre, p - centre)),
+    );
+    let far = centre + Vec3::new(3000.0, 2000.0, -1000.0);
+    rays.extend(v.iter().step_by(7).map(|&p| Ray::new(far, p - far)));
+    agree(&tris, &rays, "unit sphere at 1000");
+}
+
+#[test]
 fn every_traversal_mode_keeps_rays_inside_a_closed_sphere() {
     use warpray::cast::Traversal;
     let (v, f) = icosphere(4);
     let tris: Vec<[Vec3; 3]> = f.iter().map(|t| t.map(|i| v[i as usize])).collect();
     let rays: Vec<Ray> = v.iter().map(|&p| Ray::new(Vec3::ZERO, p)).collect();
-    for mode in [Traversal::Checked, Traversal::Robust] {
+    for mode in [Traversal::Fast, Traversal::Checked, Traversal::Robust] {
         let bvh = BvhCaster::from_triangles(tris.clone()).with_traversal(mode);
         let mut hits = vec![Hit::MISS; rays.len()];
         bvh.closest(&rays, &mut hits);

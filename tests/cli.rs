@@ -245,7 +245,7 @@ fn a_built_in_scene_renders_by_name_from_any_folder() {
 /// A `w`×`h` EXR of one colour.
 fn flat_exr(path: &std::path::Path, w: u32, h: u32, c: warpray::glam::Vec3) {
     let mut film = warpray::film::Film::new(w, h).unwrap();
-    film.add_pass(&vec![c; (w * h) as usize]);
+    film.add_pass(0, &vec![c; (w * h) as usize]);
     film.write(path, 1.0).unwrap();
 }
 

@@ -34,6 +34,8 @@ fn the_shipped_cornell_box_loads_as_mitsuba_describes_it() {
     assert_eq!(s.max_depth, Some(7));
     assert_eq!(s.integrator.as_deref(), Some("path"));
     assert_eq!(s.filter, Some(Filter::mitsuba_gaussian()));
+    // Mitsuba's film splats camera samples and normalises by the summed weights.
+    assert_eq!(s.filter_mode, Some(warpray::filter::FilterMode::Splat));
     let cam = scene.camera;
     assert!((cam.position - Vec3::new(0.0, 0.0, 3.9)).length() < 1e-6);
     assert!((cam.forward - Vec3::NEG_Z).length() < 1e-6 && (cam.right - Vec3::X).length() < 1e-6);
@@ -312,6 +314,11 @@ fn scene_files_and_the_command_line_name_a_filter() {
     let text = "base = \"cornell\"\n[render]\nfilter = \"gaussian:0.5:1.5\"\n";
     let d = warpray::scene::parse_scene_file(Path::new("f.toml"), text).unwrap();
     assert_eq!(d.settings.filter, Some(Filter::gaussian(0.5, 1.5).unwrap()));
+    let text = "base = \"cornell\"\n[render]\nfilter_mode = \"splat\"\n";
+    let d = warpray::scene::parse_scene_file(Path::new("f.toml"), text).unwrap();
+    assert_eq!(d.settings.filter_mode, Some(warpray::filter::FilterMode::Splat));
+    let bad = warpray::scene::parse_scene_file(Path::new("f.toml"), "[render]\nfilter_mode = \"blur\"\n").unwrap_err();
+    assert!(bad.to_string().contains("f.toml:2") && bad.to_string().contains("blur"), "{bad}");
     let bad = warpray::scene::parse_scene_file(Path::new("f.toml"), "[render]\nfilter = \"tent\"\n").unwrap_err();
     assert!(bad.to_string().contains("f.toml:2") && bad.to_string().contains("tent"), "{bad}");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_warpray"))

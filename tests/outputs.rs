@@ -140,9 +140,9 @@ fn film_variance_is_the_unbiased_sample_variance_of_each_pass() {
     let mut film = Film::new(2, 1).unwrap();
     // Pixel 0: estimates 1, 2, 3, 6 (mean 3, sample variance 14/3). Pixel 1: the same
     // values arriving as splats, as light tracing delivers them.
-    for x in [1.0f32, 2.0, 3.0, 6.0] {
+    for (pass, x) in [1.0f32, 2.0, 3.0, 6.0].into_iter().enumerate() {
         film.add_splats([(Vec2::new(1.5, 0.5), Vec3::splat(x - 1.0)), (Vec2::new(1.2, 0.9), Vec3::splat(1.0))]);
-        film.add_pass(&[Vec3::splat(x), Vec3::ZERO]);
+        film.add_pass(pass as u32, &[Vec3::splat(x), Vec3::ZERO]);
     }
     let v = film.variance();
     assert!((v[0].x - 14.0 / 3.0).abs() < 1e-5, "{}", v[0]);

@@ -21,7 +21,7 @@ use super::{CastStats, RayCaster, Triangles, any_hit_ids, timed, triangles_bytes
 use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir};
 use crate::scene::Scene;
 use glam::{Vec3, Vec3A};
-use obvhs::{BvhBuildParams, cwbvh::CwBvh, cwbvh::builder::build_cwbvh_from_tris, triangle::Triangle};
+use obvhs::{BvhBuildParams, cwbvh::CwBvh, cwbvh::builder::build_cwbvh};
 use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
@@ -42,6 +42,9 @@ pub struct BvhCaster {
     outliers: Vec<u32>,
     /// `None` for a scene with no triangles (obvhs needs at least one).
     bvh: Option<CwBvh>,
+    /// Where a ray's origin must lie for obvhs' node test to be conservative on the
+    /// padded boxes (see [`NodePadding`]); rays from elsewhere take the robust traversal.
+    region: Aabb,
     build_seconds: f64,
 }
 
@@ -58,15 +61,10 @@ impl BvhCaster {
         let outliers: Vec<u32> =
             (0..tris.len() as u32).into_par_iter().filter(|&i| !regular(&tris[i as usize])).collect();
         let ids = unique_regular_ids(&tris, regular);
+        let padding = NodePadding::of(ids.iter().map(|&i| &tris[i as usize]));
         let bvh = (!ids.is_empty()).then(|| {
-            let obvhs_tris: Vec<Triangle> = ids
-                .iter()
-                .map(|&i| {
-                    let t = &tris[i as usize];
-                    Triangle { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() }
-                })
-                .collect();
-            build_cwbvh_from_tris(&obvhs_tris, BvhBuildParams::medium_build(), &mut Duration::default())
+            let boxes: Vec<PaddedBox> = ids.iter().map(|&i| padding.pad(&tris[i as usize])).collect();
+            build_cwbvh(&boxes, BvhBuildParams::medium_build(), &mut Duration::default())
         });
         BvhCaster {
             traversal: Traversal::default(),
@@ -74,6 +72,7 @@ impl BvhCaster {
             ids,
             outliers,
             bvh,
+            region: padding.region,
             build_seconds: start.elapsed().as_secs_f64(),
         }
     }
@@ -137,15 +136,16 @@ impl BvhCaster {
 
 /// How [`BvhCaster`] traverses its BVH. Every mode sends the rays obvhs cannot
 /// represent (a direction component of magnitude at most `f32::EPSILON`, `-0.0`
-/// included) through the robust traversal.
+/// included), and rays from outside the region the node padding covers, through the
+/// robust traversal.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Traversal {
-    /// obvhs' SIMD traversal for every other ray: fastest; a ray through a shared
-    /// vertex can miss (the baseline of the DACRT tables).
+    /// obvhs' SIMD traversal for every other ray, over boxes padded so that its
+    /// rounding cannot reject a box the ray enters (docs/bvh.md). The default.
+    #[default]
     Fast,
     /// As `Fast`, and every miss or unblocked shadow ray is checked again by the
-    /// robust traversal: no ray escapes a closed mesh. The default.
-    #[default]
+    /// robust traversal (a second line of defence, for verification).
     Checked,
     /// Every ray through the robust traversal: never rejects a box the ray enters
     /// (5–10× the trace time of `Fast`).
@@ -193,10 +193,64 @@ fn unique_regular_ids(tris: &Triangles, regular: impl Fn(&[Vec3; 3]) -> bool + S
     (0..tris.len() as u32).into_par_iter().filter(|&i| !duplicate[i as usize] && regular(&tris[i as usize])).collect()
 }
 
-/// True when obvhs' traversal would not follow this ray exactly (a direction component
-/// of magnitude at most `f32::EPSILON`, including `-0.0`).
-fn needs_robust_traversal(ray: &Ray) -> bool {
-    ray.dir.abs().min_element() <= f32::EPSILON
+/// How far every triangle's box is grown before obvhs builds over it, so that obvhs'
+/// node test, which rounds without widening, can never reject a box the real ray enters.
+///
+/// obvhs computes a child's slab distances as `q · (2^e / d) + (p − o) / d` in `f32`
+/// (quantized plane `q` ≤ 255, node origin `p`). Each step rounds once: converted back
+/// to space (times `d`), the computed plane is off by at most about
+/// `3ε (node extent + |p − o|)` per axis (ε = `f32::EPSILON`). A ray that meets a
+/// triangle's true box stays inside the box grown by `δ` for a `t` interval reaching
+/// `δ / |d_i|` to either side in every axis, so the computed interval is not empty as
+/// long as `δ` exceeds that error. With the scene's bounds of diagonal `D` and largest
+/// coordinate magnitude `R`, and origins kept within the bounds grown by `2D`
+/// (`|p − o| ≤ 2R + 2D`), `δ = 16ε (3D + 2R)` leaves a margin of more than two. Rays
+/// from farther away, and rays obvhs changes (a direction component of magnitude at
+/// most ε, `-0.0` included), take the robust traversal. For a unit-sized scene `δ` is
+/// about 2e-5 of its size: the extra boxes a ray enters cost nothing measurable.
+#[derive(Clone, Copy, Debug)]
+struct NodePadding {
+    delta: f32,
+    region: Aabb,
+}
+
+impl NodePadding {
+    fn of<'t>(tris: impl Iterator<Item = &'t [Vec3; 3]>) -> NodePadding {
+        let bounds = tris.flatten().fold(Aabb::EMPTY, |b, &v| b.grow(v));
+        if bounds.min.x > bounds.max.x {
+            return NodePadding { delta: 0.0, region: Aabb::EMPTY };
+        }
+        let diag = (bounds.max - bounds.min).length();
+        let r = bounds.min.abs().max(bounds.max.abs()).max_element();
+        let delta = 16.0 * f32::EPSILON * (3.0 * diag + 2.0 * r);
+        let grow = Vec3::splat(2.0 * diag);
+        NodePadding { delta, region: Aabb { min: bounds.min - grow, max: bounds.max + grow } }
+    }
+
+    fn pad(&self, t: &[Vec3; 3]) -> PaddedBox {
+        let lo = t[0].min(t[1]).min(t[2]) - Vec3::splat(self.delta);
+        let hi = t[0].max(t[1]).max(t[2]) + Vec3::splat(self.delta);
+        PaddedBox(obvhs::aabb::Aabb::new(lo.into(), hi.into()))
+    }
+}
+
+/// A triangle's box grown by [`NodePadding`]: what obvhs builds over.
+struct PaddedBox(obvhs::aabb::Aabb);
+
+impl obvhs::Boundable for PaddedBox {
+    fn aabb(&self) -> obvhs::aabb::Aabb {
+        self.0
+    }
+}
+
+impl BvhCaster {
+    /// True when obvhs' traversal is not known to be conservative for this ray: a
+    /// direction component of magnitude at most `f32::EPSILON` (`-0.0` included), which
+    /// obvhs replaces, or an origin outside the region [`NodePadding`] covers.
+    fn needs_robust_traversal(&self, ray: &Ray) -> bool {
+        let (o, r) = (ray.origin, &self.region);
+        ray.dir.abs().min_element() <= f32::EPSILON || !(o.cmpge(r.min).all() && o.cmple(r.max).all())
+    }
 }
 
 /// Node indices a robust traversal keeps on the thread's stack (8 children per level;
@@ -294,7 +348,7 @@ impl RayCaster for BvhCaster {
                     let (h, tests) = match &self.bvh {
                         Some(bvh)
                             if ray.is_valid()
-                                && (self.traversal == Traversal::Robust || needs_robust_traversal(ray)) =>
+                                && (self.traversal == Traversal::Robust || self.needs_robust_traversal(ray)) =>
                         {
                             self.traverse_robust(bvh, ray, false)
                         }
@@ -331,7 +385,7 @@ impl RayCaster for BvhCaster {
                     *o = match &self.bvh {
                         Some(bvh)
                             if ray.is_valid()
-                                && (self.traversal == Traversal::Robust || needs_robust_traversal(ray)) =>
+                                && (self.traversal == Traversal::Robust || self.needs_robust_traversal(ray)) =>
                         {
                             let (hit, n) = self.traverse_robust(bvh, ray, true);
                             tests = n;

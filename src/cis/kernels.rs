@@ -2,7 +2,7 @@
 //! and light tables by reference). None allocates, forks, launches or casts rays; the
 //! host in `mod.rs` does the ray casting through the caster trait between launches.
 
-use crate::filter::Filter;
+use crate::filter::{Filter, FilterMode};
 use crate::geometry::{Hit, Ray, offset_ray_origin};
 use crate::render::Context;
 use crate::render::bdpt::{MAX_PATH, Pending, Vertex, VertexKind, VertexList};
@@ -86,15 +86,15 @@ pub fn generate(
     first_pixel: u32,
     pass: u32,
     seed: u64,
-    (cam, filter): (&Camera, Filter),
+    (cam, filter, mode): (&Camera, Filter, FilterMode),
     (width, height): (u32, u32),
     slots: &GlobalMut<Slot>,
     vertices: &GlobalMut<Vertex>,
 ) {
     let slot = t.load(free, i) as usize;
     let pixel = first_pixel + i as u32;
-    let mut rng = Rng::for_sample(seed, pixel as u64, pass as u64);
-    let (film, weight) = filter.sample(pixel % width, pixel / width, rng.uniform2());
+    let rng = Rng::for_sample(seed, pixel as u64, pass as u64);
+    let (film, weight) = filter.camera_sample(mode, seed, (pixel % width, pixel / width), width, pass);
     let ray = cam.generate_ray(film, width, height, Vec2::ZERO);
     let v0 = Vertex::new(VertexKind::Camera, cam.position, cam.forward, u32::MAX, Vec3::ONE, false, Vec3::ZERO);
     t.store(vertices, slot * MAX_CAMERA_VERTICES, v0);

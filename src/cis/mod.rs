@@ -159,7 +159,18 @@ impl CisLbdpt {
                     let cam = ctx.scene.camera;
                     let (first, seed) = (next_pixel, ctx.opts.seed);
                     dev.for_each("cis::generate", k, |t, i| {
-                        generate(t, i, &fv, first, pass, seed, (&cam, ctx.opts.filter), (w, h), &sv, &vv)
+                        generate(
+                            t,
+                            i,
+                            &fv,
+                            first,
+                            pass,
+                            seed,
+                            (&cam, ctx.opts.filter, ctx.opts.filter_mode),
+                            (w, h),
+                            &sv,
+                            &vv,
+                        )
                     });
                     let mut grown = dev.alloc_pooled::<u32>(active.len() + k);
                     let (av, fv, gv) = (active.view(), free.view(), grown.view_mut());
@@ -284,7 +295,7 @@ impl CisLbdpt {
             bounce += 1;
         }
         let est: Vec<glam::Vec3> = estimates.as_slice().iter().map(|&e| glam::Vec3::from_array(e)).collect();
-        film.add_pass(&est);
+        film.add_pass(pass, &est);
         CastStats { rays, peak_working_bytes: dev.memory().peak, ..Default::default() }
     }
 }

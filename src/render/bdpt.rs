@@ -470,7 +470,7 @@ impl Bdpt {
                 || (Vec::new(), Vec::new(), VertexList::default()),
                 |(cam, light, path), pixel| {
                     let mut rng = Rng::for_sample(ctx.opts.seed, pixel as u64, pass as u64);
-                    sample_pixel(ctx, pixel, &mut rng, cam, light, path)
+                    sample_pixel(ctx, (pixel, pass), &mut rng, cam, light, path)
                 },
             )
             .collect();
@@ -481,7 +481,7 @@ impl Bdpt {
             film.add_splats(splats);
             rays += r;
         }
-        film.add_pass(&estimates);
+        film.add_pass(pass, &estimates);
         CastStats { rays, ..Default::default() }
     }
 }
@@ -581,12 +581,12 @@ pub(crate) fn strategy_connect(
 }
 
 /// A camera subpath through pixel `pixel` (jittered), up to `max_depth` bounces.
-pub(crate) fn camera_subpath(ctx: &Context, pixel: u32, rng: &mut Rng, cam: &mut Vec<Vertex>) -> usize {
+pub(crate) fn camera_subpath(ctx: &Context, (pixel, pass): (u32, u32), rng: &mut Rng, cam: &mut Vec<Vertex>) -> usize {
     let (w, h) = (ctx.opts.width, ctx.opts.height);
     let camera = &ctx.scene.camera;
     cam.clear();
     cam.push(camera_vertex(camera));
-    let (film_pos, weight) = ctx.opts.filter.sample(pixel % w, pixel / w, rng.uniform2());
+    let (film_pos, weight) = ctx.camera_sample(pixel, pass);
     let ray = camera.generate_ray(film_pos, w, h, Vec2::ZERO);
     random_walk(ctx, ray, Vec3::splat(weight), TransportMode::Radiance, rng, ctx.opts.max_depth as usize + 2, cam)
 }
@@ -614,7 +614,7 @@ pub(crate) fn resolve_pending(ctx: &Context, pending: Vec<Pending>) -> (Vec3, Ve
 
 fn sample_pixel(
     ctx: &Context,
-    pixel: u32,
+    pixel: (u32, u32),
     rng: &mut Rng,
     cam: &mut Vec<Vertex>,
     light: &mut Vec<Vertex>,

@@ -180,7 +180,7 @@ impl LvcBdpt {
                 || (Vec::new(), VertexList::default()),
                 |(cam, path), pixel| {
                     let mut rng = Rng::for_sample(ctx.opts.seed, pixel as u64, pass as u64);
-                    let mut rays = camera_subpath(ctx, pixel, &mut rng, cam);
+                    let mut rays = camera_subpath(ctx, (pixel, pass), &mut rng, cam);
                     let connections = Connections::Uniform { n: n_c };
                     let pending = camera_strategies(ctx, cam, &cache, counts, connections, &mut rng, path);
                     let (estimate, _, shadow) = resolve_pending(ctx, pending);
@@ -194,7 +194,7 @@ impl LvcBdpt {
             estimates.push(e);
             rays += r;
         }
-        film.add_pass(&estimates);
+        film.add_pass(pass, &estimates);
         self.last_cache = cache;
         CastStats { rays, ..Default::default() }
     }

@@ -105,6 +105,9 @@ pub struct RenderOptions {
     pub strategy: Option<Strategy>,
     /// Pixel reconstruction filter (box by default; Mitsuba scenes ask for a Gaussian).
     pub filter: crate::filter::Filter,
+    /// How camera samples meet the filter: drawn from it (default, pbrt-v4) or splatted
+    /// and normalised (Mitsuba scenes, Mitsuba 3's way).
+    pub filter_mode: crate::filter::FilterMode,
 }
 
 /// One bidirectional strategy: `s` light-subpath vertices joined to `t` camera-subpath
@@ -133,6 +136,7 @@ impl Default for RenderOptions {
             cis: crate::cis::CisParams::default(),
             strategy: None,
             filter: crate::filter::Filter::Box,
+            filter_mode: crate::filter::FilterMode::Sample,
         }
     }
 }
@@ -180,6 +184,15 @@ pub struct Context<'a> {
     pub caster: &'a dyn RayCaster,
     /// The render's settings.
     pub opts: &'a RenderOptions,
+}
+
+impl Context<'_> {
+    /// Camera sample `pass` of `pixel`: its film position and weight.
+    #[inline]
+    pub(crate) fn camera_sample(&self, pixel: u32, pass: u32) -> (glam::Vec2, f32) {
+        let (o, w) = (self.opts, self.opts.width);
+        o.filter.camera_sample(o.filter_mode, o.seed, (pixel % w, pixel / w), w, pass)
+    }
 }
 
 /// A progressive renderer: validated settings, the lights, and the integrator with its
@@ -259,9 +272,8 @@ impl<'a> Renderer<'a> {
 
     /// An empty film of the render's size.
     pub fn film(&self) -> Result<Film> {
-        let mut film = Film::new(self.opts.width, self.opts.height)?;
-        film.filter = self.opts.filter;
-        Ok(film)
+        let film = Film::new(self.opts.width, self.opts.height)?;
+        Ok(film.with_filter(self.opts.filter, self.opts.filter_mode, self.opts.seed))
     }
 
     /// Adds pass number `pass` (one sample per pixel) to `film`.

@@ -34,6 +34,8 @@ pub struct PathTracer {
     shadow_rays: Vec<Ray>,
     shadow_owner: Vec<u32>,
     blocked: Vec<bool>,
+    /// Per live path: its shadow ray was cast and not blocked.
+    visible: Vec<bool>,
     estimates: Vec<Vec3>,
 }
 
@@ -48,6 +50,7 @@ impl PathTracer {
             shadow_rays: Vec::new(),
             shadow_owner: Vec::new(),
             blocked: Vec::new(),
+            visible: Vec::new(),
             estimates: vec![Vec3::ZERO; n],
         }
     }
@@ -61,7 +64,7 @@ impl PathTracer {
             .into_par_iter()
             .map(|pixel| {
                 let mut rng = Rng::for_sample(seed, pixel as u64, pass as u64);
-                let (film_pos, weight) = ctx.opts.filter.sample(pixel % w, pixel / w, rng.uniform2());
+                let (film_pos, weight) = ctx.camera_sample(pixel, pass);
                 let ray = cam.generate_ray(film_pos, w, h, rng.uniform2());
                 PathState {
                     pixel,
@@ -89,7 +92,7 @@ impl PathTracer {
 
             self.paths.par_iter_mut().zip(&self.hits).for_each(|(p, hit)| shade(ctx, depth, p, hit));
 
-            // Shadow rays of this bounce, as one batch.
+            // Shadow rays of this bounce, as one batch (in path order).
             self.shadow_rays.clear();
             self.shadow_owner.clear();
             for (i, p) in self.paths.iter().enumerate() {
@@ -100,13 +103,19 @@ impl PathTracer {
             }
             self.blocked.resize(self.shadow_rays.len(), false);
             stats = stats.merge(ctx.caster.occluded(&self.shadow_rays, &mut self.blocked));
+            // Each path's shadow ray was blocked or not: scatter the answers back.
+            self.visible.clear();
+            self.visible.resize(self.paths.len(), false);
             for (&i, &blocked) in self.shadow_owner.iter().zip(&self.blocked) {
-                let p = &mut self.paths[i as usize];
-                if !blocked {
-                    p.radiance += p.shadow.map_or(Vec3::ZERO, |s| s.1);
-                }
-                p.shadow = None;
+                self.visible[i as usize] = !blocked;
             }
+            self.paths.par_iter_mut().zip(&self.visible).for_each(|(p, &visible)| {
+                if let Some((_, l)) = p.shadow.take()
+                    && visible
+                {
+                    p.radiance += l;
+                }
+            });
 
             for p in self.paths.iter().filter(|p| !p.alive) {
                 self.estimates[p.pixel as usize] = p.radiance;
@@ -116,7 +125,7 @@ impl PathTracer {
         for p in &self.paths {
             self.estimates[p.pixel as usize] = p.radiance;
         }
-        film.add_pass(&self.estimates);
+        film.add_pass(pass, &self.estimates);
         stats
     }
 }

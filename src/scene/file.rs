@@ -31,13 +31,17 @@ pub struct RenderSettings {
     pub seed: Option<u64>,
     /// Pixel filter: `"box"`, `"gaussian"` or `"gaussian:STDDEV:RADIUS"` in scene
     /// files; Mitsuba scenes set it from their `rfilter`.
-    #[serde(default, deserialize_with = "filter_from_text")]
+    #[serde(default, deserialize_with = "parse_text")]
     pub filter: Option<crate::filter::Filter>,
+    /// How camera samples meet the filter: `"sample"` (filter importance sampling) or
+    /// `"splat"` (Mitsuba's weighted splatting, what Mitsuba scenes get).
+    #[serde(default, deserialize_with = "parse_text")]
+    pub filter_mode: Option<crate::filter::FilterMode>,
 }
 
-fn filter_from_text<'de, D: serde::Deserializer<'de>>(
+fn parse_text<'de, D: serde::Deserializer<'de>, T: std::str::FromStr<Err = String>>(
     d: D,
-) -> std::result::Result<Option<crate::filter::Filter>, D::Error> {
+) -> std::result::Result<Option<T>, D::Error> {
     let text = String::deserialize(d)?;
     text.parse().map(Some).map_err(serde::de::Error::custom)
 }

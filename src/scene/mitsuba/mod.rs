@@ -48,6 +48,8 @@ pub fn parse_mitsuba(path: &Path, text: &str) -> Result<SceneDesc> {
     let mut b =
         Builder { doc: &doc, scene: Scene::empty(path), settings: RenderSettings::default(), ids: HashMap::new() };
     b.settings.filter = Some(Filter::mitsuba_gaussian());
+    // Mitsuba's film splats camera samples and normalises by the summed weights.
+    b.settings.filter_mode = Some(crate::filter::FilterMode::Splat);
     let mut camera = None;
     // BSDFs with an id, in document order, so a shape can refer to any of them.
     for c in root.children().filter(|c| c.is_element() && c.tag_name().name() == "bsdf") {
