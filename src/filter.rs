@@ -45,6 +45,8 @@ pub enum Filter {
         radius: f32,
         /// `∫_{−r}^{r}` of the 1-D filter, computed once by [`Filter::gaussian`].
         integral: f32,
+        /// `exp(−r²/2σ²)`, the value subtracted so the filter reaches zero at `r`.
+        bias: f32,
     },
 }
 
@@ -77,7 +79,8 @@ impl Filter {
         for i in 1..n {
             sum += f(-r + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
         }
-        Ok(Filter::Gaussian { stddev, radius, integral: (sum * h / 3.0) as f32 })
+        let bias = (-(radius * radius) / (2.0 * stddev * stddev)).exp();
+        Ok(Filter::Gaussian { stddev, radius, integral: (sum * h / 3.0) as f32, bias })
     }
 
     /// Mitsuba 3's default Gaussian: σ = 0.5, radius 2.
@@ -110,12 +113,11 @@ impl Filter {
                     0.0
                 }
             }
-            Filter::Gaussian { stddev, radius, integral } => {
+            Filter::Gaussian { stddev, radius, integral, bias } => {
                 if x.abs() >= radius {
                     return 0.0;
                 }
-                let a = -1.0 / (2.0 * stddev * stddev);
-                ((a * x * x).exp() - (a * radius * radius).exp()).max(0.0) / integral
+                ((-(x * x) / (2.0 * stddev * stddev)).exp() - bias).max(0.0) / integral
             }
         }
     }
@@ -239,23 +241,9 @@ impl Filter {
         let k = self.splat_reach() as i32;
         let (cx, cy) = (p.x.floor(), p.y.floor());
         let offset = |i: usize| (i as i32 - k) as f32 + 0.5;
-        match *self {
-            Filter::Box => {
-                for i in 0..wx.len() {
-                    wx[i] = self.eval_1d(p.x - (cx + offset(i)));
-                    wy[i] = self.eval_1d(p.y - (cy + offset(i)));
-                }
-            }
-            Filter::Gaussian { stddev, radius, integral } => {
-                // eval_1d with its constants hoisted out of the loop.
-                let a = -1.0 / (2.0 * stddev * stddev);
-                let (bias, inv) = ((a * radius * radius).exp(), 1.0 / integral);
-                let g = |x: f32| if x.abs() >= radius { 0.0 } else { ((a * x * x).exp() - bias).max(0.0) * inv };
-                for i in 0..wx.len() {
-                    wx[i] = g(p.x - (cx + offset(i)));
-                    wy[i] = g(p.y - (cy + offset(i)));
-                }
-            }
+        for i in 0..wx.len() {
+            wx[i] = self.eval_1d(p.x - (cx + offset(i)));
+            wy[i] = self.eval_1d(p.y - (cy + offset(i)));
         }
     }
 
