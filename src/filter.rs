@@ -33,9 +33,10 @@ use glam::Vec2;
 use std::f32::consts::TAU;
 
 /// A pixel reconstruction filter.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum Filter {
     /// Box of radius 0.5 (one pixel).
+    #[default]
     Box,
     /// Truncated Gaussian `exp(−x²/2σ²) − exp(−r²/2σ²)` per axis.
     Gaussian {
@@ -50,12 +51,6 @@ pub enum Filter {
     },
 }
 
-impl Default for Filter {
-    fn default() -> Self {
-        Filter::Box
-    }
-}
-
 /// Largest Gaussian radius accepted (pixels): a splat touches (2r)² pixels.
 pub const MAX_RADIUS: f32 = 16.0;
 
@@ -66,7 +61,7 @@ impl Filter {
         if !(stddev > 0.0 && stddev.is_finite()) {
             return Err(format!("Gaussian filter stddev {stddev} must be positive and finite"));
         }
-        if !(radius >= 0.5 && radius <= MAX_RADIUS) {
+        if !(0.5..=MAX_RADIUS).contains(&radius) {
             return Err(format!("filter radius {radius} must lie in [0.5, {MAX_RADIUS}] pixels"));
         }
         // Simpson's rule in f64; the 1-D integrand is smooth on [−r, r].

@@ -628,40 +628,36 @@ fn sample_pixel(
 
     let mut pending: Vec<Pending> = Vec::new();
     // A strategy image keeps one (s, t), with or without its MIS weight.
-    let only = ctx.opts.strategy;
-    let weight = |path: &[Vertex], s: usize| match only {
-        Some(o) if !o.weighted => 1.0,
-        _ => mis_weight(ctx, path, s),
-    };
+    let weight = |path: &[Vertex], s: usize, t: usize| ctx.opts.strategy_weight(s, t, || mis_weight(ctx, path, s));
     for t in 1..=cam.len() {
         for s in 0..=light.len() {
             let depth = (s + t) as isize - 2;
             if depth < 0 || depth as usize > max_depth || (s == 0 && t < 2) {
                 continue;
             }
-            if only.is_some_and(|o| (o.s as usize, o.t as usize) != (s, t)) {
+            if !ctx.opts.keeps(s, t) {
                 continue;
             }
             match (s, t) {
                 (0, _) => {
                     if let Some(l) = strategy_emitter(cam, t, light, path) {
-                        pending.push((None, l * weight(path, 0), None));
+                        pending.push((None, l * weight(path, 0, t).unwrap_or(0.0), None));
                     }
                 }
                 (_, 1) => {
                     if let Some((l, px, ray)) = connect_to_camera(ctx, light, s, &cam_v) {
                         full_path(light, cam, s, 1, path);
-                        pending.push((Some(ray), l * weight(path, s), Some(px)));
+                        pending.push((Some(ray), l * weight(path, s, 1).unwrap_or(0.0), Some(px)));
                     }
                 }
                 (1, _) => {
                     if let Some((l, ray)) = strategy_light_sample(ctx, cam, t, rng, path) {
-                        pending.push((Some(ray), l * weight(path, 1), None));
+                        pending.push((Some(ray), l * weight(path, 1, t).unwrap_or(0.0), None));
                     }
                 }
                 _ => {
                     if let Some((l, ray)) = strategy_connect(ctx, light, s, cam, t, path) {
-                        pending.push((Some(ray), l * weight(path, s), None));
+                        pending.push((Some(ray), l * weight(path, s, t).unwrap_or(0.0), None));
                     }
                 }
             }

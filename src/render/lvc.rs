@@ -129,9 +129,14 @@ pub(crate) fn build_cache(
         .map_init(VertexList::default, |path, (verts, _)| {
             let pending: Vec<PendingSplat> = (1..=verts.len())
                 .filter_map(|s| {
+                    if !ctx.opts.keeps(s, 1) {
+                        return None;
+                    }
                     let (l, px, ray) = connect_to_camera(ctx, verts, s, &cam_v)?;
                     full_path(verts, std::slice::from_ref(&cam_v), s, 1, path);
-                    let w = mis_weight_counts(ctx, path, s, |s, t| counts.count(s, t));
+                    let w = ctx
+                        .opts
+                        .strategy_weight(s, 1, || mis_weight_counts(ctx, path, s, |s, t| counts.count(s, t)))?;
                     Some((l * w * scale, px, ray))
                 })
                 .collect();
@@ -257,15 +262,21 @@ pub(crate) fn vertex_strategies(
 ) {
     let max_depth = ctx.opts.max_depth as usize;
     let count = |s: usize, t: usize| counts.count(s, t);
+    // Strategy images drop strategies here, at the sink, after every random number a
+    // full render would draw has been drawn.
+    let weight =
+        |path: &VertexList, s: usize| ctx.opts.strategy_weight(s, t, || mis_weight_counts(ctx, path, s, count));
     if t - 2 <= max_depth
         && let Some(l) = strategy_emitter(cam, t, &[], path)
+        && let Some(w) = weight(path, 0)
     {
-        sink((None, l * mis_weight_counts(ctx, path, 0, count), None));
+        sink((None, l * w, None));
     }
     if t - 1 <= max_depth
         && let Some((l, ray)) = strategy_light_sample(ctx, cam, t, rng, path)
+        && let Some(w) = weight(path, 1)
     {
-        sink((Some(ray), l * mis_weight_counts(ctx, path, 1, count), None));
+        sink((Some(ray), l * w, None));
     }
     if cache_len == 0 || connections.per_vertex() == 0 || t > max_depth {
         return;
@@ -277,8 +288,9 @@ pub(crate) fn vertex_strategies(
         if s + t - 2 > max_depth {
             return;
         }
-        if let Some((l, ray)) = strategy_connect(ctx, &light, s, cam, t, path) {
-            let w = mis_weight_counts(ctx, path, s, count);
+        if let Some((l, ray)) = strategy_connect(ctx, &light, s, cam, t, path)
+            && let Some(w) = weight(path, s)
+        {
             sink((Some(ray), l * (w * extra / counts.connection as f32), None));
         }
     };

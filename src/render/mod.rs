@@ -100,8 +100,11 @@ pub struct RenderOptions {
     pub lvc: LvcParams,
     /// CIS-LBDPT settings and switches.
     pub cis: crate::cis::CisParams,
-    /// BDPT only: keep one strategy's contributions and drop the rest (pbrt-v4's
-    /// strategy images), for tests that check each strategy on its own.
+    /// BDPT, LVC-BDPT and CIS-LBDPT: keep one strategy's contributions and drop the
+    /// rest (pbrt-v4's strategy images), for tests that check each strategy on its own.
+    /// The random streams stay those of the full render in LVC and CIS (dropped
+    /// strategies are still sampled, so resampled connections choose among the same
+    /// candidates); BDPT skips dropped strategies outright.
     pub strategy: Option<Strategy>,
     /// Pixel reconstruction filter (box by default; Mitsuba scenes ask for a Gaussian).
     pub filter: crate::filter::Filter,
@@ -121,6 +124,26 @@ pub struct Strategy {
     pub t: u32,
     /// Whether its MIS weight is applied.
     pub weighted: bool,
+}
+
+impl RenderOptions {
+    /// Whether strategy (s, t) contributes: every strategy does, unless a strategy
+    /// image keeps only one.
+    #[inline]
+    pub(crate) fn keeps(&self, s: usize, t: usize) -> bool {
+        self.strategy.is_none_or(|o| (o.s as usize, o.t as usize) == (s, t))
+    }
+
+    /// The weight strategy (s, t) carries: `None` when a strategy image drops it,
+    /// 1 when the kept strategy is unweighted, its MIS weight `mis()` otherwise.
+    #[inline]
+    pub(crate) fn strategy_weight(&self, s: usize, t: usize, mis: impl FnOnce() -> f32) -> Option<f32> {
+        match self.strategy {
+            _ if !self.keeps(s, t) => None,
+            Some(o) if !o.weighted => Some(1.0),
+            _ => Some(mis()),
+        }
+    }
 }
 
 impl Default for RenderOptions {
@@ -242,9 +265,9 @@ impl<'a> Renderer<'a> {
                 opts.integrator.name()
             )));
         }
-        if opts.strategy.is_some() && opts.integrator != IntegratorKind::Bdpt {
+        if opts.strategy.is_some() && matches!(opts.integrator, IntegratorKind::Path | IntegratorKind::Light) {
             return Err(Error::BadSetting(format!(
-                "strategy images are a BDPT feature; the {} integrator has none",
+                "strategy images belong to the bidirectional integrators (bdpt, lvc, cis); the {} integrator has none",
                 opts.integrator.name()
             )));
         }
