@@ -11,7 +11,7 @@
 //!   normal by an amount that scales with the magnitude of the coordinates (Wächter and
 //!   Binder, Ray Tracing Gems ch. 6), so secondary rays do not re-hit their own triangle.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 /// A ray with a parametric interval `[t_min, t_max)`. `dir` need not be normalised;
 /// distances are in units of `dir`.
@@ -220,10 +220,13 @@ pub fn inv_dir(dir: Vec3) -> Vec3 {
 /// direction axis `z`, and the shear that maps the ray onto `+z`.
 #[derive(Clone, Copy, Debug)]
 pub struct RayShear {
-    k: [usize; 3],
-    sx: f32,
-    sy: f32,
-    sz: f32,
+    /// The permutation and shear as three rows: `x' = rx · v`, `y' = ry · v`,
+    /// `z' = rz · v` for a vertex `v` relative to the ray origin. Each row has one or
+    /// two non-zero entries, so the products are those of the permuted form exactly
+    /// (the zero terms add exactly), with no per-triangle indexing.
+    rx: Vec3A,
+    ry: Vec3A,
+    rz: Vec3A,
 }
 
 impl RayShear {
@@ -245,15 +248,22 @@ impl RayShear {
             std::mem::swap(&mut kx, &mut ky);
         }
         let d = dir.to_array();
-        RayShear { k: [kx, ky, kz], sx: d[kx] / d[kz], sy: d[ky] / d[kz], sz: 1.0 / d[kz] }
+        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        let row = |entries: [(usize, f32); 2]| {
+            let mut r = [0.0f32; 3];
+            for (k, v) in entries {
+                r[k] += v;
+            }
+            Vec3A::from(r)
+        };
+        RayShear { rx: row([(kx, 1.0), (kz, -sx)]), ry: row([(ky, 1.0), (kz, -sy)]), rz: row([(kz, sz), (kx, 0.0)]) }
     }
 
-    /// A vertex relative to the ray origin, permuted: `(x, y, z)` in ray-aligned axes.
+    /// A vertex relative to the ray origin in ray-aligned axes: sheared `(x, y)` and
+    /// the scaled `z`.
     #[inline(always)]
-    fn permute(&self, v: Vec3) -> (f32, f32, f32) {
-        let a = v.to_array();
-        // Indices are 0..3 by construction; `% 3` lets the compiler drop bounds checks.
-        (a[self.k[0] % 3], a[self.k[1] % 3], a[self.k[2] % 3])
+    fn apply(&self, v: Vec3A) -> (f32, f32, f32) {
+        (self.rx.dot(v), self.ry.dot(v), self.rz.dot(v))
     }
 }
 
@@ -269,13 +279,10 @@ pub fn intersect_triangle(
     t_min: f32,
     t_max: f32,
 ) -> Option<(f32, f32, f32)> {
-    let (sx, sy, sz) = (shear.sx, shear.sy, shear.sz);
-    let (ax0, ay0, az0) = shear.permute(p0 - origin);
-    let (bx0, by0, bz0) = shear.permute(p1 - origin);
-    let (cx0, cy0, cz0) = shear.permute(p2 - origin);
-    let (ax, ay) = (ax0 - sx * az0, ay0 - sy * az0);
-    let (bx, by) = (bx0 - sx * bz0, by0 - sy * bz0);
-    let (cx, cy) = (cx0 - sx * cz0, cy0 - sy * cz0);
+    let o = Vec3A::from(origin);
+    let (ax, ay, az) = shear.apply(Vec3A::from(p0) - o);
+    let (bx, by, bz) = shear.apply(Vec3A::from(p1) - o);
+    let (cx, cy, cz) = shear.apply(Vec3A::from(p2) - o);
 
     // Edge functions; each is the signed area opposite one vertex.
     let mut e0 = cx * by - cy * bx;
@@ -297,7 +304,7 @@ pub fn intersect_triangle(
     if det == 0.0 || !det.is_finite() {
         return None;
     }
-    let t_scaled = e0 * (sz * az0) + e1 * (sz * bz0) + e2 * (sz * cz0);
+    let t_scaled = e0 * az + e1 * bz + e2 * cz;
     let inv_det = 1.0 / det;
     let t = t_scaled * inv_det;
     if !(t > t_min && t < t_max) {

@@ -6,6 +6,7 @@
 //! Russian roulette starts after 3 bounces.
 
 pub mod bdpt;
+mod compact;
 pub mod lvc;
 mod path;
 

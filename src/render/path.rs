@@ -4,6 +4,7 @@
 //! parallel, casts the batch of shadow rays, and drops finished paths.
 
 use super::Context;
+use super::compact::compact_into;
 use crate::bsdf::TransportMode;
 use crate::cast::CastStats;
 use crate::film::Film;
@@ -29,6 +30,10 @@ struct PathState {
 /// The path tracer's reusable buffers.
 pub struct PathTracer {
     paths: Vec<PathState>,
+    /// The live paths of the next bounce, compacted out of `paths`.
+    spare: Vec<PathState>,
+    /// Per path that ended this bounce: its pixel and estimate.
+    finished: Vec<(u32, Vec3)>,
     rays: Vec<Ray>,
     hits: Vec<Hit>,
     shadow_rays: Vec<Ray>,
@@ -45,6 +50,8 @@ impl PathTracer {
         let n = (ctx.opts.width * ctx.opts.height) as usize;
         PathTracer {
             paths: Vec::with_capacity(n),
+            spare: Vec::with_capacity(n),
+            finished: Vec::new(),
             rays: Vec::new(),
             hits: Vec::new(),
             shadow_rays: Vec::new(),
@@ -93,14 +100,10 @@ impl PathTracer {
             self.paths.par_iter_mut().zip(&self.hits).for_each(|(p, hit)| shade(ctx, depth, p, hit));
 
             // Shadow rays of this bounce, as one batch (in path order).
-            self.shadow_rays.clear();
-            self.shadow_owner.clear();
-            for (i, p) in self.paths.iter().enumerate() {
-                if let Some((r, _)) = p.shadow {
-                    self.shadow_rays.push(r);
-                    self.shadow_owner.push(i as u32);
-                }
-            }
+            compact_into(&self.paths, &mut self.shadow_owner, |p| p.shadow.is_some(), |i, _| i as u32);
+            let paths = &self.paths;
+            let shadow_ray = |&i: &u32| paths[i as usize].shadow.map_or(Ray::new(Vec3::ZERO, Vec3::Z), |s| s.0);
+            self.shadow_owner.par_iter().map(shadow_ray).collect_into_vec(&mut self.shadow_rays);
             self.blocked.resize(self.shadow_rays.len(), false);
             stats = stats.merge(ctx.caster.occluded(&self.shadow_rays, &mut self.blocked));
             // Each path's shadow ray was blocked or not: scatter the answers back.
@@ -117,10 +120,13 @@ impl PathTracer {
                 }
             });
 
-            for p in self.paths.iter().filter(|p| !p.alive) {
-                self.estimates[p.pixel as usize] = p.radiance;
+            // Finished paths leave their estimate; the live ones are compacted.
+            compact_into(&self.paths, &mut self.finished, |p| !p.alive, |_, p| (p.pixel, p.radiance));
+            for &(pixel, radiance) in &self.finished {
+                self.estimates[pixel as usize] = radiance;
             }
-            self.paths.retain(|p| p.alive);
+            compact_into(&self.paths, &mut self.spare, |p| p.alive, |_, p| *p);
+            std::mem::swap(&mut self.paths, &mut self.spare);
         }
         for p in &self.paths {
             self.estimates[p.pixel as usize] = p.radiance;
