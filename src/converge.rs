@@ -108,6 +108,10 @@ pub struct ConvergeOptions {
     pub max_depth: u32,
     /// Seed of every integrator's render.
     pub seed: u64,
+    /// Pixel reconstruction filter.
+    pub filter: crate::filter::Filter,
+    /// How camera samples meet the filter.
+    pub filter_mode: crate::filter::FilterMode,
 }
 
 /// Renders with every integrator, measuring against `reference` (pixel order, the
@@ -139,6 +143,8 @@ pub fn run(
             seed: opts.seed,
             integrator: variant.kind,
             cis: variant.cis,
+            filter: opts.filter,
+            filter_mode: opts.filter_mode,
             ..Default::default()
         };
         let label = variant.label;

@@ -97,9 +97,9 @@ struct ConvergeArgs {
     /// Image size as WIDTHxHEIGHT.
     #[arg(long, value_parser = parse_size, default_value = "128x128")]
     size: (u32, u32),
-    /// Largest number of bounces.
-    #[arg(long, default_value_t = 8)]
-    max_depth: u32,
+    /// Largest number of bounces (default: the scene file's, else 8).
+    #[arg(long)]
+    max_depth: Option<u32>,
     #[arg(long, default_value_t = 0)]
     seed: u64,
     #[arg(long)]
@@ -287,17 +287,18 @@ fn run_render(args: RenderArgs) -> Result<bool> {
     if budget == Budget::Samples(0) {
         return Err(Error::BadSetting("--spp must be at least 1".into()));
     }
-    let opts = RenderOptions {
+    // The scene file's depth and filter, unless a flag says otherwise.
+    let mut opts = s.image_options(RenderOptions {
         width,
         height,
         budget,
-        max_depth: args.max_depth.or(s.max_depth).unwrap_or(8),
         seed: args.seed.or(s.seed).unwrap_or(0),
         integrator,
-        filter: args.filter.or(s.filter).unwrap_or_default(),
-        filter_mode: args.filter_mode.or(s.filter_mode).unwrap_or_default(),
         ..Default::default()
-    };
+    });
+    opts.max_depth = args.max_depth.unwrap_or(opts.max_depth);
+    opts.filter = args.filter.unwrap_or(opts.filter);
+    opts.filter_mode = args.filter_mode.unwrap_or(opts.filter_mode);
     warpray::film::check_size(width, height)?;
     desc.scene.check_renderable()?;
 
@@ -504,6 +505,11 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
         Some(_) => {}
         None => check_outputs(&[with_ext("-reference.exr")], &["exr"])?,
     }
+    // What the image means (depth, filter) comes from the scene file unless a flag says.
+    let mut image = desc.settings.image_options(RenderOptions { width, height, ..Default::default() });
+    if let Some(d) = args.max_depth {
+        image.max_depth = d;
+    }
     let pool = thread_pool(args.threads)?;
     pool.install(|| {
         let caster = warpray::cast::BvhCaster::new(&desc.scene);
@@ -525,13 +531,10 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
                     args.reference_spp
                 );
                 let opts = RenderOptions {
-                    width,
-                    height,
                     budget: Budget::Samples(args.reference_spp),
-                    max_depth: args.max_depth,
                     seed: args.seed ^ 0x5_eed0_f7ef,
                     integrator: args.reference_integrator,
-                    ..Default::default()
+                    ..image.clone()
                 };
                 let bar = progress_bar(opts.budget);
                 let (film, _) = render(&desc.scene, &caster, &opts, |p, _| {
@@ -549,8 +552,10 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
             checkpoints: args.checkpoints,
             width,
             height,
-            max_depth: args.max_depth,
+            max_depth: image.max_depth,
             seed: args.seed,
+            filter: image.filter,
+            filter_mode: image.filter_mode,
         };
         let rows = run(&desc.scene, &caster, &reference, &opts, |r| {
             eprintln!(

@@ -124,6 +124,32 @@ fn converge_writes_csv_and_charts_and_reads_a_reference() {
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("24x16"));
 }
 
+#[test]
+fn converge_renders_a_scene_files_image_as_render_does() {
+    // A Mitsuba scene sets a Gaussian filter, Mitsuba's splatting film and a depth of
+    // 7: converge's reference must be the image `render` makes of the same file (it
+    // was once rendered with the defaults instead: box filter, depth 8).
+    let dir = scratch("converge-xml");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/scenes/mitsuba-cbox.xml");
+    let out = warpray()
+        .args(["converge", scene, "--seconds", "0.05", "--size", "24x16", "--reference-spp", "4"])
+        .args(["--integrators", "path", "--checkpoints", "2", "-o"])
+        .arg(dir.join("c"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // The reference's seed is converge's seed (0) xor 0x5eed0f7ef.
+    let out = warpray()
+        .args(["render", scene, "--size", "24x16", "--spp", "4", "--seed", "25481508847", "-o"])
+        .arg(dir.join("r.exr"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (_, _, reference) = warpray::converge::read_exr(&dir.join("c-reference.exr")).unwrap();
+    let (_, _, rendered) = warpray::converge::read_exr(&dir.join("r.exr")).unwrap();
+    assert_eq!(reference, rendered, "converge's reference is not the image render makes of the same file");
+}
+
 /// The `warpray.KEY` attributes of an EXR, as a map.
 fn metadata(path: &std::path::Path) -> std::collections::HashMap<String, String> {
     warpray::film::read_exr_metadata(path).unwrap().into_iter().collect()

@@ -648,20 +648,22 @@ impl Job {
     fn run(&self, shared: &Mutex<Shared>, stop: &AtomicBool) -> crate::error::Result<()> {
         let set_status = |msg: String| lock(shared).status = msg;
         set_status(format!("loading {}", self.name));
-        let scene = load_scene(&self.path)?.scene;
+        let desc = load_scene(&self.path)?;
+        let scene = desc.scene;
         scene.check_renderable()?;
         let (w, h) = (self.size, self.size);
         self.analyse(&scene, shared)?;
-        let reference = self.reference(&scene, shared, stop)?;
+        let reference = self.reference(&scene, &desc.settings, shared, stop)?;
         let caster = self.caster.build(&scene);
-        let opts = RenderOptions {
+        // The scene file's depth and filter, as `warpray render` uses them.
+        let opts = desc.settings.image_options(RenderOptions {
             width: w,
             height: h,
             budget: Budget::Samples(self.spp),
             integrator: self.integrator,
             cis: CisParams { measure: true, pool: 4096, ..CisParams::default() },
             ..Default::default()
-        };
+        });
         let mut renderer = Renderer::new(&scene, caster.as_ref(), &opts)?;
         let mut film = renderer.film()?;
         {
@@ -762,6 +764,7 @@ impl Job {
     fn reference(
         &self,
         scene: &Scene,
+        settings: &crate::scene::RenderSettings,
         shared: &Mutex<Shared>,
         stop: &AtomicBool,
     ) -> crate::error::Result<Option<Vec<Vec3>>> {
@@ -770,13 +773,13 @@ impl Job {
         }
         lock(shared).status = "rendering the reference (path tracing): 0/256 spp".into();
         let bvh = BvhCaster::new(scene);
-        let o = RenderOptions {
+        let o = settings.image_options(RenderOptions {
             width: self.size,
             height: self.size,
             budget: Budget::Samples(256),
             seed: 77,
             ..Default::default()
-        };
+        });
         let (film, _) = crate::render::render(scene, &bvh, &o, |pass, _| {
             lock(shared).status = format!("rendering the reference (path tracing): {pass}/256 spp");
             !stop.load(Ordering::Relaxed)

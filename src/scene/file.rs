@@ -39,6 +39,20 @@ pub struct RenderSettings {
     pub filter_mode: Option<crate::filter::FilterMode>,
 }
 
+impl RenderSettings {
+    /// `opts` with the file's choices of what the image means (path depth, pixel filter
+    /// and filter mode) wherever the file makes them: every front end (render,
+    /// converge, the inspector) applies these, so a scene gives the same image in each.
+    pub fn image_options(&self, opts: crate::render::RenderOptions) -> crate::render::RenderOptions {
+        crate::render::RenderOptions {
+            max_depth: self.max_depth.unwrap_or(opts.max_depth),
+            filter: self.filter.unwrap_or(opts.filter),
+            filter_mode: self.filter_mode.unwrap_or(opts.filter_mode),
+            ..opts
+        }
+    }
+}
+
 fn parse_text<'de, D: serde::Deserializer<'de>, T: std::str::FromStr<Err = String>>(
     d: D,
 ) -> std::result::Result<Option<T>, D::Error> {
