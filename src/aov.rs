@@ -23,7 +23,8 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 /// One auxiliary image.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Aov {
     /// Directional albedo of the first surface (`Albedo.R/G/B`).
     Albedo,

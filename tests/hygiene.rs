@@ -55,3 +55,49 @@ fn licence_files_match_the_license_field() {
         assert!(mit.contains("Permission is hereby granted") && apache.contains("Apache License"));
     }
 }
+
+#[test]
+fn the_library_does_not_pull_in_the_command_line_crates() {
+    // Resolved without default features, the library depends on neither clap nor the
+    // progress bars (they come with the `cli` feature, for the binaries and examples).
+    let out = Command::new(env!("CARGO"))
+        .args(["metadata", "--format-version", "1", "--offline", "--locked", "--no-default-features"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("cargo metadata runs");
+    assert!(out.status.success(), "cargo metadata: {}", String::from_utf8_lossy(&out.stderr));
+    let meta: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let id = meta["packages"].as_array().unwrap().iter().find(|p| p["name"] == "warpray").unwrap()["id"].clone();
+    let node = meta["resolve"]["nodes"].as_array().unwrap().iter().find(|n| n["id"] == id).expect("warpray resolved");
+    let deps: Vec<&str> = node["deps"].as_array().unwrap().iter().filter_map(|d| d["name"].as_str()).collect();
+    assert!(deps.contains(&"rayon"), "the resolve lists dependencies by name: {deps:?}");
+    for cli in ["clap", "indicatif"] {
+        assert!(!deps.contains(&cli), "the library without default features depends on {cli}");
+    }
+    // And no library source names clap except behind the feature.
+    let mut stack = vec![std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/src"))];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                if !path.ends_with("bin") {
+                    stack.push(path);
+                }
+                continue;
+            }
+            if path.ends_with("main.rs") || path.extension().is_none_or(|e| e != "rs") {
+                continue;
+            }
+            let text = std::fs::read_to_string(&path).unwrap();
+            for (i, line) in text.lines().enumerate() {
+                let gated = line.contains("cfg_attr(feature = \"cli\"");
+                assert!(
+                    !line.contains("clap::") || gated,
+                    "{}:{}: clap outside the cli feature",
+                    path.display(),
+                    i + 1
+                );
+            }
+        }
+    }
+}

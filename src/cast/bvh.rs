@@ -138,7 +138,8 @@ impl BvhCaster {
 /// represent (a direction component of magnitude at most `f32::EPSILON`, `-0.0`
 /// included), and rays from outside the region the node padding covers, through the
 /// robust traversal.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Traversal {
     /// obvhs' SIMD traversal for every other ray, over boxes padded so that its
     /// rounding cannot reject a box the ray enters (docs/bvh.md). The default.

@@ -90,7 +90,8 @@ pub trait RayCaster: Send + Sync {
 }
 
 /// Which caster to build; parsed from the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum CasterKind {
     /// obvhs compressed wide BVH (CWBVH), built in parallel.
     Bvh,

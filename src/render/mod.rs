@@ -22,7 +22,8 @@ use crate::scene::Scene;
 use std::time::{Duration, Instant};
 
 /// Light-transport algorithms selectable from the command line and the library.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum IntegratorKind {
     /// Unidirectional path tracing with next-event estimation and MIS.
     Path,
@@ -68,8 +69,10 @@ enum Integrator {
 impl std::str::FromStr for IntegratorKind {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        <Self as clap::ValueEnum>::from_str(s, true)
-            .map_err(|_| Error::BadSetting(format!("unknown integrator '{s}' (known: path, light, bdpt, lvc, cis)")))
+        IntegratorKind::ALL
+            .into_iter()
+            .find(|k| k.name().eq_ignore_ascii_case(s))
+            .ok_or_else(|| Error::BadSetting(format!("unknown integrator '{s}' (known: path, light, bdpt, lvc, cis)")))
     }
 }
 
