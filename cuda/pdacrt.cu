@@ -1,4 +1,4 @@
-// PDACRT on a real GPU: the twin of `src/pdacrt` (kernels.rs and level.rs), kernel
+// PDACRT on a real GPU: the twin of `src/cast/pdacrt` (kernels.rs and level.rs), kernel
 // for kernel and named the same (`pdacrt::filter_rays`, ...), with the primitives the
 // emulator runs as `simt::*` done by CUB. Built into a shared library by
 // `cuda/build.sh` and loaded at run time by `warpray::gpu` (cargo feature `cuda`), so

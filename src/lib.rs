@@ -41,7 +41,8 @@ pub mod gpu;
 #[cfg(feature = "inspector")]
 pub mod inspector;
 pub mod lights;
-pub mod pdacrt;
+/// PDACRT, one of the casters (`cast::pdacrt`), also at the crate's root.
+pub use cast::pdacrt;
 pub mod render;
 pub mod sampling;
 pub mod scene;
@@ -55,11 +56,11 @@ pub struct ReadmeDoctests;
 
 /// The names most programs need.
 pub mod prelude {
+    pub use crate::cast::pdacrt::Pdacrt;
     pub use crate::cast::{BruteForce, BvhCaster, CastStats, CasterKind, Dacrt, RayCaster};
     pub use crate::error::{Error, Result};
     pub use crate::film::Film;
     pub use crate::geometry::{Aabb, Hit, Ray};
-    pub use crate::pdacrt::Pdacrt;
     pub use crate::render::{Budget, IntegratorKind, RenderOptions, RenderStats, render};
     pub use crate::scene::{Camera, Material, PointLight, Scene, SceneDesc, cornell_box, load_obj, load_scene};
     pub use glam::{Vec2, Vec3};

@@ -6,13 +6,14 @@
 //! have a zero direction never hit anything.
 //!
 //! Casters here: [`BruteForce`] (the test oracle), [`BvhCaster`] (obvhs' compressed
-//! wide BVH) and [`Dacrt`] (divide-and-conquer, no stored structure). PDACRT implements
-//! the same trait.
+//! wide BVH), [`Dacrt`] (divide-and-conquer, no stored structure) and
+//! [`pdacrt::Pdacrt`] (DACRT breadth-first on the `simt` emulator).
 
 pub mod batches;
 mod brute;
 mod bvh;
 mod dacrt;
+pub mod pdacrt;
 
 pub use brute::BruteForce;
 pub use bvh::{BvhCaster, Traversal};
@@ -110,7 +111,7 @@ impl CasterKind {
             CasterKind::Bvh => Box::new(BvhCaster::new(scene)),
             CasterKind::Brute => Box::new(BruteForce::new(scene)),
             CasterKind::Dacrt => Box::new(Dacrt::new(scene)),
-            CasterKind::Pdacrt => Box::new(crate::pdacrt::Pdacrt::new(scene)),
+            CasterKind::Pdacrt => Box::new(crate::cast::pdacrt::Pdacrt::new(scene)),
         }
     }
 }

@@ -1,4 +1,4 @@
-//! PDACRT on a real NVIDIA GPU (cargo feature `cuda`): the twin of [`crate::pdacrt`],
+//! PDACRT on a real NVIDIA GPU (cargo feature `cuda`): the twin of [`crate::cast::pdacrt`],
 //! kernel for kernel, in `cuda/pdacrt.cu`, so that what `simt` predicts can be checked
 //! against hardware counters (`docs/gpu-check.md`).
 //!
@@ -19,11 +19,11 @@
 mod ffi;
 pub mod ncu;
 
+use crate::cast::pdacrt::PdacrtParams;
+use crate::cast::pdacrt::kernels::{BLOCKED, NO_HIT, hit_of_key};
 use crate::cast::{CastStats, LEAF_PAIRS_FACTOR, RayCaster};
 use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray, SLAB_WIDEN};
-use crate::pdacrt::PdacrtParams;
-use crate::pdacrt::kernels::{BLOCKED, NO_HIT, hit_of_key};
 use ffi::{Library, WrParams, WrStats};
 use std::path::PathBuf;
 use std::sync::Mutex;
@@ -69,7 +69,7 @@ impl From<WrStats> for GpuStats {
 }
 
 /// PDACRT on the GPU, behind the same [`RayCaster`] trait as the CPU casters. The
-/// keys (distance bits, triangle id) are those of [`crate::pdacrt::Pdacrt`], bit for bit.
+/// keys (distance bits, triangle id) are those of [`crate::cast::pdacrt::Pdacrt`], bit for bit.
 pub struct GpuPdacrt {
     // Dropped before the library that frees it.
     handle: Mutex<ffi::Handle>,
@@ -91,7 +91,7 @@ impl GpuPdacrt {
     pub fn with_library(path: impl Into<PathBuf>, tris: &[[glam::Vec3; 3]], params: PdacrtParams) -> Result<Self> {
         let lib = Library::open(path.into())?;
         let device = lib.device_name()?;
-        let (flat, scene_box) = crate::pdacrt::flatten(tris);
+        let (flat, scene_box) = crate::cast::pdacrt::flatten(tris);
         let handle = lib.create(&flat, scene_box)?;
         Ok(GpuPdacrt {
             lib,

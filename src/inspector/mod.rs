@@ -6,12 +6,12 @@
 //! Rendering runs on a worker thread; the UI only reads what the worker shares, so it
 //! stays responsive. `cargo run --release --features inspector --bin warpray-inspector`.
 
+use crate::cast::pdacrt::{LevelRecord, Pdacrt, PdacrtParams};
 use crate::cast::{BvhCaster, CasterKind, RayCaster};
 use crate::cis::{CisLbdpt, CisParams, QueueRecord};
 use crate::converge::rmse;
 use crate::film::encode_srgb8;
 use crate::geometry::{Aabb, Hit};
-use crate::pdacrt::{LevelRecord, Pdacrt, PdacrtParams};
 use crate::render::{Budget, Context, IntegratorKind, RenderOptions, Renderer};
 use crate::scene::{Scene, load_scene};
 use egui::{Color32, ColorImage, RichText, TextureHandle, TextureOptions, Ui};
