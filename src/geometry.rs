@@ -249,14 +249,14 @@ impl RayShear {
         }
         let d = dir.to_array();
         let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
-        let row = |entries: [(usize, f32); 2]| {
+        let row = |entries: &[(usize, f32)]| {
             let mut r = [0.0f32; 3];
-            for (k, v) in entries {
-                r[k] += v;
+            for &(k, v) in entries {
+                r[k] = v;
             }
             Vec3A::from(r)
         };
-        RayShear { rx: row([(kx, 1.0), (kz, -sx)]), ry: row([(ky, 1.0), (kz, -sy)]), rz: row([(kz, sz), (kx, 0.0)]) }
+        RayShear { rx: row(&[(kx, 1.0), (kz, -sx)]), ry: row(&[(ky, 1.0), (kz, -sy)]), rz: row(&[(kz, sz)]) }
     }
 
     /// A vertex relative to the ray origin in ray-aligned axes: sheared `(x, y)` and
