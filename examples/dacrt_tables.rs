@@ -6,7 +6,8 @@
 //! ```text
 //! WARPRAY_MODELS=../shared/models cargo run --release --example dacrt_tables -- \
 //!     [--size 1024] [--scenes bunny,conference,dragon] [--casters bvh,dacrt,pdacrt] \
-//!     [--threads N] [--scaling 1,2,4,8,16] [--ao 8] [--repeat 1] [--sweep] [--json]
+//!     [--threads N] [--scaling 1,2,4,8,16] [--ao 8] [--repeat 1] [--sweep] [--json] \
+//!     [--pdacrt-chunk RAYS] [--dacrt-top-cell TRIANGLES] [--dacrt-groups-per-thread N]
 //! ```
 //!
 //! `--json` prints one object per measured row (keys `scene, batch, caster, threads,
@@ -51,6 +52,20 @@ struct Args {
     /// PDACRT rays per chunk (default: PDACRT's own).
     #[arg(long)]
     pdacrt_chunk: Option<usize>,
+    /// DACRT's `top_cell_triangles` (default: DACRT's own).
+    #[arg(long)]
+    dacrt_top_cell: Option<usize>,
+    /// DACRT's `groups_per_thread` (default: DACRT's own).
+    #[arg(long)]
+    dacrt_groups_per_thread: Option<usize>,
+}
+
+/// Tunables given on the command line, over the casters' defaults.
+#[derive(Clone, Copy, Default)]
+struct Tunables {
+    pdacrt_chunk: Option<usize>,
+    dacrt_top_cell: Option<usize>,
+    dacrt_groups_per_thread: Option<usize>,
 }
 
 /// One measured (scene, batch, caster, threads) cell.
@@ -110,11 +125,17 @@ fn batches(s: &Scene, size: u32, ao: usize) -> Vec<(&'static str, Vec<Ray>, bool
 fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
     Ok(match name {
         "bvh" => Box::new(BvhCaster::new(s).with_traversal(Traversal::Fast)),
-        "dacrt" => Box::new(Dacrt::new(s)),
+        "dacrt" => {
+            let mut d = Dacrt::new(s);
+            let t = TUNABLES.get().copied().unwrap_or_default();
+            d.params.top_cell_triangles = t.dacrt_top_cell.unwrap_or(d.params.top_cell_triangles);
+            d.params.groups_per_thread = t.dacrt_groups_per_thread.unwrap_or(d.params.groups_per_thread);
+            Box::new(d)
+        }
         "pdacrt" => {
             let mut p = Pdacrt::new(s);
-            if let Some(c) = PDACRT_CHUNK.get() {
-                p.params.chunk_rays = *c;
+            if let Some(c) = TUNABLES.get().and_then(|t| t.pdacrt_chunk) {
+                p.params.chunk_rays = c;
             }
             Box::new(p)
         }
@@ -122,8 +143,8 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
     })
 }
 
-/// `--pdacrt-chunk`, when given.
-static PDACRT_CHUNK: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+/// The command line's tunables, set once before anything is measured.
+static TUNABLES: std::sync::OnceLock<Tunables> = std::sync::OnceLock::new();
 
 fn cast(c: &dyn RayCaster, rays: &[Ray], shadow: bool) -> CastStats {
     if shadow {
@@ -255,9 +276,12 @@ fn print_tables(rows: &[Row]) {
 }
 
 fn run(a: Args) -> Result<(), String> {
-    if let Some(c) = a.pdacrt_chunk {
-        PDACRT_CHUNK.set(c).map_err(|_| "--pdacrt-chunk given twice".to_string())?;
-    }
+    let tunables = Tunables {
+        pdacrt_chunk: a.pdacrt_chunk,
+        dacrt_top_cell: a.dacrt_top_cell,
+        dacrt_groups_per_thread: a.dacrt_groups_per_thread,
+    };
+    TUNABLES.set(tunables).map_err(|_| "tunables set twice".to_string())?;
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(t) = a.threads {
         pool = pool.num_threads(t as usize);

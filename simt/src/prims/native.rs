@@ -12,8 +12,15 @@ use crate::memory::DeviceCopy;
 use crate::prims::sort::RadixKey;
 use rayon::prelude::*;
 
-/// Elements per chunk of the parallel passes.
-pub const CHUNK: usize = 1 << 16;
+/// Elements per chunk of the parallel scans, reductions and compactions: small
+/// enough that a pass over a few hundred thousand elements still feeds 16 threads
+/// (PDACRT's deep levels are such passes: at 16 threads its scans took 111 ms with
+/// chunks of 2^16, 63 ms with 2^14 and 45 ms with 2^12; `docs/simt.md`).
+pub const CHUNK: usize = 1 << 12;
+
+/// Elements per chunk of the radix sort's histogram and scatter passes: each chunk
+/// keeps a histogram of up to 4,096 buckets, so its chunks stay large.
+const SORT_CHUNK: usize = 1 << 16;
 
 /// A pointer that parallel chunks write through at disjoint positions.
 #[derive(Clone, Copy)]
@@ -174,7 +181,7 @@ pub(crate) fn sort_by_key_bits<K: RadixKey, V: DeviceCopy>(
     assert!(n < u32::MAX as usize, "sort_by_key: {n} elements is more than the CPU backend indexes");
     let range = if end - begin >= 64 { u64::MAX } else { ((1u64 << (end - begin)) - 1) << begin };
     let (or, and) = keys
-        .par_chunks(CHUNK)
+        .par_chunks(SORT_CHUNK)
         .map(|c| c.iter().fold((0u64, u64::MAX), |(o, a), k| (o | k.bits(), a & k.bits())))
         .reduce(|| (0, u64::MAX), |x, y| (x.0 | y.0, x.1 & y.1));
     let varying = (or ^ and) & range;
@@ -197,7 +204,7 @@ pub(crate) fn sort_by_key_bits<K: RadixKey, V: DeviceCopy>(
 
     // The top digit: the chunks' histograms scanned digit-major, then a stable scatter.
     let buckets = 1usize << width;
-    let chunk = CHUNK;
+    let chunk = SORT_CHUNK;
     let per_chunk: Vec<Vec<u32>> = keys
         .par_chunks(chunk)
         .map(|c| {

@@ -19,8 +19,11 @@
 //!   rays *and* few ray–triangle pairs (a handful of rays against thousands of
 //!   triangles is cheaper to keep splitting), or at the depth cap.
 //! * **Cores.** The top levels' triangle partitions do not depend on the rays, so each
-//!   call computes them once, in parallel, down to cells of
-//!   [`DacrtParams::top_cell_triangles`] triangles. With more than one thread the
+//!   call computes them once, down to cells of about
+//!   [`DacrtParams::top_cell_triangles`] triangles: the planes are chosen on a sample
+//!   (every 16th triangle for cells of 4,096, by the same rules as below), then every
+//!   triangle is routed down them and gathered by cell (a counting sort: two parallel,
+//!   streaming passes over the triangles' boxes). With more than one thread the
 //!   batch's rays are then ordered by a coherence key (a Morton code over origin and
 //!   direction) and cut into groups; each group walks the shared top levels near child
 //!   first and runs its own DACRT inside the cells it reaches, serially, so early
@@ -36,6 +39,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::time::Instant;
+
+mod top;
 
 /// Tunables of [`Dacrt`]. The defaults were chosen by measurement (see
 /// `docs/dacrt.md`).
@@ -190,34 +195,47 @@ fn coherence_key(ray: &Ray, bounds: &Aabb) -> u64 {
     key
 }
 
-/// The top levels of the recursion, whose triangle partitions do not depend on the
-/// rays: computed once per call and shared by every ray group.
-enum Top {
-    /// A node below which each group runs its own DACRT on a copy of `tris`.
-    Cell {
-        bounds: Aabb,
-        tris: Vec<u32>,
-    },
-    Split {
-        bounds: Aabb,
-        axis: usize,
-        kids: Box<[Top; 2]>,
-    },
+/// Binned SAH over a subsample of the triangles (their boxes clipped to the node):
+/// cost of a plane = area(left)·n(left) + area(right)·n(right).
+fn sah_plane(boxes: &[Aabb], bounds: &Aabb, tris: &[u32]) -> Option<(usize, f32)> {
+    let step = tris.len().div_ceil(SAH_SAMPLES).max(1);
+    let (ext, min) = (bounds.extent(), bounds.min);
+    let mut best: Option<(f32, usize, f32)> = None;
+    for axis in 0..3 {
+        if ext[axis] <= 0.0 {
+            continue;
+        }
+        let bin = |x: f32| (((x - min[axis]) / ext[axis] * SAH_BINS as f32) as usize).min(SAH_BINS - 1);
+        let (mut starts, mut ends) = ([0u32; SAH_BINS], [0u32; SAH_BINS]);
+        for &t in tris.iter().step_by(step) {
+            let b = boxes[t as usize].intersection(*bounds);
+            starts[bin(b.min[axis])] += 1;
+            ends[bin(b.max[axis])] += 1;
+        }
+        for k in 1..SAH_BINS {
+            let pos = min[axis] + ext[axis] * k as f32 / SAH_BINS as f32;
+            let n_lo: u32 = starts[..k].iter().sum();
+            let n_hi: u32 = ends[k..].iter().sum();
+            let (lo, hi) = bounds.split(axis, pos);
+            let cost = lo.surface_area() * n_lo as f32 + hi.surface_area() * n_hi as f32;
+            if best.is_none_or(|b| cost < b.0) {
+                best = Some((cost, axis, pos));
+            }
+        }
+    }
+    best.map(|(_, a, p)| (a, p))
 }
 
-impl Top {
-    fn bounds(&self) -> &Aabb {
-        match self {
-            Top::Cell { bounds, .. } | Top::Split { bounds, .. } => bounds,
-        }
+/// The median of (a subsample of) the triangle centroids along `axis`.
+fn centroid_median(boxes: &[Aabb], tris: &[u32], axis: usize) -> Option<(usize, f32)> {
+    let step = tris.len().div_ceil(SAH_SAMPLES).max(1);
+    let mut c: Vec<f32> = tris.iter().step_by(step).map(|&t| boxes[t as usize].center()[axis]).collect();
+    if c.is_empty() {
+        return None;
     }
-
-    fn bytes(&self) -> usize {
-        match self {
-            Top::Cell { tris, .. } => tris.len() * 4,
-            Top::Split { kids, .. } => kids[0].bytes() + kids[1].bytes(),
-        }
-    }
+    let mid = c.len() / 2;
+    let (_, m, _) = c.select_nth_unstable_by(mid, f32::total_cmp);
+    Some((axis, *m))
 }
 
 impl Dacrt {
@@ -289,7 +307,7 @@ impl Dacrt {
         if self.is_leaf(rays.len(), tris.len(), depth) {
             return self.leaf(tr, rays, tris);
         }
-        let Some((axis, pos)) = self.choose_split(tr, &bounds, rays, tris) else {
+        let Some((axis, pos)) = self.choose_split(tr, &self.boxes, &bounds, rays, tris) else {
             return self.leaf(tr, rays, tris);
         };
         let (lo, hi) = bounds.split(axis, pos);
@@ -312,72 +330,36 @@ impl Dacrt {
     }
 
     /// The first candidate plane after which neither child keeps every ray and every
-    /// triangle of the node; `None` when no candidate separates anything.
-    fn choose_split(&self, tr: &Trace, bounds: &Aabb, rays: &[u32], tris: &[u32]) -> Option<(usize, f32)> {
+    /// triangle of the node; `None` when no candidate separates anything. `tris` index
+    /// `boxes` (the scene's boxes, or the shared top's sample).
+    fn choose_split(
+        &self,
+        tr: &Trace,
+        boxes: &[Aabb],
+        bounds: &Aabb,
+        rays: &[u32],
+        tris: &[u32],
+    ) -> Option<(usize, f32)> {
         let axes = bounds.axes_by_extent();
         let ext = bounds.extent();
         let centre = bounds.center();
         let mut candidates: [Option<(usize, f32)>; 5] = [None; 5];
         if tris.len() >= self.params.sah_min_triangles {
-            candidates[0] = self.sah_plane(bounds, tris);
+            candidates[0] = sah_plane(boxes, bounds, tris);
         }
         for (k, &a) in axes.iter().enumerate() {
             candidates[1 + k] = (ext[a] > 0.0).then_some((a, centre[a]));
         }
-        candidates[4] = self.centroid_median(tris, axes[0]);
+        candidates[4] = centroid_median(boxes, tris, axes[0]);
+        // True when every triangle overlaps `child` and every ray enters it (stops at
+        // the first element that does not).
+        let keeps_all = |child: &Aabb| {
+            tris.iter().all(|&t| boxes[t as usize].overlaps(child)) && rays.iter().all(|&r| tr.enters(r, child))
+        };
         candidates.into_iter().flatten().find(|&(axis, pos)| {
             let (lo, hi) = bounds.split(axis, pos);
-            !self.keeps_all(tr, &lo, rays, tris) && !self.keeps_all(tr, &hi, rays, tris)
+            !keeps_all(&lo) && !keeps_all(&hi)
         })
-    }
-
-    /// True when every triangle overlaps `child` and every ray enters it (stops at the
-    /// first element that does not).
-    fn keeps_all(&self, tr: &Trace, child: &Aabb, rays: &[u32], tris: &[u32]) -> bool {
-        tris.iter().all(|&t| self.boxes[t as usize].overlaps(child)) && rays.iter().all(|&r| tr.enters(r, child))
-    }
-
-    /// Binned SAH over a subsample of the triangles (their boxes clipped to the node):
-    /// cost of a plane = area(left)·n(left) + area(right)·n(right).
-    fn sah_plane(&self, bounds: &Aabb, tris: &[u32]) -> Option<(usize, f32)> {
-        let step = tris.len().div_ceil(SAH_SAMPLES).max(1);
-        let (ext, min) = (bounds.extent(), bounds.min);
-        let mut best: Option<(f32, usize, f32)> = None;
-        for axis in 0..3 {
-            if ext[axis] <= 0.0 {
-                continue;
-            }
-            let bin = |x: f32| (((x - min[axis]) / ext[axis] * SAH_BINS as f32) as usize).min(SAH_BINS - 1);
-            let (mut starts, mut ends) = ([0u32; SAH_BINS], [0u32; SAH_BINS]);
-            for &t in tris.iter().step_by(step) {
-                let b = self.boxes[t as usize].intersection(*bounds);
-                starts[bin(b.min[axis])] += 1;
-                ends[bin(b.max[axis])] += 1;
-            }
-            for k in 1..SAH_BINS {
-                let pos = min[axis] + ext[axis] * k as f32 / SAH_BINS as f32;
-                let n_lo: u32 = starts[..k].iter().sum();
-                let n_hi: u32 = ends[k..].iter().sum();
-                let (lo, hi) = bounds.split(axis, pos);
-                let cost = lo.surface_area() * n_lo as f32 + hi.surface_area() * n_hi as f32;
-                if best.is_none_or(|b| cost < b.0) {
-                    best = Some((cost, axis, pos));
-                }
-            }
-        }
-        best.map(|(_, a, p)| (a, p))
-    }
-
-    /// The median of (a subsample of) the triangle centroids along `axis`.
-    fn centroid_median(&self, tris: &[u32], axis: usize) -> Option<(usize, f32)> {
-        let step = tris.len().div_ceil(SAH_SAMPLES).max(1);
-        let mut c: Vec<f32> = tris.iter().step_by(step).map(|&t| self.boxes[t as usize].center()[axis]).collect();
-        if c.is_empty() {
-            return None;
-        }
-        let mid = c.len() / 2;
-        let (_, m, _) = c.select_nth_unstable_by(mid, f32::total_cmp);
-        Some((axis, *m))
     }
 
     /// Partitions the parent's lists for `child`, shrinks its box to its triangles,
@@ -398,80 +380,6 @@ impl Dacrt {
         let tight = child.intersection(union);
         let nr = partition(rays, |r| tr.enters(r, &tight));
         self.recurse(tr, tight, &mut rays[..nr], &mut tris[..nt], depth + 1)
-    }
-
-    /// The shared top levels over `tris` (ids into the scene), split in parallel.
-    fn build_top(&self, bounds: Aabb, tris: Vec<u32>, depth: u32) -> Top {
-        let p = &self.params;
-        if p.top_cell_triangles == 0 || tris.len() <= p.top_cell_triangles || depth >= p.max_depth {
-            return Top::Cell { bounds, tris };
-        }
-        // Triangles alone decide the plane (no rays yet): the first candidate after
-        // which neither side keeps every triangle.
-        let no_rays = Trace::empty();
-        let Some((axis, pos)) = self.choose_split(&no_rays, &bounds, &[], &tris) else {
-            return Top::Cell { bounds, tris };
-        };
-        let (lo, hi) = bounds.split(axis, pos);
-        // One pass per side: the ids that overlap it and the union of their boxes.
-        let side = |child: Aabb| -> (Vec<u32>, Aabb) {
-            let keep = |(mut v, b): (Vec<u32>, Aabb), &t: &u32| {
-                let tb = self.boxes[t as usize];
-                if tb.overlaps(&child) {
-                    v.push(t);
-                    (v, b.union(tb))
-                } else {
-                    (v, b)
-                }
-            };
-            let (ids, union) = if tris.len() < 1 << 16 {
-                tris.iter().fold((Vec::new(), Aabb::EMPTY), keep)
-            } else {
-                tris.par_iter().fold(|| (Vec::new(), Aabb::EMPTY), keep).reduce(
-                    || (Vec::new(), Aabb::EMPTY),
-                    |(mut a, ab), (b, bb)| {
-                        a.extend(b);
-                        (a, ab.union(bb))
-                    },
-                )
-            };
-            (ids, child.intersection(union))
-        };
-        let ((lo_ids, lo_box), (hi_ids, hi_box)) = (side(lo), side(hi));
-        drop(tris);
-        let (a, b) =
-            rayon::join(|| self.build_top(lo_box, lo_ids, depth + 1), || self.build_top(hi_box, hi_ids, depth + 1));
-        Top::Split { bounds, axis, kids: Box::new([a, b]) }
-    }
-
-    /// One ray group through the shared top levels, near child first; in each cell it
-    /// reaches, the group's DACRT continues on a copy of the cell's triangles.
-    fn trace_top(&self, tr: &Trace, node: &Top, rays: &mut [u32], scratch: &mut Vec<u32>, depth: u32) {
-        if rays.is_empty() {
-            return;
-        }
-        match node {
-            Top::Cell { bounds, tris } => {
-                if tris.is_empty() {
-                    return;
-                }
-                scratch.clear();
-                scratch.extend_from_slice(tris);
-                tr.alloc(tris.len() * 4);
-                self.recurse(tr, *bounds, rays, scratch, depth);
-                tr.free(tris.len() * 4);
-            }
-            Top::Split { axis, kids, .. } => {
-                let toward_hi: f32 = rays.iter().map(|&r| tr.rays[r as usize].dir[*axis].signum()).sum();
-                let order = if toward_hi >= 0.0 { [0, 1] } else { [1, 0] };
-                for k in order {
-                    let child = &kids[k];
-                    let b = *child.bounds();
-                    let nr = partition(rays, |r| tr.enters(r, &b));
-                    self.trace_top(tr, child, &mut rays[..nr], scratch, depth + 1);
-                }
-            }
-        }
     }
 
     /// How many independent ray groups a batch of `n` rays is traced in.
@@ -510,22 +418,31 @@ impl Dacrt {
             let (peak, tests) = (tr.peak.load(Relaxed), tr.tests.load(Relaxed));
             return (tr.keys, peak, tests);
         }
-        let top = self.build_top(scene_box, (0..self.tris.len() as u32).collect(), 0);
-        tr.alloc(top.bytes());
+        let top = self.build_top();
+        tr.alloc(top.ids.len() * 4);
         let groups = self.group_count(ray_ids.len());
         if groups <= 1 {
-            self.trace_top(&tr, &top, &mut ray_ids, &mut Vec::new(), 0);
+            self.trace_top(&tr, &top, &top.root, &mut ray_ids, &mut Vec::new(), 0);
         } else {
-            // Coherent groups: sort by key (ties by id, so the order is deterministic).
-            tr.alloc(ray_ids.len() * 12);
-            let mut keyed: Vec<(u64, u32)> =
-                ray_ids.par_iter().map(|&i| (coherence_key(&rays[i as usize], &scene_box), i)).collect();
+            // Coherent groups: sort by key, ties by id (so the order is deterministic).
+            // Key and id share one word: the key's 32 bits from its highest bit that
+            // differs between rays (primary rays share their origin bits).
+            tr.alloc(ray_ids.len() * 16);
+            let keys: Vec<u64> = ray_ids.par_iter().map(|&i| coherence_key(&rays[i as usize], &scene_box)).collect();
+            let (or, and) = keys
+                .par_iter()
+                .fold(|| (0, u64::MAX), |(o, a), &k| (o | k, a & k))
+                .reduce(|| (0, u64::MAX), |x, y| (x.0 | y.0, x.1 & y.1));
+            let shift = (64 - (or ^ and).leading_zeros()).saturating_sub(32);
+            let mut keyed: Vec<u64> =
+                keys.par_iter().zip(&ray_ids).map(|(&k, &i)| (k >> shift & 0xffff_ffff) << 32 | i as u64).collect();
+            drop(keys);
             keyed.par_sort_unstable();
-            ray_ids.par_iter_mut().zip(&keyed).for_each(|(id, &(_, i))| *id = i);
+            ray_ids.par_iter_mut().zip(&keyed).for_each(|(id, &k)| *id = k as u32);
             drop(keyed);
             let size = ray_ids.len().div_ceil(groups);
             ray_ids.par_chunks_mut(size).for_each_init(Vec::new, |scratch, group| {
-                self.trace_top(&tr, &top, group, scratch, 0);
+                self.trace_top(&tr, &top, &top.root, group, scratch, 0);
             });
         }
         let (peak, tests) = (tr.peak.load(Relaxed), tr.tests.load(Relaxed));

@@ -1,0 +1,309 @@
+//! DACRT's shared top levels: the triangle partitions near the root, which do not
+//! depend on the rays, computed once per trace call and walked by every ray group.
+//! The planes are chosen on a sample of the triangles' boxes; every triangle is then
+//! routed down them and gathered by cell in two parallel passes (a counting sort).
+
+use super::{Dacrt, Trace, partition};
+use crate::geometry::Aabb;
+use rayon::prelude::*;
+
+/// Every triangle's box, in order, is read in chunks of this many by the shared top's
+/// routing passes.
+const ROUTE_CHUNK: usize = 1 << 14;
+/// The shared top's planes are chosen on a sample holding about this many triangles
+/// per cell of [`DacrtParams::top_cell_triangles`](super::DacrtParams::top_cell_triangles).
+const TOP_SAMPLES_PER_CELL: usize = 256;
+
+/// The shared top's planes, chosen on a sample before any triangle is routed.
+enum Plan {
+    /// Cell number `.0` (numbered depth first, low side first).
+    Cell(usize),
+    Split {
+        axis: usize,
+        pos: f32,
+        kids: Box<[Plan; 2]>,
+    },
+}
+
+impl Plan {
+    /// Numbers the cells depth first from `next`.
+    fn number(&mut self, next: &mut usize) {
+        match self {
+            Plan::Cell(c) => {
+                *c = *next;
+                *next += 1;
+            }
+            Plan::Split { kids, .. } => kids.iter_mut().for_each(|k| k.number(next)),
+        }
+    }
+}
+
+/// A numbered [`Plan`] flattened for routing: node 0 is the root; a node is a cell
+/// (`axis == CELL`, its number in `kids[0]`) or a plane with its two children.
+struct Routes {
+    nodes: Vec<RouteNode>,
+}
+
+#[derive(Clone, Copy)]
+struct RouteNode {
+    axis: usize,
+    pos: f32,
+    kids: [usize; 2],
+}
+
+/// `RouteNode::axis` of a cell.
+const CELL: usize = 3;
+
+impl Routes {
+    fn new(plan: &Plan) -> Routes {
+        fn push(plan: &Plan, nodes: &mut Vec<RouteNode>) -> usize {
+            let at = nodes.len();
+            nodes.push(RouteNode { axis: CELL, pos: 0.0, kids: [0; 2] });
+            nodes[at] = match plan {
+                Plan::Cell(c) => RouteNode { axis: CELL, pos: 0.0, kids: [*c, 0] },
+                Plan::Split { axis, pos, kids } => {
+                    let lo = push(&kids[0], nodes);
+                    let hi = push(&kids[1], nodes);
+                    RouteNode { axis: *axis, pos: *pos, kids: [lo, hi] }
+                }
+            };
+            at
+        }
+        let mut nodes = Vec::new();
+        push(plan, &mut nodes);
+        Routes { nodes }
+    }
+
+    /// The cell of a box that lies on one side of every plane on its way down, or
+    /// `Err(node)` for the first node whose plane it touches (closed half-spaces: such
+    /// a box goes to both sides), or `Err(usize::MAX)` for a box with NaN bounds. The
+    /// descent picks a child by a comparison, not a branch: most boxes take one path.
+    #[inline]
+    fn descend(&self, b: &Aabb, mut n: usize) -> Result<usize, usize> {
+        let (min, max) = (b.min.to_array(), b.max.to_array());
+        loop {
+            let node = self.nodes[n];
+            if node.axis == CELL {
+                return Ok(node.kids[0]);
+            }
+            let (lo, hi) = (min[node.axis] <= node.pos, max[node.axis] >= node.pos);
+            if lo == hi {
+                return Err(if lo { n } else { usize::MAX });
+            }
+            n = node.kids[hi as usize];
+        }
+    }
+
+    /// Calls `f` with every cell whose half-spaces the box overlaps. For boxes inside
+    /// the scene's box this is the same as overlapping the cell's region.
+    fn route_from(&self, b: &Aabb, n: usize, f: &mut impl FnMut(usize)) {
+        match self.descend(b, n) {
+            Ok(cell) => f(cell),
+            Err(usize::MAX) => {}
+            Err(split) => {
+                let kids = self.nodes[split].kids;
+                self.route_from(b, kids[0], f);
+                self.route_from(b, kids[1], f);
+            }
+        }
+    }
+}
+
+/// The top levels of the recursion, whose triangle partitions do not depend on the
+/// rays: computed once per call and shared by every ray group.
+pub(super) enum Top {
+    /// A node below which each group runs its own DACRT on a copy of its triangles,
+    /// `range` of the shared id list.
+    Cell {
+        bounds: Aabb,
+        range: std::ops::Range<usize>,
+    },
+    Split {
+        bounds: Aabb,
+        axis: usize,
+        kids: Box<[Top; 2]>,
+    },
+}
+
+impl Top {
+    fn bounds(&self) -> &Aabb {
+        match self {
+            Top::Cell { bounds, .. } | Top::Split { bounds, .. } => bounds,
+        }
+    }
+
+    /// The node of `plan` over `region`: a cell's box is its region shrunk to its
+    /// triangles' boxes, a split's the hull of its children's (empty ones left out).
+    fn from_plan(plan: &Plan, region: Aabb, starts: &[usize], unions: &[Aabb]) -> Top {
+        match plan {
+            Plan::Cell(c) => Top::Cell { bounds: region.intersection(unions[*c]), range: starts[*c]..starts[*c + 1] },
+            Plan::Split { axis, pos, kids } => {
+                let (lo, hi) = region.split(*axis, *pos);
+                let kids = Box::new([
+                    Top::from_plan(&kids[0], lo, starts, unions),
+                    Top::from_plan(&kids[1], hi, starts, unions),
+                ]);
+                let bounds = kids.iter().map(|k| *k.bounds()).filter(|b| !b.is_empty()).fold(Aabb::EMPTY, Aabb::union);
+                Top::Split { bounds, axis: *axis, kids }
+            }
+        }
+    }
+}
+
+/// The shared top levels: the tree, and the triangle ids of its cells, cell after cell.
+pub(super) struct SharedTop {
+    pub(super) root: Top,
+    pub(super) ids: Vec<u32>,
+}
+
+impl Dacrt {
+    /// The shared top levels: planes chosen on a sample of the triangles
+    /// ([`Dacrt::plan_top`]), then every triangle routed down them and gathered by cell,
+    /// a counting sort in two parallel passes over the boxes in order (the first
+    /// counts each chunk's triangles per cell and grows the cells' boxes, the second
+    /// writes the ids, each chunk into its own slots: the order is the same at any
+    /// thread count).
+    pub(super) fn build_top(&self) -> SharedTop {
+        let (n, p) = (self.tris.len(), &self.params);
+        if p.top_cell_triangles == 0 || n <= p.top_cell_triangles {
+            return SharedTop { root: Top::Cell { bounds: self.scene_box, range: 0..n }, ids: (0..n as u32).collect() };
+        }
+        let stride = (p.top_cell_triangles / TOP_SAMPLES_PER_CELL).max(1);
+        let sample: Vec<Aabb> = self.boxes.iter().step_by(stride).copied().collect();
+        let ids: Vec<u32> = (0..sample.len() as u32).collect();
+        let mut plan = self.plan_top(&sample, self.scene_box, ids, stride, 0);
+        let mut cells = 0;
+        plan.number(&mut cells);
+        let routes = Routes::new(&plan);
+
+        // Pass 1 also keeps each triangle's cell (`SEVERAL` for one that touches a plane
+        // and is routed again in pass 2).
+        const SEVERAL: u32 = u32::MAX;
+        let mut cell_of = vec![0u32; n];
+        let counted: Vec<(Vec<usize>, Vec<Aabb>)> = self
+            .boxes
+            .par_chunks(ROUTE_CHUNK)
+            .zip(cell_of.par_chunks_mut(ROUTE_CHUNK))
+            .map(|(chunk, cell_of)| {
+                let (mut count, mut union) = (vec![0usize; cells], vec![Aabb::EMPTY; cells]);
+                for (b, cell) in chunk.iter().zip(cell_of) {
+                    let mut add = |c: usize| {
+                        count[c] += 1;
+                        union[c] = union[c].union(*b);
+                    };
+                    *cell = match routes.descend(b, 0) {
+                        Ok(c) => {
+                            add(c);
+                            c as u32
+                        }
+                        Err(_) => {
+                            routes.route_from(b, 0, &mut add);
+                            SEVERAL
+                        }
+                    };
+                }
+                (count, union)
+            })
+            .collect();
+        let mut starts = vec![0usize; cells + 1];
+        let mut unions = vec![Aabb::EMPTY; cells];
+        for c in 0..cells {
+            starts[c + 1] = starts[c] + counted.iter().map(|(count, _)| count[c]).sum::<usize>();
+            unions[c] = counted.iter().fold(Aabb::EMPTY, |u, (_, union)| u.union(union[c]));
+        }
+        // Each chunk's slots, one per cell: cell-major, chunks in order within a cell.
+        let mut ids = vec![0u32; starts[cells]];
+        let mut slots: Vec<Vec<&mut [u32]>> = counted.iter().map(|_| Vec::with_capacity(cells)).collect();
+        let mut rest = &mut ids[..];
+        for c in 0..cells {
+            for (k, (count, _)) in counted.iter().enumerate() {
+                let (slot, tail) = rest.split_at_mut(count[c]);
+                slots[k].push(slot);
+                rest = tail;
+            }
+        }
+        self.boxes.par_chunks(ROUTE_CHUNK).zip(cell_of.par_chunks(ROUTE_CHUNK)).zip(slots).enumerate().for_each(
+            |(k, ((chunk, cell_of), mut slots))| {
+                let mut at = vec![0usize; cells];
+                for (i, (b, &cell)) in chunk.iter().zip(cell_of).enumerate() {
+                    let mut put = |c: usize| {
+                        slots[c][at[c]] = (k * ROUTE_CHUNK + i) as u32;
+                        at[c] += 1;
+                    };
+                    if cell == SEVERAL { routes.route_from(b, 0, &mut put) } else { put(cell as usize) }
+                }
+            },
+        );
+        SharedTop { root: Top::from_plan(&plan, self.scene_box, &starts, &unions), ids }
+    }
+
+    /// The shared top's planes over a sample of the triangles' boxes (`tris` index
+    /// `sample`; each stands for `stride` triangles), by the recursion's own plane
+    /// rules, down to cells of about `top_cell_triangles`; the halves in parallel.
+    fn plan_top(&self, sample: &[Aabb], bounds: Aabb, tris: Vec<u32>, stride: usize, depth: u32) -> Plan {
+        let p = &self.params;
+        if tris.len() * stride <= p.top_cell_triangles || depth >= p.max_depth {
+            return Plan::Cell(0);
+        }
+        // Triangles alone decide the plane (no rays yet).
+        let Some((axis, pos)) = self.choose_split(&Trace::empty(), sample, &bounds, &[], &tris) else {
+            return Plan::Cell(0);
+        };
+        let side = |child: Aabb| -> (Vec<u32>, Aabb) {
+            let keep = |&t: &u32| sample[t as usize].overlaps(&child);
+            let ids: Vec<u32> = if tris.len() < 1 << 14 {
+                tris.iter().copied().filter(keep).collect()
+            } else {
+                tris.par_iter().copied().filter(keep).collect()
+            };
+            let union = ids.iter().fold(Aabb::EMPTY, |u, &t| u.union(sample[t as usize]));
+            (ids, child.intersection(union))
+        };
+        let (lo, hi) = bounds.split(axis, pos);
+        let ((lo_ids, lo_box), (hi_ids, hi_box)) = (side(lo), side(hi));
+        drop(tris);
+        let (a, b) = rayon::join(
+            || self.plan_top(sample, lo_box, lo_ids, stride, depth + 1),
+            || self.plan_top(sample, hi_box, hi_ids, stride, depth + 1),
+        );
+        Plan::Split { axis, pos, kids: Box::new([a, b]) }
+    }
+
+    /// One ray group through the shared top levels, near child first; in each cell it
+    /// reaches, the group's DACRT continues on a copy of the cell's triangles.
+    pub(super) fn trace_top(
+        &self,
+        tr: &Trace,
+        top: &SharedTop,
+        node: &Top,
+        rays: &mut [u32],
+        scratch: &mut Vec<u32>,
+        depth: u32,
+    ) {
+        if rays.is_empty() {
+            return;
+        }
+        match node {
+            Top::Cell { bounds, range } => {
+                if range.is_empty() {
+                    return;
+                }
+                scratch.clear();
+                scratch.extend_from_slice(&top.ids[range.clone()]);
+                tr.alloc(range.len() * 4);
+                self.recurse(tr, *bounds, rays, scratch, depth);
+                tr.free(range.len() * 4);
+            }
+            Top::Split { axis, kids, .. } => {
+                let toward_hi: f32 = rays.iter().map(|&r| tr.rays[r as usize].dir[*axis].signum()).sum();
+                let order = if toward_hi >= 0.0 { [0, 1] } else { [1, 0] };
+                for k in order {
+                    let child = &kids[k];
+                    let b = *child.bounds();
+                    let nr = partition(rays, |r| tr.enters(r, &b));
+                    self.trace_top(tr, top, child, &mut rays[..nr], scratch, depth + 1);
+                }
+            }
+        }
+    }
+}
