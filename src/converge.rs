@@ -48,7 +48,7 @@ pub struct Variant {
     /// The integrator.
     pub kind: IntegratorKind,
     /// CIS-LBDPT switches (ablations).
-    pub cis: crate::cis::CisParams,
+    pub cis: crate::render::cis::CisParams,
 }
 
 impl Variant {
@@ -61,16 +61,16 @@ impl Variant {
         let label = Self::NAMES.iter().find(|n| n.eq_ignore_ascii_case(name)).copied().ok_or_else(|| {
             Error::BadSetting(format!("unknown integrator '{name}' (known: {})", Self::NAMES.join(", ")))
         })?;
-        let d = crate::cis::CisParams::default();
+        let d = crate::render::cis::CisParams::default();
         let (kind, cis) = match label {
             "path" => (IntegratorKind::Path, d),
             "light" => (IntegratorKind::Light, d),
             "bdpt" => (IntegratorKind::Bdpt, d),
             "lvc" => (IntegratorKind::Lvc, d),
             "cis" => (IntegratorKind::Cis, d),
-            "cis-nosort" => (IntegratorKind::Cis, crate::cis::CisParams { sort: false, ..d }),
-            "cis-nois" => (IntegratorKind::Cis, crate::cis::CisParams { importance: false, ..d }),
-            _ => (IntegratorKind::Cis, crate::cis::CisParams { regenerate: false, ..d }),
+            "cis-nosort" => (IntegratorKind::Cis, crate::render::cis::CisParams { sort: false, ..d }),
+            "cis-nois" => (IntegratorKind::Cis, crate::render::cis::CisParams { importance: false, ..d }),
+            _ => (IntegratorKind::Cis, crate::render::cis::CisParams { regenerate: false, ..d }),
         };
         Ok(Variant { label, kind, cis })
     }

@@ -29,7 +29,6 @@
 pub mod aov;
 pub mod bsdf;
 pub mod cast;
-pub mod cis;
 pub mod converge;
 pub mod diff;
 pub mod error;
@@ -41,8 +40,11 @@ pub mod gpu;
 #[cfg(feature = "inspector")]
 pub mod inspector;
 pub mod lights;
+pub mod limits;
 /// PDACRT, one of the casters (`cast::pdacrt`), also at the crate's root.
 pub use cast::pdacrt;
+/// CIS-LBDPT lives with the other integrators under `render`; this is its old path.
+pub use render::cis;
 pub mod render;
 pub mod sampling;
 pub mod scene;

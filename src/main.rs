@@ -288,14 +288,17 @@ fn run_render(args: RenderArgs) -> Result<bool> {
         return Err(Error::BadSetting("--spp must be at least 1".into()));
     }
     // The scene file's depth and filter, unless a flag says otherwise.
-    let mut opts = s.image_options(RenderOptions {
-        width,
-        height,
-        budget,
-        seed: args.seed.or(s.seed).unwrap_or(0),
-        integrator,
-        ..Default::default()
-    });
+    let mut opts = RenderOptions::for_scene(
+        &s,
+        RenderOptions {
+            width,
+            height,
+            budget,
+            seed: args.seed.or(s.seed).unwrap_or(0),
+            integrator,
+            ..Default::default()
+        },
+    );
     opts.max_depth = args.max_depth.unwrap_or(opts.max_depth);
     opts.filter = args.filter.unwrap_or(opts.filter);
     opts.filter_mode = args.filter_mode.unwrap_or(opts.filter_mode);
@@ -506,7 +509,7 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
         None => check_outputs(&[with_ext("-reference.exr")], &["exr"])?,
     }
     // What the image means (depth, filter) comes from the scene file unless a flag says.
-    let mut image = desc.settings.image_options(RenderOptions { width, height, ..Default::default() });
+    let mut image = RenderOptions::for_scene(&desc.settings, RenderOptions { width, height, ..Default::default() });
     if let Some(d) = args.max_depth {
         image.max_depth = d;
     }

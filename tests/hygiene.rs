@@ -101,3 +101,74 @@ fn the_library_does_not_pull_in_the_command_line_crates() {
         }
     }
 }
+
+/// The top-level module of a source file under `src/` (`src/render/cis/mod.rs` ->
+/// `render`; `src/main.rs` and `src/bin/` are front ends).
+fn top_module(rel: &std::path::Path) -> String {
+    let first = rel.components().next().unwrap().as_os_str().to_string_lossy().to_string();
+    first.strip_suffix(".rs").unwrap_or(&first).to_string()
+}
+
+/// Every `crate::<module>` a file's code (not its comments) names, with the line.
+fn crate_references(text: &str) -> Vec<(usize, String)> {
+    let mut out = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let code = line.split("//").next().unwrap_or("");
+        let mut rest = code;
+        while let Some(at) = rest.find("crate::") {
+            rest = &rest[at + "crate::".len()..];
+            let name: String = rest.chars().take_while(|c| c.is_ascii_lowercase() || *c == '_').collect();
+            if !name.is_empty() {
+                out.push((n + 1, name));
+            }
+        }
+        // `use crate::{a::X, b::Y}`
+        if let Some(at) = code.find("crate::{") {
+            for part in code[at + 8..].split(',') {
+                let name: String = part.trim().chars().take_while(|c| c.is_ascii_lowercase() || *c == '_').collect();
+                if part.trim().starts_with(&format!("{name}::")) && !name.is_empty() {
+                    out.push((n + 1, name));
+                }
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn modules_import_only_downwards() {
+    // Layers, lowest first: what a module may not name is every module of a higher layer.
+    let layers: [&[&str]; 4] = [
+        &["error", "geometry", "sampling", "limits", "filter", "film", "scene", "bsdf", "lights"],
+        &["cast", "gpu"],
+        &["render", "aov"],
+        &["converge", "diff", "inspector", "main", "bin"],
+    ];
+    let layer_of = |m: &str| layers.iter().position(|l| l.contains(&m));
+    let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = vec![src.clone()];
+    let mut violations = Vec::new();
+    let mut seen = 0;
+    while let Some(p) = files.pop() {
+        if p.is_dir() {
+            files.extend(std::fs::read_dir(&p).unwrap().map(|e| e.unwrap().path()));
+            continue;
+        }
+        if p.extension().is_none_or(|e| e != "rs") || p == src.join("lib.rs") {
+            continue;
+        }
+        seen += 1;
+        let module = top_module(p.strip_prefix(&src).unwrap());
+        let Some(own) = layer_of(&module) else {
+            violations.push(format!("{}: module {module} is in no layer of this test", p.display()));
+            continue;
+        };
+        for (line, name) in crate_references(&std::fs::read_to_string(&p).unwrap()) {
+            if layer_of(&name).is_some_and(|l| l > own) {
+                violations.push(format!("{}:{line}: {module} names crate::{name}", p.display()));
+            }
+        }
+    }
+    assert!(seen > 40, "only {seen} source files found under {}", src.display());
+    assert!(violations.is_empty(), "imports against the layering:\n{}", violations.join("\n"));
+}

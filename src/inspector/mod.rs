@@ -8,10 +8,10 @@
 
 use crate::cast::pdacrt::{LevelRecord, Pdacrt, PdacrtParams};
 use crate::cast::{BvhCaster, CasterKind, RayCaster};
-use crate::cis::{CisLbdpt, CisParams, QueueRecord};
 use crate::converge::rmse;
 use crate::film::encode_srgb8;
 use crate::geometry::{Aabb, Hit};
+use crate::render::cis::{CisLbdpt, CisParams, QueueRecord};
 use crate::render::{Budget, Context, IntegratorKind, RenderOptions, Renderer};
 use crate::scene::{Scene, load_scene};
 use egui::{Color32, ColorImage, RichText, TextureHandle, TextureOptions, Ui};
@@ -656,14 +656,17 @@ impl Job {
         let reference = self.reference(&scene, &desc.settings, shared, stop)?;
         let caster = self.caster.build(&scene);
         // The scene file's depth and filter, as `warpray render` uses them.
-        let opts = desc.settings.image_options(RenderOptions {
-            width: w,
-            height: h,
-            budget: Budget::Samples(self.spp),
-            integrator: self.integrator,
-            cis: CisParams { measure: true, pool: 4096, ..CisParams::default() },
-            ..Default::default()
-        });
+        let opts = RenderOptions::for_scene(
+            &desc.settings,
+            RenderOptions {
+                width: w,
+                height: h,
+                budget: Budget::Samples(self.spp),
+                integrator: self.integrator,
+                cis: CisParams { measure: true, pool: 4096, ..CisParams::default() },
+                ..Default::default()
+            },
+        );
         let mut renderer = Renderer::new(&scene, caster.as_ref(), &opts)?;
         let mut film = renderer.film()?;
         {
@@ -773,13 +776,16 @@ impl Job {
         }
         lock(shared).status = "rendering the reference (path tracing): 0/256 spp".into();
         let bvh = BvhCaster::new(scene);
-        let o = settings.image_options(RenderOptions {
-            width: self.size,
-            height: self.size,
-            budget: Budget::Samples(256),
-            seed: 77,
-            ..Default::default()
-        });
+        let o = RenderOptions::for_scene(
+            settings,
+            RenderOptions {
+                width: self.size,
+                height: self.size,
+                budget: Budget::Samples(256),
+                seed: 77,
+                ..Default::default()
+            },
+        );
         let (film, _) = crate::render::render(scene, &bvh, &o, |pass, _| {
             lock(shared).status = format!("rendering the reference (path tracing): {pass}/256 spp");
             !stop.load(Ordering::Relaxed)

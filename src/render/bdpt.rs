@@ -89,7 +89,7 @@ impl Default for Vertex {
 
 /// Longest full path (light and camera vertices together) the bidirectional
 /// integrators handle: `max_depth + 2` vertices.
-pub const MAX_PATH: usize = 64;
+pub const MAX_PATH: usize = crate::limits::MAX_PATH_VERTICES;
 
 /// A full path on the stack, so kernels can build one without allocating. Slots past
 /// `len` are never read, so a new list costs nothing (no 64-vertex fill).

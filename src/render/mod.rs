@@ -6,6 +6,7 @@
 //! Russian roulette starts after 3 bounces.
 
 pub mod bdpt;
+pub mod cis;
 mod compact;
 pub mod lvc;
 mod path;
@@ -63,7 +64,7 @@ enum Integrator {
     Light(LightTracer),
     Bdpt(Bdpt),
     Lvc(LvcBdpt),
-    Cis(Box<crate::cis::CisLbdpt>),
+    Cis(Box<cis::CisLbdpt>),
 }
 
 impl std::str::FromStr for IntegratorKind {
@@ -103,7 +104,7 @@ pub struct RenderOptions {
     /// Light-vertex-cache settings (LVC-BDPT).
     pub lvc: LvcParams,
     /// CIS-LBDPT settings and switches.
-    pub cis: crate::cis::CisParams,
+    pub cis: cis::CisParams,
     /// BDPT, LVC-BDPT and CIS-LBDPT: keep one strategy's contributions and drop the
     /// rest (pbrt-v4's strategy images), for tests that check each strategy on its own.
     /// The random streams stay those of the full render in LVC and CIS (dropped
@@ -160,7 +161,7 @@ impl Default for RenderOptions {
             seed: 0,
             integrator: IntegratorKind::Path,
             lvc: LvcParams::default(),
-            cis: crate::cis::CisParams::default(),
+            cis: cis::CisParams::default(),
             strategy: None,
             filter: crate::filter::Filter::Box,
             filter_mode: crate::filter::FilterMode::Sample,
@@ -234,9 +235,21 @@ pub struct Renderer<'a> {
     counts: (u64, u64),
 }
 
-/// Longest time budget a render accepts, seconds (about 116 days; a `Duration` of
-/// 1e30 s does not exist).
-pub const MAX_SECONDS: f64 = 1.0e7;
+pub use crate::limits::MAX_SECONDS;
+
+impl RenderOptions {
+    /// `opts` with a scene file's choices of what the image means (path depth, pixel
+    /// filter and filter mode) wherever the file makes them: every front end (render,
+    /// converge, the inspector) applies these, so a scene gives the same image in each.
+    pub fn for_scene(settings: &crate::scene::RenderSettings, opts: RenderOptions) -> RenderOptions {
+        RenderOptions {
+            max_depth: settings.max_depth.unwrap_or(opts.max_depth),
+            filter: settings.filter.unwrap_or(opts.filter),
+            filter_mode: settings.filter_mode.unwrap_or(opts.filter_mode),
+            ..opts
+        }
+    }
+}
 
 impl<'a> Renderer<'a> {
     /// Checks the scene and settings and prepares the integrator.
@@ -255,7 +268,7 @@ impl<'a> Renderer<'a> {
         let limit = match opts.integrator {
             IntegratorKind::Path | IntegratorKind::Light => u32::MAX,
             IntegratorKind::Bdpt | IntegratorKind::Lvc => (bdpt::MAX_PATH - 2) as u32,
-            IntegratorKind::Cis => (crate::cis::kernels::MAX_CAMERA_VERTICES - 2) as u32,
+            IntegratorKind::Cis => (cis::kernels::MAX_CAMERA_VERTICES - 2) as u32,
         };
         if opts.max_depth > limit {
             return Err(Error::BadSetting(format!(
@@ -285,8 +298,8 @@ impl<'a> Renderer<'a> {
             IntegratorKind::Bdpt => Integrator::Bdpt(Bdpt),
             IntegratorKind::Lvc => Integrator::Lvc(LvcBdpt::new(opts.lvc)),
             IntegratorKind::Cis => Integrator::Cis(Box::new(match caster.device() {
-                Some(dev) => crate::cis::CisLbdpt::on_device(opts.cis, dev.clone()),
-                None => crate::cis::CisLbdpt::new(opts.cis),
+                Some(dev) => cis::CisLbdpt::on_device(opts.cis, dev.clone()),
+                None => cis::CisLbdpt::new(opts.cis),
             })),
         };
         Ok(Renderer { scene, caster, opts: opts.clone(), lights, integrator, counts: (0, 0) })
@@ -328,7 +341,7 @@ impl<'a> Renderer<'a> {
     }
 
     /// The CIS-LBDPT integrator, when that is the one running (queue records, device).
-    pub fn cis(&self) -> Option<&crate::cis::CisLbdpt> {
+    pub fn cis(&self) -> Option<&cis::CisLbdpt> {
         match &self.integrator {
             Integrator::Cis(c) => Some(c),
             _ => None,

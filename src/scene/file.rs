@@ -39,20 +39,6 @@ pub struct RenderSettings {
     pub filter_mode: Option<crate::filter::FilterMode>,
 }
 
-impl RenderSettings {
-    /// `opts` with the file's choices of what the image means (path depth, pixel filter
-    /// and filter mode) wherever the file makes them: every front end (render,
-    /// converge, the inspector) applies these, so a scene gives the same image in each.
-    pub fn image_options(&self, opts: crate::render::RenderOptions) -> crate::render::RenderOptions {
-        crate::render::RenderOptions {
-            max_depth: self.max_depth.unwrap_or(opts.max_depth),
-            filter: self.filter.unwrap_or(opts.filter),
-            filter_mode: self.filter_mode.unwrap_or(opts.filter_mode),
-            ..opts
-        }
-    }
-}
-
 fn parse_text<'de, D: serde::Deserializer<'de>, T: std::str::FromStr<Err = String>>(
     d: D,
 ) -> std::result::Result<Option<T>, D::Error> {
@@ -356,12 +342,12 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
     let err = |msg: String| Error::SceneFile { at: Location::file(path), msg };
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     if let Some(t) = file.render.seconds
-        && !(t > 0.0 && t <= crate::render::MAX_SECONDS)
+        && !(t > 0.0 && t <= crate::limits::MAX_SECONDS)
     {
         let line = text.lines().position(|l| l.trim_start().starts_with("seconds")).map_or(0, |i| i + 1);
         return Err(Error::SceneFile {
             at: Location::new(path, line),
-            msg: format!("render.seconds = {t}: must be positive and at most {:e}", crate::render::MAX_SECONDS),
+            msg: format!("render.seconds = {t}: must be positive and at most {:e}", crate::limits::MAX_SECONDS),
         });
     }
 

@@ -21,7 +21,7 @@ use xml::{Doc, Props, is_property};
 
 /// The largest `max_depth` (ours) every integrator supports; Mitsuba's −1 (no limit)
 /// becomes this.
-const UNLIMITED_DEPTH: u32 = (crate::render::bdpt::MAX_PATH - 2) as u32;
+const UNLIMITED_DEPTH: u32 = (crate::limits::MAX_PATH_VERTICES - 2) as u32;
 
 /// A BSDF as warpray stores it: the material and whether it is two-sided.
 #[derive(Clone, Copy)]
