@@ -1,10 +1,10 @@
 //! Every integrator with every caster on one scene: render time, rays cast, seconds
 //! inside the caster and ray–triangle tests, and each time over the BVH's for the same
-//! integrator. Path-at-a-time integrators (light, bdpt, lvc) hand the caster single
-//! rays and small batches; this shows what that costs a structure-free caster.
+//! integrator. Every integrator casts wavefronts (one batch per bounce, one per
+//! connection stage); this shows what the structure-free casters cost there.
 //!
 //! ```text
-//! cargo run --release --example integrator_casters -- [--size 64] [--spp 4]
+//! cargo run --release --example integrator_casters -- [--scene cornell|FILE.toml] [--size 64] [--spp 4]
 //!     [--integrators path,light,bdpt,lvc,cis] [--casters bvh,dacrt,pdacrt] [--repeat 3] [--json]
 //! ```
 
@@ -13,6 +13,10 @@ use warpray::prelude::*;
 
 #[derive(Parser)]
 struct Args {
+    /// `cornell` (built in) or a scene file (e.g. assets/scenes/bunny.toml; its models
+    /// come from $WARPRAY_MODELS).
+    #[arg(long, default_value = "cornell")]
+    scene: String,
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=4096))]
     size: u32,
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=65536))]
@@ -29,7 +33,8 @@ struct Args {
 }
 
 fn run(a: Args) -> Result<()> {
-    let scene = cornell_box();
+    let scene = if a.scene == "cornell" { cornell_box() } else { warpray::scene::load_scene(&a.scene)?.scene };
+    let title = if a.scene == "cornell" { "Cornell box".to_string() } else { a.scene.clone() };
     let kinds: Vec<CasterKind> = a
         .casters
         .iter()
@@ -40,7 +45,7 @@ fn run(a: Args) -> Result<()> {
         .collect::<Result<_>>()?;
     let integrators: Vec<IntegratorKind> = a.integrators.iter().map(|s| s.parse()).collect::<Result<_>>()?;
     if !a.json {
-        println!("# Cornell box, {0}x{0}, {1} spp, {2} threads\n", a.size, a.spp, rayon::current_num_threads());
+        println!("# {title}, {0}x{0}, {1} spp, {2} threads\n", a.size, a.spp, rayon::current_num_threads());
         println!("| integrator | caster | render ms | × bvh | rays | cast s (summed) | tests/ray |");
         println!("|---|---|---:|---:|---:|---:|---:|");
     }

@@ -7,7 +7,7 @@ use warpray::cast::BvhCaster;
 use warpray::film::Film;
 use warpray::glam::{Vec2, Vec3};
 use warpray::lights::Lights;
-use warpray::render::bdpt::{Vertex, VertexKind, mis_weight};
+use warpray::render::bidir::{Vertex, VertexKind, mis_weight};
 use warpray::render::{Budget, Context, IntegratorKind, RenderOptions, render};
 use warpray::scene::{Camera, Material, Scene, cornell_box};
 

@@ -10,10 +10,12 @@
 //! splats with `N_L / pixels`).
 
 use super::Context;
-use super::bdpt::{
-    Pending, Vertex, VertexKind, VertexList, camera_subpath, camera_vertex, connect_to_camera, connectible, full_path,
-    light_subpath, mis_weight_counts, resolve_pending, strategy_connect, strategy_emitter, strategy_light_sample,
+use super::bdpt::WaveBuffers;
+use super::bidir::{
+    Pending, Vertex, VertexKind, VertexList, camera_vertex, connect_to_camera, connectible, full_path,
+    mis_weight_counts, strategy_connect, strategy_emitter, strategy_light_sample,
 };
+use super::walk::{Subpaths, extend_together, resolve_wave, start_camera_wave, start_light_wave, waves};
 use crate::cast::CastStats;
 use crate::film::Film;
 use crate::film::luminance;
@@ -84,92 +86,87 @@ impl StrategyCounts {
     }
 }
 
-/// Traces the iteration's light subpaths: the cache, and the splats of every light
-/// vertex to the camera (weighted with `counts`, which need the cache size: the splats
-/// are weighted after the cache is built).
+/// Traces the iteration's light subpaths as wavefronts: the cache, and the splats of
+/// every light vertex to the camera (weighted with `counts`, which need the cache size:
+/// the splats are weighted after the cache is built).
 pub(crate) fn build_cache(
     ctx: &Context,
     pass: u32,
     n_light: u32,
     n_c: u32,
-) -> (LightVertexCache, StrategyCounts, Vec<(Vec2, Vec3)>, usize) {
+    wave_size: u32,
+) -> (LightVertexCache, StrategyCounts, Vec<(Vec2, Vec3)>, CastStats) {
     let max_vertices = ctx.opts.max_depth as usize + 1;
-    let paths: Vec<(Vec<Vertex>, usize)> = (0..n_light)
-        .into_par_iter()
-        .map(|i| {
-            let mut rng = Rng::for_sample(ctx.opts.seed ^ 0x4c56_4321, i as u64, pass as u64);
-            let mut verts = Vec::new();
-            let rays = light_subpath(ctx, &mut rng, max_vertices, &mut verts);
-            (verts, rays)
-        })
-        .collect();
     let mut cache = LightVertexCache { light_paths: n_light, ..Default::default() };
-    let mut rays = 0;
-    let mut starts = Vec::with_capacity(paths.len());
-    for (verts, r) in &paths {
-        rays += r;
-        let start = cache.vertices.len() as u32;
-        starts.push(start);
-        for (i, v) in verts.iter().enumerate() {
-            if v.kind == VertexKind::Surface && connectible(ctx, v) {
-                cache.entries.push((start, i as u32 + 1));
+    let mut stats = CastStats::default();
+    let (mut subpaths, mut walkers) = (Subpaths::default(), Vec::new());
+    // Per light path: where its vertices start in the cache, and how many it has.
+    let mut paths = Vec::with_capacity(n_light as usize);
+    for wave in waves(n_light, wave_size) {
+        let rng_of =
+            |i: usize| Rng::for_sample(ctx.opts.seed ^ 0x4c56_4321, (wave.start as usize + i) as u64, pass as u64);
+        let light = start_light_wave(ctx, wave.len(), rng_of, max_vertices, &mut subpaths, &mut walkers);
+        stats = stats.merge(extend_together(ctx, &mut [light]));
+        for i in 0..subpaths.len() {
+            let verts = subpaths.get(i);
+            let start = cache.vertices.len() as u32;
+            paths.push((start, verts.len() as u32));
+            for (k, v) in verts.iter().enumerate() {
+                if v.kind == VertexKind::Surface && connectible(ctx, v) {
+                    cache.entries.push((start, k as u32 + 1));
+                }
             }
+            cache.vertices.extend_from_slice(verts);
         }
-        cache.vertices.extend_from_slice(verts);
     }
     let pixels = (ctx.opts.width * ctx.opts.height) as f64;
     let counts = StrategyCounts { splat: n_light as f64 / pixels, connection: cache.connection_count(n_c) };
-    // Splats (t = 1) of every light vertex, in path order.
+    // Splats (t = 1) of every light vertex, in path order, their shadow rays cast one
+    // wave at a time.
     let cam_v = camera_vertex(&ctx.scene.camera);
     let scale = (pixels / n_light as f64) as f32;
-    // Each path's splats, with their shadow rays cast as one batch per path, in parallel;
-    // then merged in path order (deterministic).
-    let per_path: Vec<(Vec<(Vec2, Vec3)>, usize)> = paths
-        .par_iter()
-        .map_init(VertexList::default, |path, (verts, _)| {
-            let pending: Vec<PendingSplat> = (1..=verts.len())
-                .filter_map(|s| {
-                    if !ctx.opts.keeps(s, 1) {
-                        return None;
-                    }
-                    let (l, px, ray) = connect_to_camera(ctx, verts, s, &cam_v)?;
-                    full_path(verts, std::slice::from_ref(&cam_v), s, 1, path);
-                    let w = ctx
-                        .opts
-                        .strategy_weight(s, 1, || mis_weight_counts(ctx, path, s, |s, t| counts.count(s, t)))?;
-                    Some((l * w * scale, px, ray))
-                })
-                .collect();
-            let shadow: Vec<_> = pending.iter().map(|p| p.2).collect();
-            let mut blocked = vec![false; shadow.len()];
-            ctx.caster.occluded(&shadow, &mut blocked);
-            let visible = pending.iter().zip(blocked).filter(|(_, b)| !b).map(|(p, _)| (p.1, p.0)).collect();
-            (visible, shadow.len())
-        })
-        .collect();
     let mut splats = Vec::new();
-    for (visible, n) in per_path {
-        rays += n;
-        splats.extend(visible);
+    for wave in waves(n_light, wave_size) {
+        let pending: Vec<Vec<Pending>> = paths[wave.start as usize..wave.end as usize]
+            .par_iter()
+            .map_init(VertexList::default, |path, &(start, len)| {
+                let verts = &cache.vertices[start as usize..(start + len) as usize];
+                (1..=verts.len())
+                    .filter_map(|s| {
+                        if !ctx.opts.keeps(s, 1) {
+                            return None;
+                        }
+                        let (l, px, ray) = connect_to_camera(ctx, verts, s, &cam_v)?;
+                        full_path(verts, std::slice::from_ref(&cam_v), s, 1, path);
+                        let w = ctx
+                            .opts
+                            .strategy_weight(s, 1, || mis_weight_counts(ctx, path, s, |s, t| counts.count(s, t)))?;
+                        Some((Some(ray), l * w * scale, Some(px)))
+                    })
+                    .collect()
+            })
+            .collect();
+        let (resolved, shadow) = resolve_wave(ctx, &pending);
+        stats = stats.merge(shadow);
+        splats.extend(resolved.into_iter().flat_map(|(_, s)| s));
     }
-    (cache, counts, splats, rays)
+    (cache, counts, splats, stats)
 }
 
-/// A light vertex's camera splat waiting for its shadow ray: value, pixel, ray.
-type PendingSplat = (Vec3, Vec2, crate::geometry::Ray);
-
-/// LVC-BDPT, one task per camera path.
+/// LVC-BDPT: every pixel sample's camera subpath connects to a shared light vertex
+/// cache. The megakernel baseline: all strategies of a sample are evaluated together.
 pub struct LvcBdpt {
     /// Its settings.
     pub params: LvcParams,
     /// The cache of the last iteration (for the inspector and tests).
     pub last_cache: LightVertexCache,
+    pub(crate) buffers: WaveBuffers,
 }
 
 impl LvcBdpt {
     /// An LVC-BDPT integrator with `params`.
     pub fn new(params: LvcParams) -> Self {
-        LvcBdpt { params, last_cache: LightVertexCache::default() }
+        LvcBdpt { params, last_cache: LightVertexCache::default(), buffers: WaveBuffers::default() }
     }
 
     /// Renders one pass: trace and cache light subpaths, then one camera path per pixel connecting to the cache.
@@ -177,31 +174,29 @@ impl LvcBdpt {
         let (w, h) = (ctx.opts.width, ctx.opts.height);
         let n_light = if self.params.light_paths == 0 { w * h } else { self.params.light_paths };
         let n_c = self.params.connections;
-        let (cache, counts, splats, mut rays) = build_cache(ctx, pass, n_light, n_c);
+        let (cache, counts, splats, mut stats) = build_cache(ctx, pass, n_light, n_c, self.buffers.wave);
         film.add_splats(splats);
-        let results: Vec<(Vec3, usize)> = (0..w * h)
-            .into_par_iter()
-            .map_init(
-                || (Vec::new(), VertexList::default()),
-                |(cam, path), pixel| {
-                    let mut rng = Rng::for_sample(ctx.opts.seed, pixel as u64, pass as u64);
-                    let mut rays = camera_subpath(ctx, (pixel, pass), &mut rng, cam);
+        let b = &mut self.buffers;
+        let mut estimates = Vec::with_capacity((w * h) as usize);
+        for wave in waves(w * h, b.wave) {
+            let camera = start_camera_wave(ctx, pass, wave, &mut b.camera, &mut b.camera_walkers);
+            stats = stats.merge(extend_together(ctx, &mut [camera]));
+            let (camera, walkers) = (&b.camera, &b.camera_walkers);
+            let pending: Vec<Vec<Pending>> = (0..camera.len())
+                .into_par_iter()
+                .map_init(VertexList::default, |path, i| {
+                    let mut rng = walkers[i].rng;
                     let connections = Connections::Uniform { n: n_c };
-                    let pending = camera_strategies(ctx, cam, &cache, counts, connections, &mut rng, path);
-                    let (estimate, _, shadow) = resolve_pending(ctx, pending);
-                    rays += shadow;
-                    (estimate, rays)
-                },
-            )
-            .collect();
-        let mut estimates = Vec::with_capacity(results.len());
-        for (e, r) in results {
-            estimates.push(e);
-            rays += r;
+                    camera_strategies(ctx, camera.get(i), &cache, counts, connections, &mut rng, path)
+                })
+                .collect();
+            let (resolved, shadow) = resolve_wave(ctx, &pending);
+            stats = stats.merge(shadow);
+            estimates.extend(resolved.into_iter().map(|(e, _)| e));
         }
         film.add_pass(pass, &estimates);
         self.last_cache = cache;
-        CastStats { rays, ..Default::default() }
+        stats
     }
 }
 

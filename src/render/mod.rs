@@ -6,10 +6,12 @@
 //! Russian roulette starts after 3 bounces.
 
 pub mod bdpt;
+pub mod bidir;
 pub mod cis;
 mod compact;
 pub mod lvc;
 mod path;
+mod walk;
 
 pub use bdpt::{Bdpt, LightTracer};
 pub use lvc::{LvcBdpt, LvcParams};
@@ -267,7 +269,7 @@ impl<'a> Renderer<'a> {
         // Full paths live in fixed-size stack lists (kernels cannot allocate).
         let limit = match opts.integrator {
             IntegratorKind::Path | IntegratorKind::Light => u32::MAX,
-            IntegratorKind::Bdpt | IntegratorKind::Lvc => (bdpt::MAX_PATH - 2) as u32,
+            IntegratorKind::Bdpt | IntegratorKind::Lvc => (bidir::MAX_PATH - 2) as u32,
             IntegratorKind::Cis => (cis::kernels::MAX_CAMERA_VERTICES - 2) as u32,
         };
         if opts.max_depth > limit {
@@ -294,8 +296,8 @@ impl<'a> Renderer<'a> {
                 let ctx = Context { scene, lights: &lights, caster, opts };
                 Integrator::Path(PathTracer::new(&ctx))
             }
-            IntegratorKind::Light => Integrator::Light(LightTracer),
-            IntegratorKind::Bdpt => Integrator::Bdpt(Bdpt),
+            IntegratorKind::Light => Integrator::Light(LightTracer::default()),
+            IntegratorKind::Bdpt => Integrator::Bdpt(Bdpt::default()),
             IntegratorKind::Lvc => Integrator::Lvc(LvcBdpt::new(opts.lvc)),
             IntegratorKind::Cis => Integrator::Cis(Box::new(match caster.device() {
                 Some(dev) => cis::CisLbdpt::on_device(opts.cis, dev.clone()),

@@ -5,7 +5,7 @@
 use crate::filter::{Filter, FilterMode};
 use crate::geometry::{Hit, Ray, offset_ray_origin};
 use crate::render::Context;
-use crate::render::bdpt::{MAX_PATH, Pending, Vertex, VertexKind, VertexList};
+use crate::render::bidir::{MAX_PATH, Pending, Vertex, VertexKind, VertexList};
 use crate::render::lvc::{Connections, StrategyCounts, vertex_strategies};
 use crate::sampling::{Frame, Rng};
 use crate::scene::Camera;

@@ -27,7 +27,7 @@ use crate::cast::CastStats;
 use crate::film::Film;
 use crate::geometry::{Hit, Ray};
 use crate::render::Context;
-use crate::render::bdpt::Vertex;
+use crate::render::bidir::Vertex;
 use crate::render::lvc::{Connections, build_cache};
 use kernels::*;
 use simt::{Device, DeviceBuffer, DeviceConfig};
@@ -132,7 +132,9 @@ impl CisLbdpt {
             Connections::Uniform { n: p.draws.min(MAX_DRAWS as u32) }
         };
         let n_light = if p.light_paths == 0 { pixels } else { p.light_paths };
-        let (cache, counts, splats, mut rays) = build_cache(ctx, pass, n_light, connections.per_vertex());
+        let (cache, counts, splats, light_stats) =
+            build_cache(ctx, pass, n_light, connections.per_vertex(), crate::render::walk::WAVE);
+        let mut rays = light_stats.rays;
         film.add_splats(splats);
         let cache_vertices = dev.alloc_vec(cache.vertices);
         let cache_entries: DeviceBuffer<[u32; 2]> = dev.alloc_vec(cache.entries.iter().map(|&(a, b)| [a, b]).collect());

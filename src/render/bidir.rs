@@ -1,0 +1,430 @@
+//! The bidirectional core shared by light tracing, BDPT, LVC-BDPT and CIS-LBDPT
+//! (Veach 1997; the vertex bookkeeping follows the structure of pbrt's BDPT): subpath
+//! vertices, the strategies that join a light and a camera subpath, and their
+//! multiple-importance weights. How subpaths are extended is in [`super::walk`].
+//!
+//! A light subpath starts at a point sampled on a light (by power), a camera subpath at
+//! the pinhole. Strategy (s, t) joins the first s light vertices to the first t camera
+//! vertices: s = 0 (the camera path hits an emitter), s = 1 (a fresh light sample,
+//! next-event estimation), t = 1 (a light vertex connected to the camera and splatted
+//! onto the film), and the general connections. Each is weighted by the balance
+//! heuristic over all strategies that could have produced the same path, computed from
+//! the area densities of every vertex in both directions ([`mis_weight`]). Densities
+//! through a vertex whose sampled lobe was a delta are taken as 1 on both sides and
+//! strategies that would connect at such a vertex are excluded, so delta factors cancel.
+//!
+//! Light and camera connections need a pinhole camera (`aperture_radius = 0`).
+
+use super::Context;
+use crate::bsdf::TransportMode;
+use crate::geometry::{Ray, offset_ray_origin};
+use crate::lights::LightSample;
+use crate::sampling::{Frame, Rng};
+use crate::scene::Camera;
+use glam::{Vec2, Vec3};
+use std::f32::consts::{FRAC_1_PI, PI};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+/// What a subpath vertex is.
+pub enum VertexKind {
+    /// The camera (pinhole) vertex.
+    Camera,
+    /// A light sample (area light point or point light); for paths that reach an
+    /// emitter from the camera side, the hit vertex is relabelled a light.
+    Light,
+    /// A scattering surface.
+    Surface,
+}
+
+/// One vertex of a light or camera subpath. Plain data (it lives in device buffers of
+/// the streaming integrator too).
+#[derive(Clone, Copy, Debug)]
+#[repr(C)]
+pub struct Vertex {
+    /// What the vertex is.
+    pub kind: VertexKind,
+    /// Position.
+    pub p: Vec3,
+    /// Unit geometric normal (surfaces, area lights), the viewing direction (camera),
+    /// or zero (point lights).
+    pub n: Vec3,
+    /// Triangle of a surface or area light; `u32::MAX` otherwise.
+    pub tri: u32,
+    /// Throughput of the subpath up to this vertex (for a light vertex, 1 / its density).
+    pub beta: Vec3,
+    /// Emitted radiance (area light) or intensity (point light).
+    pub le: Vec3,
+    /// The lobe sampled here was a delta lobe (or: a point light).
+    pub delta: bool,
+    /// Padding (plain-data layout).
+    pub _pad: [u8; 3],
+}
+
+// SAFETY: #[repr(C)], 4-byte fields and an explicit pad after the bool; kinds and bools
+// are only ever written by other vertices.
+unsafe impl simt::DeviceCopy for Vertex {}
+
+impl Vertex {
+    /// A point light's vertex: a light with no surface (delta in position).
+    pub fn is_point_light(&self) -> bool {
+        self.kind == VertexKind::Light && self.n == Vec3::ZERO
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    /// A vertex from its parts.
+    pub fn new(kind: VertexKind, p: Vec3, n: Vec3, tri: u32, beta: Vec3, delta: bool, le: Vec3) -> Vertex {
+        Vertex { kind, p, n, tri, beta, le, delta, _pad: [0; 3] }
+    }
+}
+
+impl Default for Vertex {
+    fn default() -> Self {
+        Vertex::new(VertexKind::Camera, Vec3::ZERO, Vec3::ZERO, u32::MAX, Vec3::ZERO, false, Vec3::ZERO)
+    }
+}
+
+/// Longest full path (light and camera vertices together) the bidirectional
+/// integrators handle: `max_depth + 2` vertices.
+pub const MAX_PATH: usize = crate::limits::MAX_PATH_VERTICES;
+
+/// A full path on the stack, so kernels can build one without allocating. Slots past
+/// `len` are never read, so a new list costs nothing (no 64-vertex fill).
+#[derive(Clone, Copy)]
+pub struct VertexList {
+    buf: [std::mem::MaybeUninit<Vertex>; MAX_PATH],
+    len: usize,
+}
+
+impl Default for VertexList {
+    fn default() -> Self {
+        VertexList { buf: [std::mem::MaybeUninit::uninit(); MAX_PATH], len: 0 }
+    }
+}
+
+impl VertexList {
+    /// Empties the list.
+    pub fn clear(&mut self) {
+        self.len = 0;
+    }
+    /// Appends a vertex (the list holds `MAX_PATH`).
+    pub fn push(&mut self, v: Vertex) {
+        self.buf[self.len] = std::mem::MaybeUninit::new(v);
+        self.len += 1;
+    }
+    /// Appends vertices.
+    pub fn extend<'a>(&mut self, vs: impl IntoIterator<Item = &'a Vertex>) {
+        for v in vs {
+            self.push(*v);
+        }
+    }
+}
+
+impl std::ops::Deref for VertexList {
+    type Target = [Vertex];
+    fn deref(&self) -> &[Vertex] {
+        // SAFETY: the first `len` slots were written by `push`.
+        unsafe { std::slice::from_raw_parts(self.buf.as_ptr() as *const Vertex, self.len) }
+    }
+}
+
+impl std::ops::DerefMut for VertexList {
+    fn deref_mut(&mut self) -> &mut [Vertex] {
+        // SAFETY: as for `deref`.
+        unsafe { std::slice::from_raw_parts_mut(self.buf.as_mut_ptr() as *mut Vertex, self.len) }
+    }
+}
+
+/// Pinhole camera importance toward direction `w` (unit): `(We, pdf of the direction,
+/// film position in pixels)`, or `None` outside the image grown by `margin` pixels on
+/// every side (the reach of the pixel filter: [`crate::filter::Filter::margin`]). `We`
+/// and the pdf are normalised over the image itself, as the camera samples it.
+pub fn camera_importance(cam: &Camera, w: Vec3, width: u32, height: u32, margin: f32) -> Option<(f32, f32, Vec2)> {
+    let cos = w.dot(cam.forward);
+    if cos <= 0.0 {
+        return None;
+    }
+    let tan_half = (cam.vfov_deg.to_radians() * 0.5).tan();
+    let aspect = width as f32 / height as f32;
+    let p = w / cos;
+    let (sx, sy) = (p.dot(cam.right) / (tan_half * aspect), p.dot(cam.up) / tan_half);
+    let film = Vec2::new((sx + 1.0) * 0.5 * width as f32, (1.0 - sy) * 0.5 * height as f32);
+    let inside = |v: f32, n: u32| v >= -margin && v <= n as f32 + margin;
+    if !(inside(film.x, width) && inside(film.y, height)) {
+        return None;
+    }
+    let area = 4.0 * tan_half * tan_half * aspect;
+    let cos2 = cos * cos;
+    Some((1.0 / (area * cos2 * cos2), 1.0 / (area * cos2 * cos), film))
+}
+
+/// `|cos|` between a vertex's normal and `w` (1 for point lights).
+pub(crate) fn cos_at(v: &Vertex, w: Vec3) -> f32 {
+    match v.kind {
+        VertexKind::Light if v.n == Vec3::ZERO => 1.0,
+        _ => v.n.dot(w).abs(),
+    }
+}
+
+/// Area density of `next` when it is generated by sampling at `cur`, which was itself
+/// reached from `prev` (`None` when `cur` starts its subpath). Through a delta vertex: 1.
+fn pdf_area(ctx: &Context, prev: Option<&Vertex>, cur: &Vertex, next: &Vertex) -> f32 {
+    let d = next.p - cur.p;
+    let d2 = d.length_squared();
+    if d2 == 0.0 {
+        return 0.0;
+    }
+    let w = d / d2.sqrt();
+    let pdf_dir = match cur.kind {
+        VertexKind::Camera => {
+            camera_importance(&ctx.scene.camera, w, ctx.opts.width, ctx.opts.height, ctx.opts.filter.margin())
+                .map_or(0.0, |(_, pdf, _)| pdf)
+        }
+        VertexKind::Light if cur.n == Vec3::ZERO => 1.0 / (4.0 * PI),
+        VertexKind::Light => cur.n.dot(w).max(0.0) * FRAC_1_PI,
+        VertexKind::Surface => {
+            if cur.delta {
+                return 1.0;
+            }
+            let Some(prev) = prev else { return 0.0 };
+            let frame = Frame::from_normal(cur.n);
+            let wo = frame.to_local((prev.p - cur.p).normalize());
+            ctx.scene.bsdf(cur.tri, wo).pdf(wo, frame.to_local(w))
+        }
+    };
+    let cos_next = match next.kind {
+        VertexKind::Camera => w.dot(next.n).abs(),
+        _ => cos_at(next, w),
+    };
+    pdf_dir * cos_next / d2
+}
+
+/// Density with which a light subpath starts at `v` (light choice times area density).
+fn light_origin_pdf(ctx: &Context, v: &Vertex) -> f32 {
+    if v.n == Vec3::ZERO {
+        // A point light: the position is a delta; what remains is the choice.
+        ctx.lights.point_select_pdf(v.p)
+    } else {
+        ctx.lights.pdf_area(v.tri)
+    }
+}
+
+/// Balance-heuristic weight of strategy `s` for the full path `path` (light end first,
+/// camera last), one sample per strategy (BDPT). See [`mis_weight_counts`].
+pub fn mis_weight(ctx: &Context, path: &[Vertex], s: usize) -> f32 {
+    mis_weight_counts(ctx, path, s, |_, _| 1.0)
+}
+
+/// Balance-heuristic weight of strategy `s` for the full path `path`, where strategy
+/// (s', t') takes `count(s', t')` samples per camera sample (a light vertex cache makes
+/// connections more numerous than one per light path). Strategies whose connection
+/// would touch a delta vertex, and those that would need a path to hit the camera
+/// (t = 0) or a point light by chance (s = 0), are excluded.
+pub fn mis_weight_counts(ctx: &Context, path: &[Vertex], s: usize, count: impl Fn(usize, usize) -> f64) -> f32 {
+    let k = path.len() - 1;
+    let pl: Vec<f64> = (0..=k)
+        .map(|i| match i {
+            0 => light_origin_pdf(ctx, &path[0]) as f64,
+            _ => pdf_area(ctx, if i >= 2 { Some(&path[i - 2]) } else { None }, &path[i - 1], &path[i]) as f64,
+        })
+        .collect();
+    let pc: Vec<f64> = (0..=k)
+        .map(|i| if i == k { 1.0 } else { pdf_area(ctx, path.get(i + 2), &path[i + 1], &path[i]) as f64 })
+        .collect();
+    let valid = |s: usize| {
+        let t = k + 1 - s;
+        if t == 0 {
+            return false;
+        }
+        if s == 0 {
+            // Hitting the light needs no connection: possible for area lights only.
+            return !path[0].is_point_light();
+        }
+        if s == 1 && t == 1 && path[0].is_point_light() {
+            // A pinhole camera and a point light, both delta in position: see
+            // `connect_to_camera`.
+            return false;
+        }
+        let connectible = |v: &Vertex| v.kind != VertexKind::Surface || !v.delta;
+        connectible(&path[s - 1]) && connectible(&path[s])
+    };
+    let p = |s: usize| count(s, k + 1 - s) * pl[..s].iter().product::<f64>() * pc[s..].iter().product::<f64>();
+    let total: f64 = (0..=k).filter(|&s| valid(s)).map(p).sum();
+    if total > 0.0 && valid(s) { (p(s) / total) as f32 } else { 0.0 }
+}
+
+pub(crate) fn light_vertex(ls: &LightSample) -> Vertex {
+    let tri = ls.tri;
+    Vertex::new(VertexKind::Light, ls.position, ls.normal, tri, Vec3::splat(1.0 / ls.pdf), ls.is_delta, ls.emitted)
+}
+
+/// What one vertex scatters from `wo_point` toward `wi_point` (emission for a light).
+pub(crate) fn vertex_f(ctx: &Context, v: &Vertex, prev: Option<&Vertex>, toward: Vec3, mode: TransportMode) -> Vec3 {
+    let w = (toward - v.p).normalize();
+    match v.kind {
+        VertexKind::Light => {
+            if v.n == Vec3::ZERO || v.n.dot(w) > 0.0 {
+                v.le
+            } else {
+                Vec3::ZERO
+            }
+        }
+        VertexKind::Surface => {
+            let Some(prev) = prev else { return Vec3::ZERO };
+            let frame = Frame::from_normal(v.n);
+            let wo = frame.to_local((prev.p - v.p).normalize());
+            ctx.scene.bsdf(v.tri, wo).f(wo, frame.to_local(w), mode)
+        }
+        VertexKind::Camera => Vec3::ZERO,
+    }
+}
+
+/// A shadow ray between two vertices (offset off both surfaces).
+pub(crate) fn shadow_ray(a: &Vertex, b: &Vertex) -> Ray {
+    let off = |v: &Vertex, toward: Vec3| {
+        if v.kind == VertexKind::Camera || v.n == Vec3::ZERO {
+            v.p
+        } else {
+            let n = if v.n.dot(toward - v.p) > 0.0 { v.n } else { -v.n };
+            offset_ray_origin(v.p, n)
+        }
+    };
+    let (pa, pb) = (off(a, b.p), off(b, a.p));
+    Ray::segment(pa, pb - pa, 1.0 - 1e-4)
+}
+
+pub(crate) fn connectible(ctx: &Context, v: &Vertex) -> bool {
+    v.kind != VertexKind::Surface || !ctx.scene.material(v.tri).is_delta()
+}
+
+/// A contribution waiting for its shadow ray: value, and where it goes (`None`: this
+/// sample's pixel; `Some(p)`: a splat on pixel `p`).
+pub(crate) type Pending = (Option<Ray>, Vec3, Option<Vec2>);
+
+/// The t = 1 strategy for light vertex `s - 1`: its contribution to the pixel it projects on.
+///
+/// A point light's own vertex (s = 1) is never connected: the pinhole camera and the
+/// light are both points, so that path has no area to integrate over (its value would
+/// be a Dirac spike on one pixel, growing with the resolution), and no other strategy
+/// can produce it. Point lights are invisible to the camera, as in the path tracer,
+/// pbrt and Mitsuba.
+pub(crate) fn connect_to_camera(
+    ctx: &Context,
+    light: &[Vertex],
+    s: usize,
+    cam_v: &Vertex,
+) -> Option<(Vec3, Vec2, Ray)> {
+    let v = &light[s - 1];
+    if !connectible(ctx, v) || (s == 1 && v.is_point_light()) {
+        return None;
+    }
+    let d = v.p - cam_v.p;
+    let d2 = d.length_squared();
+    let w = d / d2.sqrt();
+    let (we, _, film) =
+        camera_importance(&ctx.scene.camera, w, ctx.opts.width, ctx.opts.height, ctx.opts.filter.margin())?;
+    let cos_cam = w.dot(cam_v.n);
+    let prev = if s >= 2 { light.get(s - 2) } else { None };
+    let f = vertex_f(ctx, v, prev, cam_v.p, TransportMode::Importance);
+    let l = v.beta * f * cos_at(v, -w) * we * cos_cam / d2;
+    (l.max_element() > 0.0).then(|| (l, film, shadow_ray(v, cam_v)))
+}
+
+/// The camera vertex at the sample's eye point.
+pub(crate) fn camera_vertex(cam: &Camera) -> Vertex {
+    Vertex::new(VertexKind::Camera, cam.position, cam.forward, u32::MAX, Vec3::ONE, false, Vec3::ZERO)
+}
+
+/// The full path of strategy (s, t): light vertices `0..s`, then camera vertices
+/// `t-1..=0`, with the connection vertices marked non-delta (they are evaluated by
+/// their continuous part).
+pub(crate) fn full_path(light: &[Vertex], cam: &[Vertex], s: usize, t: usize, out: &mut VertexList) {
+    out.clear();
+    out.extend(&light[..s]);
+    out.extend(cam[..t].iter().rev());
+    if s > 0 {
+        out[s - 1].delta = out[s - 1].is_point_light();
+    }
+    if t > 0 {
+        out[s].delta = false;
+    }
+}
+
+/// Strategy s = 0 at camera vertex `t - 1`: the camera path reached an emitter.
+/// Returns the unweighted contribution and the full path (in `path`).
+pub(crate) fn strategy_emitter(cam: &[Vertex], t: usize, light: &[Vertex], path: &mut VertexList) -> Option<Vec3> {
+    let v = cam[t - 1];
+    if v.le.max_element() <= 0.0 || v.n.dot(cam[t - 2].p - v.p) <= 0.0 {
+        return None;
+    }
+    full_path(light, cam, 0, t, path);
+    path[0] = Vertex { kind: VertexKind::Light, ..path[0] };
+    Some(v.beta * v.le)
+}
+
+/// Strategy s = 1 at camera vertex `t - 1`: a fresh light sample (next-event
+/// estimation). Returns the unweighted contribution and its shadow ray; the full path
+/// is left in `path`.
+pub(crate) fn strategy_light_sample(
+    ctx: &Context,
+    cam: &[Vertex],
+    t: usize,
+    rng: &mut Rng,
+    path: &mut VertexList,
+) -> Option<(Vec3, Ray)> {
+    let c = &cam[t - 1];
+    if !connectible(ctx, c) {
+        return None;
+    }
+    let ls = ctx.lights.sample(ctx.scene, rng.uniform(), rng.uniform2())?;
+    let lv = light_vertex(&ls);
+    let d = lv.p - c.p;
+    let d2 = d.length_squared();
+    if d2 == 0.0 {
+        return None;
+    }
+    let wdir = d / d2.sqrt();
+    let le = vertex_f(ctx, &lv, None, c.p, TransportMode::Importance);
+    let f = vertex_f(ctx, c, cam.get(t - 2), lv.p, TransportMode::Radiance);
+    let g = cos_at(c, wdir) * cos_at(&lv, wdir) / d2;
+    let l = c.beta * f * le * lv.beta * g;
+    if l.max_element() <= 0.0 {
+        return None;
+    }
+    path.clear();
+    path.push(lv);
+    path.extend(cam[..t].iter().rev());
+    path[1].delta = false;
+    Some((l, shadow_ray(c, &lv)))
+}
+
+/// A general connection: light vertex `s - 1` of `light` with camera vertex `t - 1`.
+/// Returns the unweighted contribution and its shadow ray; the full path is left in `path`.
+pub(crate) fn strategy_connect(
+    ctx: &Context,
+    light: &[Vertex],
+    s: usize,
+    cam: &[Vertex],
+    t: usize,
+    path: &mut VertexList,
+) -> Option<(Vec3, Ray)> {
+    let (lv, c) = (&light[s - 1], &cam[t - 1]);
+    if !connectible(ctx, lv) || !connectible(ctx, c) {
+        return None;
+    }
+    let d = lv.p - c.p;
+    let d2 = d.length_squared();
+    if d2 == 0.0 {
+        return None;
+    }
+    let wdir = d / d2.sqrt();
+    let fl = vertex_f(ctx, lv, if s >= 2 { light.get(s - 2) } else { None }, c.p, TransportMode::Importance);
+    let fc = vertex_f(ctx, c, cam.get(t - 2), lv.p, TransportMode::Radiance);
+    let g = cos_at(lv, wdir) * cos_at(c, wdir) / d2;
+    let l = lv.beta * fl * g * fc * c.beta;
+    if l.max_element() <= 0.0 {
+        return None;
+    }
+    full_path(light, cam, s, t, path);
+    Some((l, shadow_ray(lv, c)))
+}

@@ -1,0 +1,297 @@
+//! Subpaths extended as a wavefront, for the bidirectional integrators (light tracing,
+//! BDPT, LVC-BDPT and the light pass of CIS-LBDPT).
+//!
+//! A wave holds up to [`WAVE`] subpaths side by side. Each bounce gathers the next ray
+//! of every live subpath into one batch, casts it through the caster (so DACRT and
+//! PDACRT see thousands of rays per call, never one), and then advances every subpath
+//! in parallel with its hit: store the vertex, sample the BSDF, apply Russian roulette.
+//! Connections are gathered the same way: every sample's shadow rays go to the caster
+//! as one batch ([`resolve_wave`]).
+//!
+//! Each subpath owns its random stream (seeded by pixel or path and sample), and draws
+//! from it in the same order a one-path-at-a-time walk would, so images do not depend
+//! on the wave size, the thread count or the caster.
+
+use super::Context;
+use super::bidir::{Pending, Vertex, VertexKind, camera_vertex, light_vertex};
+use crate::bsdf::TransportMode;
+use crate::cast::CastStats;
+use crate::geometry::{Hit, Ray, offset_ray_origin};
+use crate::sampling::{Frame, Rng, cosine_hemisphere, uniform_sphere};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use std::f32::consts::{FRAC_1_PI, PI};
+use std::ops::Range;
+
+/// Most samples (or light paths) in one wave: bounds the vertex and pending buffers
+/// (about 64 bytes per vertex) whatever the image size.
+pub(crate) const WAVE: u32 = 1 << 16;
+
+/// The waves of up to `size` covering `0..n`, in order.
+pub(crate) fn waves(n: u32, size: u32) -> impl Iterator<Item = Range<u32>> {
+    let size = size.max(1);
+    (0..n.div_ceil(size)).map(move |k| k * size..((k + 1) * size).min(n))
+}
+
+/// One subpath being extended: its next ray, throughput and random stream.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Walker {
+    pub ray: Ray,
+    pub beta: Vec3,
+    pub rng: Rng,
+    bounces: u32,
+    live: bool,
+    /// Position of this walker's ray in the current batch.
+    slot: u32,
+}
+
+impl Walker {
+    /// A walker that will cast `ray` with throughput `beta`.
+    pub fn new(ray: Ray, beta: Vec3, rng: Rng) -> Walker {
+        Walker { ray, beta, rng, bounces: 0, live: true, slot: u32::MAX }
+    }
+
+    /// A walker that casts nothing (its subpath is complete as it stands).
+    pub fn done(rng: Rng) -> Walker {
+        Walker { live: false, ..Walker::new(Ray::new(Vec3::ZERO, Vec3::Z), Vec3::ZERO, rng) }
+    }
+}
+
+/// The subpaths of one wave: subpath `i`'s vertices are `verts[i * stride..][..len[i]]`.
+#[derive(Default)]
+pub(crate) struct Subpaths {
+    verts: Vec<Vertex>,
+    len: Vec<u32>,
+    stride: usize,
+}
+
+impl Subpaths {
+    /// Makes room for `n` empty subpaths of up to `stride` vertices (reusing the buffers).
+    pub fn reset(&mut self, n: usize, stride: usize) {
+        self.stride = stride;
+        self.len.clear();
+        self.len.resize(n, 0);
+        self.verts.resize(n * stride, Vertex::default());
+    }
+
+    /// Subpath `i`.
+    pub fn get(&self, i: usize) -> &[Vertex] {
+        &self.verts[i * self.stride..][..self.len[i] as usize]
+    }
+
+    /// Number of subpaths.
+    pub fn len(&self) -> usize {
+        self.len.len()
+    }
+
+    /// Each subpath's storage with its length, in parallel, for starting subpaths.
+    pub fn par_slots_mut(&mut self) -> impl IndexedParallelIterator<Item = (&mut [Vertex], &mut u32)> {
+        self.verts.par_chunks_mut(self.stride.max(1)).zip(self.len.par_iter_mut())
+    }
+}
+
+/// Camera subpaths through the pixels `pixels` of pass `pass` (jittered, up to
+/// `max_depth` bounces), sample `i` of the wave in slot `i`: started, not yet extended
+/// (see [`extend_together`]). Each walker keeps its pixel sample's random stream for
+/// the connections that follow.
+pub(crate) fn start_camera_wave<'a>(
+    ctx: &Context,
+    pass: u32,
+    pixels: Range<u32>,
+    subpaths: &'a mut Subpaths,
+    walkers: &'a mut Vec<Walker>,
+) -> Walk<'a> {
+    let (w, h) = (ctx.opts.width, ctx.opts.height);
+    let camera = &ctx.scene.camera;
+    let max_vertices = ctx.opts.max_depth as usize + 2;
+    subpaths.reset(pixels.len(), max_vertices);
+    subpaths
+        .par_slots_mut()
+        .zip(pixels)
+        .map(|((verts, len), pixel)| {
+            verts[0] = camera_vertex(camera);
+            *len = 1;
+            let rng = Rng::for_sample(ctx.opts.seed, pixel as u64, pass as u64);
+            let (film_pos, weight) = ctx.camera_sample(pixel, pass);
+            Walker::new(camera.generate_ray(film_pos, w, h, Vec2::ZERO), Vec3::splat(weight), rng)
+        })
+        .collect_into_vec(walkers);
+    Walk { walkers, subpaths, mode: TransportMode::Radiance, max_vertices }
+}
+
+/// `n` light subpaths of up to `max_vertices` vertices, subpath `i` drawing from
+/// `rng_of(i)`: a light sample (by power) as the first vertex, and a walker to extend
+/// it in importance mode.
+pub(crate) fn start_light_wave<'a>(
+    ctx: &Context,
+    n: usize,
+    rng_of: impl Fn(usize) -> Rng + Sync,
+    max_vertices: usize,
+    subpaths: &'a mut Subpaths,
+    walkers: &'a mut Vec<Walker>,
+) -> Walk<'a> {
+    subpaths.reset(n, max_vertices);
+    subpaths
+        .par_slots_mut()
+        .enumerate()
+        .map(|(i, (verts, len))| start_light_subpath(ctx, rng_of(i), max_vertices, verts, len))
+        .collect_into_vec(walkers);
+    Walk { walkers, subpaths, mode: TransportMode::Importance, max_vertices }
+}
+
+/// The first vertex of a light subpath, and the walker that continues it.
+fn start_light_subpath(
+    ctx: &Context,
+    mut rng: Rng,
+    max_vertices: usize,
+    verts: &mut [Vertex],
+    len: &mut u32,
+) -> Walker {
+    let Some(ls) = ctx.lights.sample(ctx.scene, rng.uniform(), rng.uniform2()) else { return Walker::done(rng) };
+    let origin = light_vertex(&ls);
+    verts[0] = origin;
+    *len = 1;
+    let (dir, pdf_dir, cos) = if ls.is_delta {
+        (uniform_sphere(rng.uniform2()), 1.0 / (4.0 * PI), 1.0)
+    } else {
+        let local = cosine_hemisphere(rng.uniform2());
+        (Frame::from_normal(ls.normal).to_world(local), local.z * FRAC_1_PI, local.z)
+    };
+    if pdf_dir <= 0.0 || max_vertices < 2 {
+        return Walker::done(rng);
+    }
+    let beta = origin.beta * ls.emitted * cos / pdf_dir;
+    let start = if ls.is_delta { ls.position } else { offset_ray_origin(ls.position, ls.normal) };
+    Walker::new(Ray::new(start, dir), beta, rng)
+}
+
+/// A set of subpaths to extend together: their walkers and storage, the transport
+/// mode of their BSDF samples, and their longest length.
+pub(crate) struct Walk<'a> {
+    pub walkers: &'a mut [Walker],
+    pub subpaths: &'a mut Subpaths,
+    pub mode: TransportMode,
+    pub max_vertices: usize,
+}
+
+/// Extends several sets of subpaths (e.g. a wave's camera and light subpaths) with one
+/// batch of rays per bounce for all of them: fewer, larger batches for the caster.
+pub(crate) fn extend_together(ctx: &Context, walks: &mut [Walk]) -> CastStats {
+    let mut stats = CastStats::default();
+    let (mut rays, mut hits) = (Vec::new(), Vec::new());
+    for walk in walks.iter_mut() {
+        for (w, &len) in walk.walkers.iter_mut().zip(&walk.subpaths.len) {
+            w.live &= (len as usize) < walk.max_vertices;
+        }
+    }
+    loop {
+        // Gather: the live walkers' rays, set after set, in walker order.
+        rays.clear();
+        for w in walks.iter_mut().flat_map(|walk| walk.walkers.iter_mut()).filter(|w| w.live) {
+            w.slot = rays.len() as u32;
+            rays.push(w.ray);
+        }
+        if rays.is_empty() {
+            return stats;
+        }
+        hits.clear();
+        hits.resize(rays.len(), Hit::MISS);
+        stats = stats.merge(ctx.caster.closest(&rays, &mut hits));
+        // Advance every live walker with its hit.
+        for walk in walks.iter_mut() {
+            let (mode, max_vertices, stride) = (walk.mode, walk.max_vertices, walk.subpaths.stride);
+            let slots = walk.subpaths.verts.par_chunks_mut(stride).zip(walk.subpaths.len.par_iter_mut());
+            walk.walkers.par_iter_mut().zip(slots).for_each(|(w, (verts, len))| {
+                if w.live {
+                    step(ctx, w, &hits[w.slot as usize], verts, len, mode, max_vertices);
+                }
+            });
+        }
+    }
+}
+
+/// One bounce of one subpath: the hit becomes a vertex, then the BSDF chooses the next ray.
+fn step(
+    ctx: &Context,
+    w: &mut Walker,
+    hit: &Hit,
+    verts: &mut [Vertex],
+    len: &mut u32,
+    mode: TransportMode,
+    max_vertices: usize,
+) {
+    w.live = false;
+    if !hit.is_hit() {
+        return;
+    }
+    let [a, b, c] = ctx.scene.vertices(hit.prim);
+    let n = (b - a).cross(c - a).normalize_or_zero();
+    if n == Vec3::ZERO {
+        return;
+    }
+    let p = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+    let here = *len as usize;
+    verts[here] = Vertex::new(VertexKind::Surface, p, n, hit.prim, w.beta, false, ctx.scene.emission_of(hit.prim));
+    *len += 1;
+    if here + 1 >= max_vertices {
+        return;
+    }
+    let frame = Frame::from_normal(n);
+    let wo = frame.to_local(-w.ray.dir.normalize());
+    let Some(s) = ctx.scene.bsdf(hit.prim, wo).sample_f(wo, w.rng.uniform(), w.rng.uniform2(), mode) else {
+        return;
+    };
+    verts[here].delta = s.delta;
+    w.beta *= s.weight;
+    w.bounces += 1;
+    if w.bounces > 3 {
+        let q = w.beta.max_element().min(0.95);
+        if w.rng.uniform() >= q {
+            return;
+        }
+        w.beta /= q;
+    }
+    if !w.beta.is_finite() || w.beta.max_element() <= 0.0 {
+        return;
+    }
+    let wi = frame.to_world(s.wi);
+    w.ray = Ray::new(offset_ray_origin(p, if wi.dot(n) > 0.0 { n } else { -n }), wi);
+    w.live = true;
+}
+
+/// What one sample of a wave adds to the image once its shadow rays are answered: its
+/// pixel estimate and its splats (in the order they were made).
+pub(crate) type Resolved = (Vec3, Vec<(Vec2, Vec3)>);
+
+/// Casts the shadow rays of every sample's pending contributions as one batch and sums
+/// each sample's visible ones, in sample order.
+pub(crate) fn resolve_wave(ctx: &Context, pending: &[Vec<Pending>]) -> (Vec<Resolved>, CastStats) {
+    let mut offsets = Vec::with_capacity(pending.len() + 1);
+    let mut shadow = Vec::new();
+    for list in pending {
+        offsets.push(shadow.len());
+        shadow.extend(list.iter().filter_map(|p| p.0));
+    }
+    offsets.push(shadow.len());
+    let mut blocked = vec![false; shadow.len()];
+    let stats = if shadow.is_empty() { CastStats::default() } else { ctx.caster.occluded(&shadow, &mut blocked) };
+    let resolved = pending
+        .par_iter()
+        .enumerate()
+        .map(|(i, list)| {
+            let mut blocked = blocked[offsets[i]..offsets[i + 1]].iter();
+            let (mut estimate, mut splats) = (Vec3::ZERO, Vec::new());
+            for &(ray, l, target) in list {
+                if ray.is_some() && *blocked.next().unwrap_or(&true) {
+                    continue;
+                }
+                match target {
+                    None => estimate += l,
+                    Some(px) => splats.push((px, l)),
+                }
+            }
+            (estimate, splats)
+        })
+        .collect();
+    (resolved, stats)
+}
