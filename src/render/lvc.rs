@@ -103,8 +103,7 @@ pub(crate) fn build_cache(
     // Per light path: where its vertices start in the cache, and how many it has.
     let mut paths = Vec::with_capacity(n_light as usize);
     for wave in waves(n_light, wave_size) {
-        let rng_of =
-            |i: usize| Rng::for_sample(ctx.opts.seed ^ 0x4c56_4321, (wave.start as usize + i) as u64, pass as u64);
+        let rng_of = |i: usize| light_path_rng(ctx, wave.start + i as u32, pass);
         let light = start_light_wave(ctx, wave.len(), rng_of, max_vertices, &mut subpaths, &mut walkers);
         stats = stats.merge(extend_together(ctx, &mut [light]));
         for i in 0..subpaths.len() {
@@ -123,27 +122,17 @@ pub(crate) fn build_cache(
     let counts = StrategyCounts { splat: n_light as f64 / pixels, connection: cache.connection_count(n_c) };
     // Splats (t = 1) of every light vertex, in path order, their shadow rays cast one
     // wave at a time.
-    let cam_v = camera_vertex(&ctx.scene.camera);
-    let scale = (pixels / n_light as f64) as f32;
     let mut splats = Vec::new();
     for wave in waves(n_light, wave_size) {
         let pending: Vec<Vec<Pending>> = paths[wave.start as usize..wave.end as usize]
             .par_iter()
             .map_init(VertexList::default, |path, &(start, len)| {
                 let verts = &cache.vertices[start as usize..(start + len) as usize];
-                (1..=verts.len())
-                    .filter_map(|s| {
-                        if !ctx.opts.keeps(s, 1) {
-                            return None;
-                        }
-                        let (l, px, ray) = connect_to_camera(ctx, verts, s, &cam_v)?;
-                        full_path(verts, std::slice::from_ref(&cam_v), s, 1, path);
-                        let w = ctx
-                            .opts
-                            .strategy_weight(s, 1, || mis_weight_counts(ctx, path, s, |s, t| counts.count(s, t)))?;
-                        Some((Some(ray), l * w * scale, Some(px)))
-                    })
-                    .collect()
+                let mut pending = Vec::new();
+                light_splats(ctx, verts, counts, n_light, path, &mut |ray, l, px| {
+                    pending.push((Some(ray), l, Some(px)))
+                });
+                pending
             })
             .collect();
         let (resolved, shadow) = resolve_wave(ctx, &pending);
@@ -151,6 +140,40 @@ pub(crate) fn build_cache(
         splats.extend(resolved.into_iter().flat_map(|(_, s)| s));
     }
     (cache, counts, splats, stats)
+}
+
+/// The random stream of light subpath `path` in pass `pass` (by path and pass, never
+/// by slot or thread; every light pass draws from these).
+pub(crate) fn light_path_rng(ctx: &Context, path: u32, pass: u32) -> Rng {
+    Rng::for_sample(ctx.opts.seed ^ 0x4c56_4321, path as u64, pass as u64)
+}
+
+/// The camera splats (t = 1) of one light subpath of an iteration with `n_light`
+/// subpaths, in vertex order, each given to `sink` as (shadow ray, weighted value,
+/// film position). Allocation-free: kernels call it.
+pub(crate) fn light_splats(
+    ctx: &Context,
+    verts: &[Vertex],
+    counts: StrategyCounts,
+    n_light: u32,
+    path: &mut VertexList,
+    sink: &mut dyn FnMut(crate::geometry::Ray, Vec3, Vec2),
+) {
+    let cam_v = camera_vertex(&ctx.scene.camera);
+    let scale = ((ctx.opts.width * ctx.opts.height) as f64 / n_light as f64) as f32;
+    for s in 1..=verts.len() {
+        if !ctx.opts.keeps(s, 1) {
+            continue;
+        }
+        let Some((l, px, ray)) = connect_to_camera(ctx, verts, s, &cam_v) else { continue };
+        full_path(verts, std::slice::from_ref(&cam_v), s, 1, path);
+        let Some(w) =
+            ctx.opts.strategy_weight(s, 1, || mis_weight_counts(ctx, path, s, |s, t| counts.count(s, t)))
+        else {
+            continue;
+        };
+        sink(ray, l * w * scale, px);
+    }
 }
 
 /// LVC-BDPT: every pixel sample's camera subpath connects to a shared light vertex

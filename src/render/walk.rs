@@ -39,8 +39,10 @@ pub(crate) struct Walker {
     pub ray: Ray,
     pub beta: Vec3,
     pub rng: Rng,
-    bounces: u32,
-    live: bool,
+    /// Bounces made (Russian roulette starts after 3).
+    pub bounces: u32,
+    /// Whether it has a ray to cast.
+    pub live: bool,
     /// Position of this walker's ray in the current batch.
     slot: u32,
 }
@@ -49,6 +51,11 @@ impl Walker {
     /// A walker that will cast `ray` with throughput `beta`.
     pub fn new(ray: Ray, beta: Vec3, rng: Rng) -> Walker {
         Walker { ray, beta, rng, bounces: 0, live: true, slot: u32::MAX }
+    }
+
+    /// A walker resumed from stored state (a device pool slot).
+    pub fn resume(ray: Ray, beta: Vec3, rng: Rng, bounces: u32, live: bool) -> Walker {
+        Walker { bounces, live, ..Walker::new(ray, beta, rng) }
     }
 
     /// A walker that casts nothing (its subpath is complete as it stands).
@@ -134,23 +141,25 @@ pub(crate) fn start_light_wave<'a>(
     subpaths
         .par_slots_mut()
         .enumerate()
-        .map(|(i, (verts, len))| start_light_subpath(ctx, rng_of(i), max_vertices, verts, len))
+        .map(|(i, (verts, len))| {
+            let (origin, walker) = start_light_subpath(ctx, rng_of(i), max_vertices);
+            if let Some(v) = origin {
+                verts[0] = v;
+                *len = 1;
+            }
+            walker
+        })
         .collect_into_vec(walkers);
     Walk { walkers, subpaths, mode: TransportMode::Importance, max_vertices }
 }
 
-/// The first vertex of a light subpath, and the walker that continues it.
-fn start_light_subpath(
-    ctx: &Context,
-    mut rng: Rng,
-    max_vertices: usize,
-    verts: &mut [Vertex],
-    len: &mut u32,
-) -> Walker {
-    let Some(ls) = ctx.lights.sample(ctx.scene, rng.uniform(), rng.uniform2()) else { return Walker::done(rng) };
+/// The first vertex of a light subpath (none when the scene has no light to sample),
+/// and the walker that continues it. Allocation-free: kernels call it.
+pub(crate) fn start_light_subpath(ctx: &Context, mut rng: Rng, max_vertices: usize) -> (Option<Vertex>, Walker) {
+    let Some(ls) = ctx.lights.sample(ctx.scene, rng.uniform(), rng.uniform2()) else {
+        return (None, Walker::done(rng));
+    };
     let origin = light_vertex(&ls);
-    verts[0] = origin;
-    *len = 1;
     let (dir, pdf_dir, cos) = if ls.is_delta {
         (uniform_sphere(rng.uniform2()), 1.0 / (4.0 * PI), 1.0)
     } else {
@@ -158,11 +167,11 @@ fn start_light_subpath(
         (Frame::from_normal(ls.normal).to_world(local), local.z * FRAC_1_PI, local.z)
     };
     if pdf_dir <= 0.0 || max_vertices < 2 {
-        return Walker::done(rng);
+        return (Some(origin), Walker::done(rng));
     }
     let beta = origin.beta * ls.emitted * cos / pdf_dir;
     let start = if ls.is_delta { ls.position } else { offset_ray_origin(ls.position, ls.normal) };
-    Walker::new(Ray::new(start, dir), beta, rng)
+    (Some(origin), Walker::new(Ray::new(start, dir), beta, rng))
 }
 
 /// A set of subpaths to extend together: their walkers and storage, the transport
@@ -202,61 +211,64 @@ pub(crate) fn extend_together(ctx: &Context, walks: &mut [Walk]) -> CastStats {
             let (mode, max_vertices, stride) = (walk.mode, walk.max_vertices, walk.subpaths.stride);
             let slots = walk.subpaths.verts.par_chunks_mut(stride).zip(walk.subpaths.len.par_iter_mut());
             walk.walkers.par_iter_mut().zip(slots).for_each(|(w, (verts, len))| {
-                if w.live {
-                    step(ctx, w, &hits[w.slot as usize], verts, len, mode, max_vertices);
+                if w.live
+                    && let Some(v) = step(ctx, w, &hits[w.slot as usize], *len as usize, mode, max_vertices)
+                {
+                    verts[*len as usize] = v;
+                    *len += 1;
                 }
             });
         }
     }
 }
 
-/// One bounce of one subpath: the hit becomes a vertex, then the BSDF chooses the next ray.
-fn step(
+/// One bounce of one subpath of `len` vertices: the hit becomes its next vertex
+/// (returned; none on a miss or a degenerate triangle), then the BSDF chooses the next
+/// ray, or the walker stops (`live` false). Allocation-free: kernels call it.
+pub(crate) fn step(
     ctx: &Context,
     w: &mut Walker,
     hit: &Hit,
-    verts: &mut [Vertex],
-    len: &mut u32,
+    len: usize,
     mode: TransportMode,
     max_vertices: usize,
-) {
+) -> Option<Vertex> {
     w.live = false;
     if !hit.is_hit() {
-        return;
+        return None;
     }
     let [a, b, c] = ctx.scene.vertices(hit.prim);
     let n = (b - a).cross(c - a).normalize_or_zero();
     if n == Vec3::ZERO {
-        return;
+        return None;
     }
     let p = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
-    let here = *len as usize;
-    verts[here] = Vertex::new(VertexKind::Surface, p, n, hit.prim, w.beta, false, ctx.scene.emission_of(hit.prim));
-    *len += 1;
-    if here + 1 >= max_vertices {
-        return;
+    let mut vertex = Vertex::new(VertexKind::Surface, p, n, hit.prim, w.beta, false, ctx.scene.emission_of(hit.prim));
+    if len + 1 >= max_vertices {
+        return Some(vertex);
     }
     let frame = Frame::from_normal(n);
     let wo = frame.to_local(-w.ray.dir.normalize());
     let Some(s) = ctx.scene.bsdf(hit.prim, wo).sample_f(wo, w.rng.uniform(), w.rng.uniform2(), mode) else {
-        return;
+        return Some(vertex);
     };
-    verts[here].delta = s.delta;
+    vertex.delta = s.delta;
     w.beta *= s.weight;
     w.bounces += 1;
     if w.bounces > 3 {
         let q = w.beta.max_element().min(0.95);
         if w.rng.uniform() >= q {
-            return;
+            return Some(vertex);
         }
         w.beta /= q;
     }
     if !w.beta.is_finite() || w.beta.max_element() <= 0.0 {
-        return;
+        return Some(vertex);
     }
     let wi = frame.to_world(s.wi);
     w.ray = Ray::new(offset_ray_origin(p, if wi.dot(n) > 0.0 { n } else { -n }), wi);
     w.live = true;
+    Some(vertex)
 }
 
 /// What one sample of a wave adds to the image once its shadow rays are answered: its

@@ -22,14 +22,17 @@
 //! stay in the pool as idle lanes until the whole pool is done).
 
 pub mod kernels;
+pub mod light;
+mod pool;
 
 use crate::cast::CastStats;
 use crate::film::Film;
 use crate::geometry::{Hit, Ray};
 use crate::render::Context;
 use crate::render::bidir::Vertex;
-use crate::render::lvc::{Connections, build_cache};
+use crate::render::lvc::{Connections, LightVertexCache, StrategyCounts};
 use kernels::*;
+use pool::{append_active, extend, indices_where, material_queues, survivors};
 use simt::{Device, DeviceBuffer, DeviceConfig};
 
 /// Parameters and switches of [`CisLbdpt`].
@@ -96,6 +99,7 @@ pub struct CisLbdpt {
     dev: Device,
     /// One record per wavefront iteration of the last pass (the inspector's queue panel).
     pub records: Vec<QueueRecord>,
+    cache: Option<light::DeviceCache>,
 }
 
 impl CisLbdpt {
@@ -111,7 +115,7 @@ impl CisLbdpt {
         if params.measure {
             dev.set_measure(true);
         }
-        CisLbdpt { params, dev, records: Vec::new() }
+        CisLbdpt { params, dev, records: Vec::new(), cache: None }
     }
 
     /// The emulated device: kernel statistics and memory.
@@ -119,208 +123,173 @@ impl CisLbdpt {
         &self.dev
     }
 
-    /// Renders one pass into `film`.
+    /// Renders one pass into `film`: the light pass streams the iteration's light
+    /// subpaths into the cache (`light`), then the camera pass streams one sample per
+    /// pixel through the pool, bounce by bounce.
     pub fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let dev = &self.dev;
         let p = self.params;
-        let (w, h) = (ctx.opts.width, ctx.opts.height);
-        let pixels = w * h;
-        let pool = p.pool.clamp(32, pixels.max(32)) as usize;
+        let pixels = ctx.opts.width * ctx.opts.height;
         let connections = if p.importance {
             Connections::Resampled { candidates: p.candidates, draws: p.draws.min(MAX_DRAWS as u32) }
         } else {
             Connections::Uniform { n: p.draws.min(MAX_DRAWS as u32) }
         };
         let n_light = if p.light_paths == 0 { pixels } else { p.light_paths };
-        let (cache, counts, splats, light_stats) =
-            build_cache(ctx, pass, n_light, connections.per_vertex(), crate::render::walk::WAVE);
-        let mut rays = light_stats.rays;
+        let (cache, counts, splats, mut rays) =
+            light::light_pass(dev, ctx, pass, (n_light, connections.per_vertex()), p.pool as usize, p.sort);
         film.add_splats(splats);
-        let cache_vertices = dev.alloc_vec(cache.vertices);
-        let cache_entries: DeviceBuffer<[u32; 2]> = dev.alloc_vec(cache.entries.iter().map(|&(a, b)| [a, b]).collect());
 
-        let mut slots = dev.alloc::<Slot>(pool);
-        let mut vertices = dev.alloc::<Vertex>(pool * MAX_CAMERA_VERTICES);
-        let mut pending = dev.alloc::<PendingData>(pool * PENDING_PER_SLOT);
-        let mut estimates = dev.alloc::<[f32; 3]>(pixels as usize);
-        let mut active = dev.alloc::<u32>(0);
-        let n_materials = ctx.scene.materials.len() as u32;
-        let key_bits = 32 - n_materials.leading_zeros();
-        let mut next_pixel = 0u32;
-        let mut bounce = 0;
+        let mut cam = CameraPool::new(dev, p.pool.clamp(32, pixels.max(32)) as usize, pixels as usize);
+        let (mut next_pixel, mut bounce) = (0u32, 0);
         loop {
-            // Regenerate into free slots (all at once without compaction, when the pool is done).
-            if next_pixel < pixels && (p.regenerate || active.is_empty()) {
-                let mut all = dev.alloc_pooled::<u32>(pool);
-                simt::sequence(dev, &mut all, 0, 1);
-                let mut free = dev.alloc_pooled::<u32>(pool);
-                let n_free = simt::copy_if_stencil(dev, &all, &slots, &mut free, |s: Slot| s.alive == 0);
-                let k = (n_free as u32).min(pixels - next_pixel) as usize;
-                if k > 0 {
-                    let (fv, sv, vv) = (free.view(), slots.view_mut(), vertices.view_mut());
-                    let cam = ctx.scene.camera;
-                    let (first, seed) = (next_pixel, ctx.opts.seed);
-                    dev.for_each("cis::generate", k, |t, i| {
-                        generate(
-                            t,
-                            i,
-                            &fv,
-                            first,
-                            pass,
-                            seed,
-                            (&cam, ctx.opts.filter, ctx.opts.filter_mode),
-                            (w, h),
-                            &sv,
-                            &vv,
-                        )
-                    });
-                    let mut grown = dev.alloc_pooled::<u32>(active.len() + k);
-                    let (av, fv, gv) = (active.view(), free.view(), grown.view_mut());
-                    let n_old = active.len();
-                    dev.for_each("cis::append_active", n_old + k, |t, i| {
-                        let v = if i < n_old { t.load(&av, i) } else { t.load(&fv, i - n_old) };
-                        t.store(&gv, i, v);
-                    });
-                    active = grown;
-                    next_pixel += k as u32;
-                }
+            if next_pixel < pixels && (p.regenerate || cam.active.is_empty()) {
+                next_pixel += cam.regenerate(ctx, pass, next_pixel, pixels - next_pixel);
             }
-            let n = active.len();
+            let n = cam.active.len();
             if n == 0 {
                 break;
             }
-            // Extend: one batch of rays through the caster. (Buffers the kernels fully
-            // overwrite, or read only as far as they were written, come from the device's
-            // pool without zero-filling.)
-            let mut ray_buf = dev.alloc_pooled::<Ray>(n);
-            {
-                let (av, sv, rv) = (active.view(), slots.view(), ray_buf.view_mut());
-                dev.for_each("cis::gather_rays", n, |t, i| t.store(&rv, i, t.load(&sv, t.load(&av, i) as usize).ray));
-            }
-            let mut hits = dev.alloc_pooled::<Hit>(n);
+            let hits = extend(dev, ctx, "cis::gather_rays", &cam.active, &cam.slots, |s: Slot| s.ray);
             rays += n;
-            // Dead samples kept in the pool (no compaction) carry invalid rays: they miss.
-            ctx.caster.closest(ray_buf.as_slice(), hits.as_mut_slice());
-            drop(ray_buf);
-
-            // Implicit queues: sort by material.
-            let mut keys = dev.alloc_pooled::<u32>(n);
-            let mut order = dev.alloc_pooled::<u32>(n);
-            {
-                let (hv, kv, ov) = (hits.view(), keys.view_mut(), order.view_mut());
-                let material_of = &ctx.scene.material_of;
-                dev.for_each("cis::material_keys", n, |t, i| {
-                    material_key(t, i, &hv, material_of, n_materials, &kv, &ov)
-                });
-            }
-            if p.sort {
-                simt::sort_by_key_bits(dev, &mut keys, &mut order, 0, key_bits.max(1));
-            }
-            let queues = queue_lengths(dev, &keys, p.sort);
-
-            // Shade.
-            let shade_record = {
-                let args = ShadeArgs {
-                    order: order.view(),
-                    active: active.view(),
-                    hits: hits.view(),
-                    slots: slots.view_mut(),
-                    vertices: vertices.view_mut(),
-                    pending: pending.view_mut(),
-                    cache_vertices: cache_vertices.view(),
-                    cache_entries: cache_entries.view(),
-                    counts,
-                    connections,
-                };
-                let cfg = simt::LaunchConfig::linear(n, 128).with_regions(&["shade"]);
-                dev.launch("cis::shade", cfg, |blk| {
-                    blk.for_each_thread(|t| {
-                        let j = t.global_idx();
-                        if j < n {
-                            shade(t, ctx, &args, j)
-                        }
-                    })
-                })
-                .expect("shade launch shape is valid")
-            };
-            drop((hits, keys, order));
-
-            // Connect: compact the pending shadow rays, cast them, accumulate.
-            let n_pending = pool * PENDING_PER_SLOT;
-            let mut blocked = dev.alloc::<u32>(n_pending);
-            {
-                let mut all = dev.alloc_pooled::<u32>(n_pending);
-                simt::sequence(dev, &mut all, 0, 1);
-                let mut idx = dev.alloc_pooled::<u32>(n_pending);
-                let m = simt::copy_if_stencil(dev, &all, &pending, &mut idx, |q: PendingData| q.state == 1);
-                let mut shadow = dev.alloc_pooled::<Ray>(m);
-                {
-                    let (iv, pv, sv) = (idx.view(), pending.view(), shadow.view_mut());
-                    dev.for_each("cis::gather_shadow_rays", m, |t, i| {
-                        t.store(&sv, i, t.load(&pv, t.load(&iv, i) as usize).ray)
-                    });
-                }
-                let mut occluded = vec![false; m];
-                ctx.caster.occluded(shadow.as_slice(), &mut occluded);
-                rays += m;
-                let flags = dev.alloc_vec(occluded.into_iter().map(u32::from).collect::<Vec<u32>>());
-                let (iv, fv, bv) = (idx.view(), flags.view(), blocked.view_mut());
-                dev.for_each("cis::scatter_blocked", m, |t, i| t.store(&bv, t.load(&iv, i) as usize, t.load(&fv, i)));
-            }
-            {
-                let (av, pv, bv, sv) = (active.view(), pending.view(), blocked.view(), slots.view_mut());
-                dev.for_each("cis::accumulate", n, |t, i| accumulate(t, i, &av, &pv, &bv, &sv));
-                let (av, sv, ev) = (active.view(), slots.view(), estimates.view_mut());
-                dev.for_each("cis::retire", n, |t, i| retire(t, i, &av, &sv, &ev));
-            }
-
-            // Compact the dead out of the active list.
-            let mut alive = dev.alloc_pooled::<u32>(n);
-            {
-                let (av, sv, lv) = (active.view(), slots.view(), alive.view_mut());
-                dev.for_each("cis::alive_flags", n, |t, i| t.store(&lv, i, t.load(&sv, t.load(&av, i) as usize).alive));
-            }
-            let mut kept = dev.alloc_pooled::<u32>(n);
-            let survivors = simt::copy_if_stencil(dev, &active, &alive, &mut kept, |a: u32| a != 0);
-            if p.regenerate || survivors == 0 {
-                active = dev.alloc_from(&kept.as_slice()[..survivors]);
+            let (order, queues) = material_queues(dev, ctx, "cis::material_keys", &hits, p.sort);
+            let shade = cam.shade(ctx, &order, &hits, &cache, counts, connections);
+            drop((hits, order));
+            rays += cam.connect(ctx);
+            cam.retire();
+            let kept = survivors(dev, "cis::alive_flags", &cam.active, &cam.slots, |s: Slot| s.alive != 0, true);
+            let survival = kept.len() as f32 / n as f32;
+            if p.regenerate || kept.is_empty() {
+                cam.active = kept;
             }
             self.records.push(QueueRecord {
                 pass,
                 bounce,
                 active: n,
                 queues,
-                survival: survivors as f32 / n as f32,
-                shade_simd: shade_record.simd_efficiency(),
-                shade_dispatch_simd: shade_record.region_efficiency("shade"),
+                survival,
+                shade_simd: shade.simd_efficiency(),
+                shade_dispatch_simd: shade.region_efficiency("shade"),
             });
             bounce += 1;
         }
-        let est: Vec<glam::Vec3> = estimates.as_slice().iter().map(|&e| glam::Vec3::from_array(e)).collect();
+        let est: Vec<glam::Vec3> = cam.estimates.as_slice().iter().map(|&e| glam::Vec3::from_array(e)).collect();
         film.add_pass(pass, &est);
+        self.cache = Some(cache);
         CastStats { rays, peak_working_bytes: dev.memory().peak, ..Default::default() }
+    }
+
+    /// The light vertex cache of the last pass, copied to the host with its subpaths in
+    /// the order of their numbers (the host light pass's order).
+    pub fn light_cache(&self) -> Option<LightVertexCache> {
+        self.cache.as_ref().map(light::DeviceCache::to_host)
     }
 }
 
-/// Queue length per key (run lengths of the sorted keys; unsorted keys give runs, which
-/// are merged per key here on the host-readable result).
-fn queue_lengths(dev: &Device, keys: &DeviceBuffer<u32>, sorted: bool) -> Vec<(u32, u32)> {
-    let n = keys.len();
-    let ones = dev.alloc_filled(n, 1u32);
-    let (mut rk, mut rv) = (dev.alloc_pooled::<u32>(n), dev.alloc_pooled::<u32>(n));
-    let runs = simt::reduce_by_key(dev, keys, &ones, &mut rk, &mut rv, 0, |a, b| a + b);
-    let mut out: Vec<(u32, u32)> =
-        rk.as_slice()[..runs].iter().copied().zip(rv.as_slice()[..runs].iter().copied()).collect();
-    if !sorted {
-        out.sort_by_key(|x| x.0);
-        out.dedup_by(|b, a| {
-            if a.0 == b.0 {
-                a.1 += b.1;
-                true
-            } else {
-                false
-            }
-        });
+/// The camera pass's pool: samples, their camera vertices and pending contributions,
+/// the active list, and the pixel estimates.
+struct CameraPool<'d> {
+    dev: &'d Device,
+    slots: DeviceBuffer<Slot>,
+    vertices: DeviceBuffer<Vertex>,
+    pending: DeviceBuffer<PendingData>,
+    estimates: DeviceBuffer<[f32; 3]>,
+    active: DeviceBuffer<u32>,
+}
+
+impl<'d> CameraPool<'d> {
+    fn new(dev: &'d Device, pool: usize, pixels: usize) -> Self {
+        CameraPool {
+            dev,
+            slots: dev.alloc(pool),
+            vertices: dev.alloc(pool * MAX_CAMERA_VERTICES),
+            pending: dev.alloc(pool * PENDING_PER_SLOT),
+            estimates: dev.alloc(pixels),
+            active: dev.alloc(0),
+        }
     }
-    out
+
+    /// Regenerate: samples for up to `left` pixels from `first` into the free slots,
+    /// appended to the active list; returns how many started.
+    fn regenerate(&mut self, ctx: &Context, pass: u32, first: u32, left: u32) -> u32 {
+        let dev = self.dev;
+        let free = indices_where(dev, &self.slots, |s: Slot| s.alive == 0);
+        let k = free.len().min(left as usize);
+        if k == 0 {
+            return 0;
+        }
+        let (fv, sv, vv) = (free.view(), self.slots.view_mut(), self.vertices.view_mut());
+        let (o, cam) = (ctx.opts, ctx.scene.camera);
+        dev.for_each("cis::generate", k, |t, i| {
+            generate(t, i, &fv, first, pass, o.seed, (&cam, o.filter, o.filter_mode), (o.width, o.height), &sv, &vv)
+        });
+        self.active = append_active(dev, "cis::append_active", &self.active, &free, k);
+        k as u32
+    }
+
+    /// Shade: every active sample, in `order`, meets its hit (`cis::shade`).
+    fn shade(
+        &mut self,
+        ctx: &Context,
+        order: &DeviceBuffer<u32>,
+        hits: &DeviceBuffer<Hit>,
+        cache: &light::DeviceCache,
+        counts: StrategyCounts,
+        connections: Connections,
+    ) -> simt::LaunchRecord {
+        let n = order.len();
+        let args = ShadeArgs {
+            order: order.view(),
+            active: self.active.view(),
+            hits: hits.view(),
+            slots: self.slots.view_mut(),
+            vertices: self.vertices.view_mut(),
+            pending: self.pending.view_mut(),
+            cache_vertices: cache.vertices.view(),
+            cache_entries: cache.entries.view(),
+            counts,
+            connections,
+        };
+        let cfg = simt::LaunchConfig::linear(n, 128).with_regions(&["shade"]);
+        self.dev
+            .launch("cis::shade", cfg, |blk| {
+                blk.for_each_thread(|t| {
+                    let j = t.global_idx();
+                    if j < n {
+                        shade(t, ctx, &args, j)
+                    }
+                })
+            })
+            .expect("shade launch shape is valid")
+    }
+
+    /// Connect: the pending shadow rays compacted, cast as one batch, and the visible
+    /// contributions accumulated (`cis::accumulate`); returns the rays cast.
+    fn connect(&mut self, ctx: &Context) -> usize {
+        let dev = self.dev;
+        let mut blocked = dev.alloc::<u32>(self.pending.len());
+        let waiting = indices_where(dev, &self.pending, |q: PendingData| q.state == 1);
+        let m = waiting.len();
+        let mut shadow = dev.alloc_pooled::<Ray>(m);
+        {
+            let (iv, pv, sv) = (waiting.view(), self.pending.view(), shadow.view_mut());
+            dev.for_each("cis::gather_shadow_rays", m, |t, i| t.store(&sv, i, t.load(&pv, t.load(&iv, i) as usize).ray));
+        }
+        let mut occluded = vec![false; m];
+        ctx.caster.occluded(shadow.as_slice(), &mut occluded);
+        let flags = dev.alloc_vec(occluded.into_iter().map(u32::from).collect::<Vec<u32>>());
+        {
+            let (iv, fv, bv) = (waiting.view(), flags.view(), blocked.view_mut());
+            dev.for_each("cis::scatter_blocked", m, |t, i| t.store(&bv, t.load(&iv, i) as usize, t.load(&fv, i)));
+        }
+        let (av, pv, bv, sv) = (self.active.view(), self.pending.view(), blocked.view(), self.slots.view_mut());
+        dev.for_each("cis::accumulate", self.active.len(), |t, i| accumulate(t, i, &av, &pv, &bv, &sv));
+        m
+    }
+
+    /// Retire: finished samples write their radiance to their pixels (`cis::retire`).
+    fn retire(&mut self) {
+        let (av, sv, ev) = (self.active.view(), self.slots.view(), self.estimates.view_mut());
+        self.dev.for_each("cis::retire", self.active.len(), |t, i| retire(t, i, &av, &sv, &ev));
+    }
 }

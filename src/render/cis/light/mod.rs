@@ -1,0 +1,286 @@
+//! CIS-LBDPT's light pass as a stream on the device: a pool of light subpaths advanced
+//! bounce by bounce with named kernels, as the camera pass is.
+//!
+//! 1. *regenerate*: `cis::light_generate` starts the next subpaths (by number, each with
+//!    its own random stream) in free slots, storing their light vertex;
+//! 2. *extend*: the active subpaths' rays go to the caster as one batch;
+//! 3. *sort by material*: `cis::light_material_keys` and `sort_by_key` (implicit queues);
+//! 4. *shade*: `cis::light_shade` stages the new vertex and samples the BSDF;
+//! 5. *store*: subpaths that ended are appended to the light vertex cache
+//!    ([`append_paths`]: counts, two scans, `cis::cache_store`);
+//! 6. *compact*: the ended leave the active list, freeing their slots.
+//!
+//! After the pool drains, every cached subpath's camera splats are made
+//! (`cis::light_splat`), their shadow rays cast as one batch per chunk of subpaths.
+//!
+//! The cache holds subpaths in the order they ended (bounce, then active order), which
+//! depends on the subpaths' random numbers only, never on threads; its contents are
+//! those of the host light pass (`lvc::build_cache`), subpath for subpath.
+
+pub mod kernels;
+
+use super::pool::{append_active, extend, indices_where, material_queues, survivors};
+use crate::geometry::Ray;
+use crate::render::Context;
+use crate::render::bidir::Vertex;
+use crate::render::lvc::{LightVertexCache, StrategyCounts};
+use glam::{Vec2, Vec3};
+use kernels::*;
+use simt::{Device, DeviceBuffer, LaunchConfig};
+
+/// The light vertex cache in device memory (see [`CacheViews`] for its layout).
+pub(crate) struct DeviceCache {
+    pub vertices: DeviceBuffer<Vertex>,
+    pub entries: DeviceBuffer<[u32; 2]>,
+    /// Per subpath: (its number in the iteration, first vertex, length).
+    pub paths: DeviceBuffer<[u32; 3]>,
+    /// Light subpaths the iteration traced.
+    pub light_paths: u32,
+}
+
+impl DeviceCache {
+    pub fn new(dev: &Device, light_paths: u32) -> DeviceCache {
+        DeviceCache { vertices: dev.alloc(0), entries: dev.alloc(0), paths: dev.alloc(0), light_paths }
+    }
+
+    /// MIS sample counts once the cache is complete (as [`LightVertexCache`]'s).
+    pub fn counts(&self, ctx: &Context, n_c: u32) -> StrategyCounts {
+        let pixels = (ctx.opts.width * ctx.opts.height) as f64;
+        let connection = if self.entries.is_empty() {
+            0.0
+        } else {
+            n_c as f64 * self.light_paths as f64 / self.entries.len() as f64
+        };
+        StrategyCounts { splat: self.light_paths as f64 / pixels, connection }
+    }
+
+    /// A host copy, subpaths in the order of their numbers (as the host light pass
+    /// builds it), for tests and the inspector.
+    pub fn to_host(&self) -> LightVertexCache {
+        let mut paths = self.paths.to_vec();
+        paths.sort_by_key(|p| p[0]);
+        let verts = self.vertices.as_slice();
+        let mut cache = LightVertexCache { light_paths: self.light_paths, ..Default::default() };
+        let mut entries = self.entries.to_vec();
+        entries.sort_by_key(|e| e[0]);
+        for [_, start, len] in paths {
+            let at = cache.vertices.len() as u32;
+            cache.vertices.extend_from_slice(&verts[start as usize..(start + len) as usize]);
+            let first = entries.partition_point(|e| e[0] < start);
+            let ours = entries[first..].iter().take_while(|e| e[0] == start);
+            cache.entries.extend(ours.map(|e| (at, e[1])));
+        }
+        cache
+    }
+}
+
+/// Appends the subpaths listed in `done` (slot, number, length; vertices staged
+/// `stride` per slot) to `cache`, in list order.
+pub(crate) fn append_paths(
+    dev: &Device,
+    ctx: &Context,
+    done: &DeviceBuffer<[u32; 3]>,
+    staging: &DeviceBuffer<Vertex>,
+    stride: usize,
+    cache: &mut DeviceCache,
+) {
+    let m = done.len();
+    if m == 0 {
+        return;
+    }
+    let (mut n_v, mut n_e) = (dev.alloc_pooled::<u32>(m), dev.alloc_pooled::<u32>(m));
+    {
+        let (dv, sv, vv, ev) = (done.view(), staging.view(), n_v.view_mut(), n_e.view_mut());
+        dev.for_each("cis::cache_counts", m, |t, f| cache_counts(t, ctx, f, (&dv, &sv, stride), &vv, &ev));
+    }
+    let (mut off_v, mut off_e) = (dev.alloc_pooled::<u32>(m), dev.alloc_pooled::<u32>(m));
+    simt::exclusive_scan(dev, &n_v, &mut off_v, 0, 0, |a, b| a + b);
+    simt::exclusive_scan(dev, &n_e, &mut off_e, 0, 0, |a, b| a + b);
+    let total = |off: &DeviceBuffer<u32>, n: &DeviceBuffer<u32>| (off.as_slice()[m - 1] + n.as_slice()[m - 1]) as usize;
+    let bases = [cache.vertices.len() as u32, cache.entries.len() as u32, cache.paths.len() as u32];
+    cache.vertices.resize(bases[0] as usize + total(&off_v, &n_v));
+    cache.entries.resize(bases[1] as usize + total(&off_e, &n_e));
+    cache.paths.resize(bases[2] as usize + m);
+    let views = CacheViews {
+        vertices: cache.vertices.view_mut(),
+        entries: cache.entries.view_mut(),
+        paths: cache.paths.view_mut(),
+    };
+    let (dv, sv, ov, oe) = (done.view(), staging.view(), off_v.view(), off_e.view());
+    dev.for_each("cis::cache_store", m, |t, f| {
+        cache_store(t, ctx, f, (&dv, &sv, stride), (&ov, &oe), bases, &views)
+    });
+}
+
+/// The iteration's light subpaths streamed through a pool of `pool` slots (sorted by
+/// material when `sort`): the cache, its MIS counts, the camera splats, and the rays cast.
+pub(crate) fn light_pass(
+    dev: &Device,
+    ctx: &Context,
+    pass: u32,
+    (n_light, n_c): (u32, u32),
+    pool: usize,
+    sort: bool,
+) -> (DeviceCache, StrategyCounts, Vec<(Vec2, Vec3)>, usize) {
+    let stride = ctx.opts.max_depth as usize + 1;
+    let pool = pool.clamp(32, (n_light as usize).max(32));
+    let mut slots = dev.alloc::<LightSlot>(pool);
+    let mut staging = dev.alloc::<Vertex>(pool * stride);
+    let mut cache = DeviceCache::new(dev, n_light);
+    let mut active = dev.alloc::<u32>(0);
+    let (mut next, mut rays) = (0u32, 0usize);
+    loop {
+        // Regenerate: the next subpaths into the free slots.
+        if next < n_light {
+            let free = indices_where(dev, &slots, |s: LightSlot| s.alive == 0);
+            let k = free.len().min((n_light - next) as usize);
+            let (fv, sv, gv) = (free.view(), slots.view_mut(), staging.view_mut());
+            dev.for_each("cis::light_generate", k, |t, i| {
+                light_generate(t, ctx, i, &fv, (next, pass), stride, &sv, &gv)
+            });
+            active = append_active(dev, "cis::light_append_active", &active, &free, k);
+            next += k as u32;
+        }
+        let n = active.len();
+        if n == 0 {
+            break;
+        }
+        let hits = extend(dev, ctx, "cis::light_gather_rays", &active, &slots, |s: LightSlot| s.ray);
+        rays += n;
+        let (order, _) = material_queues(dev, ctx, "cis::light_material_keys", &hits, sort);
+        let args = LightShadeArgs {
+            order: order.view(),
+            active: active.view(),
+            hits: hits.view(),
+            slots: slots.view_mut(),
+            staging: staging.view_mut(),
+            stride,
+        };
+        let cfg = LaunchConfig::linear(n, 128).with_regions(&["shade"]);
+        dev.launch("cis::light_shade", cfg, |blk| {
+            blk.for_each_thread(|t| {
+                let j = t.global_idx();
+                if j < n {
+                    light_shade(t, ctx, &args, j)
+                }
+            })
+        })
+        .expect("light shade launch shape is valid");
+        drop((hits, order));
+        // Store the ended subpaths, then compact them out.
+        let ended = survivors(dev, "cis::light_ended_flags", &active, &slots, |s: LightSlot| s.alive != 0, false);
+        let mut done = dev.alloc_pooled::<[u32; 3]>(ended.len());
+        {
+            let (ev, sv, dv) = (ended.view(), slots.view(), done.view_mut());
+            dev.for_each("cis::finished", ended.len(), |t, i| finished(t, i, &ev, &sv, &dv));
+        }
+        append_paths(dev, ctx, &done, &staging, stride, &mut cache);
+        active = survivors(dev, "cis::light_alive_flags", &active, &slots, |s: LightSlot| s.alive != 0, true);
+    }
+    drop((slots, staging));
+    let counts = cache.counts(ctx, n_c);
+    let (splats, splat_rays) = splat_stream(dev, ctx, &cache, counts, pool);
+    (cache, counts, splats, rays + splat_rays)
+}
+
+/// The camera splats of every cached subpath, `chunk` subpaths at a time: splat entries
+/// (`cis::light_splat`), their shadow rays compacted and cast as one batch, and the
+/// visible ones collected in subpath and vertex order.
+fn splat_stream(
+    dev: &Device,
+    ctx: &Context,
+    cache: &DeviceCache,
+    counts: StrategyCounts,
+    chunk: usize,
+) -> (Vec<(Vec2, Vec3)>, usize) {
+    let stride = ctx.opts.max_depth as usize + 1;
+    let (mut out, mut rays) = (Vec::new(), 0);
+    for first in (0..cache.paths.len()).step_by(chunk.max(1)) {
+        let m = chunk.min(cache.paths.len() - first);
+        let mut splats = dev.alloc_pooled::<SplatData>(m * stride);
+        {
+            let (pv, vv, sv) = (cache.paths.slice(first, m), cache.vertices.view(), splats.view_mut());
+            let n_light = cache.light_paths;
+            dev.for_each("cis::light_splat", m, |t, p| {
+                light_splat(t, ctx, p, (&pv, &vv), (counts, n_light), stride, &sv)
+            });
+        }
+        // Shadow rays of the waiting entries, as one batch.
+        let waiting = indices_where(dev, &splats, |s: SplatData| s.state == 1);
+        let mut shadow = dev.alloc_pooled::<Ray>(waiting.len());
+        {
+            let (wv, sv, rv) = (waiting.view(), splats.view(), shadow.view_mut());
+            dev.for_each("cis::gather_splat_rays", waiting.len(), |t, i| {
+                t.store(&rv, i, t.load(&sv, t.load(&wv, i) as usize).ray)
+            });
+        }
+        let mut blocked = vec![false; waiting.len()];
+        ctx.caster.occluded(shadow.as_slice(), &mut blocked);
+        rays += waiting.len();
+        let flags = dev.alloc_vec(blocked.into_iter().map(u32::from).collect::<Vec<u32>>());
+        {
+            let (wv, fv, sv) = (waiting.view(), flags.view(), splats.view_mut());
+            dev.for_each("cis::splat_visibility", waiting.len(), |t, i| {
+                let at = t.load(&wv, i) as usize;
+                let mut s = t.load(&sv, at);
+                s.state = if t.load(&fv, i) == 0 { 2 } else { 0 };
+                t.store(&sv, at, s);
+            });
+        }
+        out.extend(visible_splats(dev, &splats));
+    }
+    (out, rays)
+}
+
+/// The visible splats (`state` 2) of `splats`, in order (`copy_if`), read back.
+pub(crate) fn visible_splats(dev: &Device, splats: &DeviceBuffer<SplatData>) -> Vec<(Vec2, Vec3)> {
+    let mut kept = dev.alloc_pooled::<SplatData>(splats.len());
+    let m = simt::copy_if(dev, splats, &mut kept, |s: SplatData| s.state == 2);
+    kept.as_slice()[..m].iter().map(|s| (s.film, s.value)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cast::BvhCaster;
+    use crate::lights::Lights;
+    use crate::render::RenderOptions;
+    use crate::render::lvc::build_cache;
+    use crate::render::walk::WAVE;
+    use crate::scene::cornell_box;
+
+    /// Splats as sortable bit patterns (the stream makes them in another order).
+    fn sorted(splats: &[(Vec2, Vec3)]) -> Vec<[u32; 5]> {
+        let mut v: Vec<[u32; 5]> = splats
+            .iter()
+            .map(|(f, l)| [f.x.to_bits(), f.y.to_bits(), l.x.to_bits(), l.y.to_bits(), l.z.to_bits()])
+            .collect();
+        v.sort_unstable();
+        v
+    }
+
+    /// The streamed light pass, with small and large pools, sorted or not, caches the
+    /// same subpaths vertex for vertex as the host light pass, with the same MIS
+    /// counts and the same splats (as sets: the stream makes them in ending order).
+    #[test]
+    fn the_stream_caches_what_the_host_light_pass_caches() {
+        let scene = cornell_box();
+        let lights = Lights::new(&scene);
+        let caster = BvhCaster::new(&scene);
+        let opts = RenderOptions { width: 32, height: 24, seed: 11, max_depth: 6, ..Default::default() };
+        let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts };
+        let n_light = 32 * 24;
+        let (host, host_counts, host_splats, _) = build_cache(&ctx, 2, n_light, 3, WAVE);
+        assert!(host.entries.len() > n_light as usize / 2 && !host_splats.is_empty());
+        for (pool, sort) in [(32, true), (100, false), (1 << 16, true)] {
+            let dev = Device::default();
+            let (cache, counts, splats, _) = light_pass(&dev, &ctx, 2, (n_light, 3), pool, sort);
+            let copy = cache.to_host();
+            assert_eq!(format!("{:?}", copy.vertices), format!("{:?}", host.vertices), "pool {pool}: vertices");
+            assert_eq!(copy.entries, host.entries, "pool {pool}: entries");
+            assert_eq!(counts.connection, host_counts.connection);
+            assert_eq!(counts.splat, host_counts.splat);
+            assert!(sorted(&splats) == sorted(&host_splats), "pool {pool}: splats");
+        }
+    }
+}

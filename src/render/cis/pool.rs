@@ -1,0 +1,135 @@
+//! Pool bookkeeping that both CIS passes share: free slots and regeneration into them,
+//! the active list and its compaction, each bounce's batch of rays, and the implicit
+//! material queues. Host stages: each is a few launches and primitives.
+
+use crate::geometry::{Hit, Ray};
+use crate::render::Context;
+use crate::render::cis::kernels::material_key;
+use simt::{Device, DeviceBuffer, DeviceCopy};
+
+/// The indices of the elements of `items` that `pred` accepts, in order (`copy_if`):
+/// a pool's free slots, a list's waiting entries.
+pub(crate) fn indices_where<S: DeviceCopy>(
+    dev: &Device,
+    items: &DeviceBuffer<S>,
+    pred: impl Fn(S) -> bool + Sync + Copy,
+) -> DeviceBuffer<u32> {
+    let mut all = dev.alloc_pooled::<u32>(items.len());
+    simt::sequence(dev, &mut all, 0, 1);
+    let mut free = dev.alloc_pooled::<u32>(items.len());
+    let n = simt::copy_if_stencil(dev, &all, items, &mut free, pred);
+    free.resize(n);
+    free
+}
+
+/// The active list followed by the first `k` free slots (newly generated work).
+pub(crate) fn append_active(
+    dev: &Device,
+    name: &'static str,
+    active: &DeviceBuffer<u32>,
+    free: &DeviceBuffer<u32>,
+    k: usize,
+) -> DeviceBuffer<u32> {
+    let mut grown = dev.alloc_pooled::<u32>(active.len() + k);
+    let (av, fv, gv) = (active.view(), free.view(), grown.view_mut());
+    let n_old = active.len();
+    dev.for_each(name, n_old + k, |t, i| {
+        let v = if i < n_old { t.load(&av, i) } else { t.load(&fv, i - n_old) };
+        t.store(&gv, i, v);
+    });
+    grown
+}
+
+/// Extend: the active slots' rays gathered (`name`) and cast through the caster as one
+/// batch; their hits, in active order.
+pub(crate) fn extend<S: DeviceCopy>(
+    dev: &Device,
+    ctx: &Context,
+    name: &'static str,
+    active: &DeviceBuffer<u32>,
+    slots: &DeviceBuffer<S>,
+    ray_of: impl Fn(S) -> Ray + Sync,
+) -> DeviceBuffer<Hit> {
+    let n = active.len();
+    // Buffers the kernels fully overwrite come from the device's pool unfilled.
+    let mut rays = dev.alloc_pooled::<Ray>(n);
+    {
+        let (av, sv, rv) = (active.view(), slots.view(), rays.view_mut());
+        dev.for_each(name, n, |t, i| t.store(&rv, i, ray_of(t.load(&sv, t.load(&av, i) as usize))));
+    }
+    let mut hits = dev.alloc_pooled::<Hit>(n);
+    ctx.caster.closest(rays.as_slice(), hits.as_mut_slice());
+    hits
+}
+
+/// Implicit queues: each hit's material (misses last) as its key (`name`), and the
+/// active positions in material order when `sort` (arrival order otherwise), with the
+/// queue length per material.
+pub(crate) fn material_queues(
+    dev: &Device,
+    ctx: &Context,
+    name: &'static str,
+    hits: &DeviceBuffer<Hit>,
+    sort: bool,
+) -> (DeviceBuffer<u32>, Vec<(u32, u32)>) {
+    let n = hits.len();
+    let n_materials = ctx.scene.materials.len() as u32;
+    let key_bits = 32 - n_materials.leading_zeros();
+    let mut keys = dev.alloc_pooled::<u32>(n);
+    let mut order = dev.alloc_pooled::<u32>(n);
+    {
+        let (hv, kv, ov) = (hits.view(), keys.view_mut(), order.view_mut());
+        let material_of = &ctx.scene.material_of;
+        dev.for_each(name, n, |t, i| material_key(t, i, &hv, material_of, n_materials, &kv, &ov));
+    }
+    if sort {
+        simt::sort_by_key_bits(dev, &mut keys, &mut order, 0, key_bits.max(1));
+    }
+    let queues = queue_lengths(dev, &keys, sort);
+    (order, queues)
+}
+
+/// The active slots that `alive` accepts, in active order (flags by `name`, then
+/// `copy_if`).
+pub(crate) fn survivors<S: DeviceCopy>(
+    dev: &Device,
+    name: &'static str,
+    active: &DeviceBuffer<u32>,
+    slots: &DeviceBuffer<S>,
+    alive: impl Fn(S) -> bool + Sync,
+    keep: bool,
+) -> DeviceBuffer<u32> {
+    let n = active.len();
+    let mut flags = dev.alloc_pooled::<u32>(n);
+    {
+        let (av, sv, lv) = (active.view(), slots.view(), flags.view_mut());
+        dev.for_each(name, n, |t, i| t.store(&lv, i, (alive(t.load(&sv, t.load(&av, i) as usize)) == keep) as u32));
+    }
+    let mut kept = dev.alloc_pooled::<u32>(n);
+    let m = simt::copy_if_stencil(dev, active, &flags, &mut kept, |a: u32| a != 0);
+    kept.resize(m);
+    kept
+}
+
+/// Queue length per key (run lengths of the sorted keys; unsorted keys give runs, which
+/// are merged per key here on the host-readable result).
+fn queue_lengths(dev: &Device, keys: &DeviceBuffer<u32>, sorted: bool) -> Vec<(u32, u32)> {
+    let n = keys.len();
+    let ones = dev.alloc_filled(n, 1u32);
+    let (mut rk, mut rv) = (dev.alloc_pooled::<u32>(n), dev.alloc_pooled::<u32>(n));
+    let runs = simt::reduce_by_key(dev, keys, &ones, &mut rk, &mut rv, 0, |a, b| a + b);
+    let mut out: Vec<(u32, u32)> =
+        rk.as_slice()[..runs].iter().copied().zip(rv.as_slice()[..runs].iter().copied()).collect();
+    if !sorted {
+        out.sort_by_key(|x| x.0);
+        out.dedup_by(|b, a| {
+            if a.0 == b.0 {
+                a.1 += b.1;
+                true
+            } else {
+                false
+            }
+        });
+    }
+    out
+}
