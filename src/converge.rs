@@ -39,7 +39,7 @@ pub fn relmse_eps(image: &[Vec3], reference: &[Vec3], eps: f64) -> f64 {
 }
 
 /// An integrator with its settings, under a label for charts: `path`, `light`, `bdpt`,
-/// `lvc`, `cis`, and the CIS ablations `cis-nosort`, `cis-nois` (uniform connections)
+/// `lvc`, `lvc-mk` (LVC-BDPT as megakernels on the device), `cis`, and the CIS ablations `cis-nosort`, `cis-nois` (uniform connections)
 /// and `cis-nocompact` (no compaction or regeneration).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Variant {
@@ -49,12 +49,14 @@ pub struct Variant {
     pub kind: IntegratorKind,
     /// CIS-LBDPT switches (ablations).
     pub cis: crate::render::cis::CisParams,
+    /// LVC-BDPT settings (the megakernel).
+    pub lvc: crate::render::LvcParams,
 }
 
 impl Variant {
     /// Every label [`Variant::parse`] accepts.
-    pub const NAMES: [&'static str; 8] =
-        ["path", "light", "bdpt", "lvc", "cis", "cis-nosort", "cis-nois", "cis-nocompact"];
+    pub const NAMES: [&'static str; 9] =
+        ["path", "light", "bdpt", "lvc", "lvc-mk", "cis", "cis-nosort", "cis-nois", "cis-nocompact"];
 
     /// The variant of a label (case-insensitive); an error lists the known ones.
     pub fn parse(name: &str) -> Result<Variant> {
@@ -66,13 +68,14 @@ impl Variant {
             "path" => (IntegratorKind::Path, d),
             "light" => (IntegratorKind::Light, d),
             "bdpt" => (IntegratorKind::Bdpt, d),
-            "lvc" => (IntegratorKind::Lvc, d),
+            "lvc" | "lvc-mk" => (IntegratorKind::Lvc, d),
             "cis" => (IntegratorKind::Cis, d),
             "cis-nosort" => (IntegratorKind::Cis, crate::render::cis::CisParams { sort: false, ..d }),
             "cis-nois" => (IntegratorKind::Cis, crate::render::cis::CisParams { importance: false, ..d }),
             _ => (IntegratorKind::Cis, crate::render::cis::CisParams { regenerate: false, ..d }),
         };
-        Ok(Variant { label, kind, cis })
+        let lvc = crate::render::LvcParams { megakernel: label == "lvc-mk", ..Default::default() };
+        Ok(Variant { label, kind, cis, lvc })
     }
 }
 
@@ -143,6 +146,7 @@ pub fn run(
             seed: opts.seed,
             integrator: variant.kind,
             cis: variant.cis,
+            lvc: variant.lvc,
             filter: opts.filter,
             filter_mode: opts.filter_mode,
             ..Default::default()

@@ -75,8 +75,9 @@ struct ConvergeArgs {
     /// Scene, as for `render`.
     #[arg(default_value = "cornell")]
     scene: PathBuf,
-    /// Integrators to compare, comma-separated: path, light, bdpt, lvc, cis, and the
-    /// CIS ablations cis-nosort, cis-nois, cis-nocompact.
+    /// Integrators to compare, comma-separated: path, light, bdpt, lvc, lvc-mk (LVC-BDPT
+    /// as megakernels on the simt device), cis, and the CIS ablations cis-nosort,
+    /// cis-nois, cis-nocompact.
     #[arg(long, value_delimiter = ',', default_value = "path,light,bdpt")]
     integrators: Vec<String>,
     /// Time budget of each integrator, seconds.
@@ -151,6 +152,10 @@ struct RenderArgs {
     /// Ray caster.
     #[arg(long, value_enum, default_value = "bvh")]
     caster: CasterKind,
+    /// With `--integrator lvc`: run LVC-BDPT as megakernels on the simt device (one
+    /// thread per subpath, rays traced one at a time); the image is the same.
+    #[arg(long)]
+    megakernel: bool,
     /// How the BVH caster traverses: `fast` is obvhs' traversal over boxes padded so
     /// that its rounding never rejects a box a ray enters (docs/bvh.md); `checked`
     /// also re-checks every miss and unblocked shadow ray with the robust traversal;
@@ -300,6 +305,13 @@ fn run_render(args: RenderArgs) -> Result<bool> {
         },
     );
     opts.max_depth = args.max_depth.unwrap_or(opts.max_depth);
+    if args.megakernel && integrator != IntegratorKind::Lvc {
+        return Err(Error::BadSetting(format!(
+            "--megakernel runs LVC-BDPT on the device; it needs --integrator lvc, not {}",
+            integrator.name()
+        )));
+    }
+    opts.lvc.megakernel = args.megakernel;
     opts.filter = args.filter.unwrap_or(opts.filter);
     opts.filter_mode = args.filter_mode.unwrap_or(opts.filter_mode);
     warpray::film::check_size(width, height)?;

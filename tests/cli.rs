@@ -182,6 +182,11 @@ fn outputs_and_names_are_checked_before_any_work() {
     for (args, says) in [
         (vec!["render", "cornell", "-o", "/nonexistent-warpray-dir/x.png"], "does not exist"),
         (vec!["render", "cornell", "-o", "picture.jpg"], ".png or .exr"),
+        (vec!["render", "cornell", "--megakernel", "-o", "m.png"], "needs --integrator lvc"),
+        (
+            vec!["render", "cornell", "--integrator", "lvc", "--megakernel", "--caster", "pdacrt", "-o", "m.png"],
+            "one at a time",
+        ),
     ] {
         let start = std::time::Instant::now();
         let out = warpray().args(&args).arg("-q").current_dir(&dir).output().unwrap();

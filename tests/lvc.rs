@@ -50,7 +50,11 @@ fn converges_to_bdpt(scene: &Scene, lvc: LvcParams, what: &str) {
 fn lvc_converges_to_bdpt_on_the_cornell_box() {
     converges_to_bdpt(&cornell_box(), LvcParams::default(), "cornell");
     // Fewer light paths than pixels and more connections per vertex.
-    converges_to_bdpt(&cornell_box(), LvcParams { light_paths: 300, connections: 5 }, "cornell, 300 light paths");
+    converges_to_bdpt(
+        &cornell_box(),
+        LvcParams { light_paths: 300, connections: 5, ..Default::default() },
+        "cornell, 300 light paths",
+    );
 }
 
 #[test]

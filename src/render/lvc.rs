@@ -30,11 +30,17 @@ pub struct LvcParams {
     pub light_paths: u32,
     /// Cache connections per camera vertex (`n_c`).
     pub connections: u32,
+    /// Run as megakernels on the `simt` device (one thread per subpath, rays traced
+    /// one at a time; `render::megakernel`) instead of as wavefronts on the host.
+    /// The image is the same bit for bit.
+    pub megakernel: bool,
+    /// With `megakernel`: measure the kernels' SIMD efficiency and memory traffic.
+    pub measure: bool,
 }
 
 impl Default for LvcParams {
     fn default() -> Self {
-        LvcParams { light_paths: 0, connections: 3 }
+        LvcParams { light_paths: 0, connections: 3, megakernel: false, measure: false }
     }
 }
 
@@ -167,8 +173,7 @@ pub(crate) fn light_splats(
         }
         let Some((l, px, ray)) = connect_to_camera(ctx, verts, s, &cam_v) else { continue };
         full_path(verts, std::slice::from_ref(&cam_v), s, 1, path);
-        let Some(w) =
-            ctx.opts.strategy_weight(s, 1, || mis_weight_counts(ctx, path, s, |s, t| counts.count(s, t)))
+        let Some(w) = ctx.opts.strategy_weight(s, 1, || mis_weight_counts(ctx, path, s, |s, t| counts.count(s, t)))
         else {
             continue;
         };
@@ -184,12 +189,21 @@ pub struct LvcBdpt {
     /// The cache of the last iteration (for the inspector and tests).
     pub last_cache: LightVertexCache,
     pub(crate) buffers: WaveBuffers,
+    pub(crate) dev: Option<simt::Device>,
 }
 
 impl LvcBdpt {
     /// An LVC-BDPT integrator with `params`.
     pub fn new(params: LvcParams) -> Self {
-        LvcBdpt { params, last_cache: LightVertexCache::default(), buffers: WaveBuffers::default() }
+        let dev = params
+            .megakernel
+            .then(|| simt::Device::new(simt::DeviceConfig { measure: params.measure, ..Default::default() }));
+        LvcBdpt { params, last_cache: LightVertexCache::default(), buffers: WaveBuffers::default(), dev }
+    }
+
+    /// The device the megakernels run on (with `megakernel`).
+    pub fn device(&self) -> Option<&simt::Device> {
+        self.dev.as_ref()
     }
 
     /// Renders one pass: trace and cache light subpaths, then one camera path per pixel connecting to the cache.
@@ -197,6 +211,9 @@ impl LvcBdpt {
         let (w, h) = (ctx.opts.width, ctx.opts.height);
         let n_light = if self.params.light_paths == 0 { w * h } else { self.params.light_paths };
         let n_c = self.params.connections;
+        if let Some(dev) = &self.dev {
+            return super::megakernel::render_pass(dev, ctx, pass, (n_light, n_c), film);
+        }
         let (cache, counts, splats, mut stats) = build_cache(ctx, pass, n_light, n_c, self.buffers.wave);
         film.add_splats(splats);
         let b = &mut self.buffers;

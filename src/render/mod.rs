@@ -10,6 +10,7 @@ pub mod bidir;
 pub mod cis;
 mod compact;
 pub mod lvc;
+pub mod megakernel;
 mod path;
 mod walk;
 
@@ -290,6 +291,13 @@ impl<'a> Renderer<'a> {
                 opts.integrator.name()
             )));
         }
+        if opts.integrator == IntegratorKind::Lvc && opts.lvc.megakernel && matches!(caster.name(), "dacrt" | "pdacrt")
+        {
+            return Err(Error::BadSetting(format!(
+                "the LVC megakernel casts its rays one at a time, which the {} caster is not built for; use --caster bvh",
+                caster.name()
+            )));
+        }
         let lights = Lights::new(scene);
         let integrator = match opts.integrator {
             IntegratorKind::Path => {
@@ -354,7 +362,11 @@ impl<'a> Renderer<'a> {
     /// caster's (PDACRT), which a `cis` integrator shares, or the integrator's own.
     /// Its kernel table and memory peak cover the whole render.
     pub fn device(&self) -> Option<&simt::Device> {
-        self.cis().map(|c| c.device()).or_else(|| self.caster.device())
+        let lvc = match &self.integrator {
+            Integrator::Lvc(l) => l.device(),
+            _ => None,
+        };
+        self.cis().map(|c| c.device()).or(lvc).or_else(|| self.caster.device())
     }
 }
 

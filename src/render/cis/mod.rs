@@ -273,7 +273,9 @@ impl<'d> CameraPool<'d> {
         let mut shadow = dev.alloc_pooled::<Ray>(m);
         {
             let (iv, pv, sv) = (waiting.view(), self.pending.view(), shadow.view_mut());
-            dev.for_each("cis::gather_shadow_rays", m, |t, i| t.store(&sv, i, t.load(&pv, t.load(&iv, i) as usize).ray));
+            dev.for_each("cis::gather_shadow_rays", m, |t, i| {
+                t.store(&sv, i, t.load(&pv, t.load(&iv, i) as usize).ray)
+            });
         }
         let mut occluded = vec![false; m];
         ctx.caster.occluded(shadow.as_slice(), &mut occluded);

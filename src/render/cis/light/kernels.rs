@@ -56,16 +56,7 @@ unsafe impl DeviceCopy for SplatData {}
 
 impl LightSlot {
     fn new(w: &Walker, path: u32, len: u32) -> LightSlot {
-        LightSlot {
-            rng: w.rng,
-            ray: w.ray,
-            beta: w.beta,
-            path,
-            len,
-            bounces: w.bounces,
-            alive: w.live as u32,
-            _pad: 0,
-        }
+        LightSlot { rng: w.rng, ray: w.ray, beta: w.beta, path, len, bounces: w.bounces, alive: w.live as u32, _pad: 0 }
     }
 
     fn walker(&self) -> Walker {

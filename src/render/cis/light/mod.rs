@@ -107,9 +107,7 @@ pub(crate) fn append_paths(
         paths: cache.paths.view_mut(),
     };
     let (dv, sv, ov, oe) = (done.view(), staging.view(), off_v.view(), off_e.view());
-    dev.for_each("cis::cache_store", m, |t, f| {
-        cache_store(t, ctx, f, (&dv, &sv, stride), (&ov, &oe), bases, &views)
-    });
+    dev.for_each("cis::cache_store", m, |t, f| cache_store(t, ctx, f, (&dv, &sv, stride), (&ov, &oe), bases, &views));
 }
 
 /// The iteration's light subpaths streamed through a pool of `pool` slots (sorted by

@@ -1,0 +1,171 @@
+//! The LVC-BDPT megakernel's kernels: each thread does a whole subpath, tracing its
+//! rays one at a time where it needs them, as a GPU megakernel traverses its BVH per
+//! thread. Plain functions of a thread and `Copy` data; none allocates, forks or
+//! launches. Each ray is declared as one instruction of region `trace` (arm 0: closest
+//! hit, arm 1: shadow), and each shading as one of region `shade` on its material's
+//! arm, so that the measured SIMD efficiency counts the lanes idle while others go on.
+
+use crate::bsdf::TransportMode;
+use crate::geometry::{Hit, Ray};
+use crate::render::Context;
+use crate::render::bidir::{Vertex, VertexList, camera_vertex};
+use crate::render::cis::kernels::{SHADE_REGION, kind_index};
+use crate::render::cis::light::kernels::SplatData;
+use crate::render::lvc::{Connections, StrategyCounts, light_path_rng, light_splats, vertex_strategies};
+use crate::render::walk::{Walker, start_light_subpath, step};
+use crate::sampling::Rng;
+use glam::{Vec2, Vec3};
+use simt::{Global, GlobalMut, Readable, Thread};
+
+/// Region of the declared ray casts.
+pub const TRACE_REGION: usize = 1;
+/// The regions a megakernel launch names.
+pub const REGIONS: &[&str] = &["shade", "trace"];
+
+/// The closest hit of `ray`, cast alone through the caster.
+fn trace(t: &Thread, ctx: &Context, ray: Ray) -> Hit {
+    t.work(TRACE_REGION, 0, 1);
+    let mut hit = [Hit::MISS];
+    ctx.caster.closest(std::slice::from_ref(&ray), &mut hit);
+    hit[0]
+}
+
+/// Whether nothing blocks shadow ray `ray`, cast alone through the caster.
+fn unblocked(t: &Thread, ctx: &Context, ray: Ray) -> bool {
+    t.work(TRACE_REGION, 1, 1);
+    let mut blocked = [false];
+    ctx.caster.occluded(std::slice::from_ref(&ray), &mut blocked);
+    !blocked[0]
+}
+
+/// Extends `verts` with `w` until the walker stops, one traced ray per bounce.
+fn walk(t: &Thread, ctx: &Context, w: &mut Walker, verts: &mut VertexList, mode: TransportMode, max_vertices: usize) {
+    w.live &= verts.len() < max_vertices;
+    while w.live {
+        let hit = trace(t, ctx, w.ray);
+        if hit.is_hit() {
+            t.work(SHADE_REGION, kind_index(ctx.scene.material(hit.prim).kind_name()), 1);
+        }
+        if let Some(v) = step(ctx, w, &hit, verts.len(), mode, max_vertices) {
+            verts.push(v);
+        }
+    }
+}
+
+/// `lvc::light_path`: light subpath `first + i` traced whole and staged in slot `i`
+/// (`stride` vertices), listed in `done` as (slot, subpath, length).
+pub fn light_path(
+    t: &Thread,
+    ctx: &Context,
+    i: usize,
+    (first, pass): (u32, u32),
+    stride: usize,
+    staging: &GlobalMut<Vertex>,
+    done: &GlobalMut<[u32; 3]>,
+) {
+    let path = first + i as u32;
+    let (origin, mut w) = start_light_subpath(ctx, light_path_rng(ctx, path, pass), stride);
+    let mut verts = VertexList::default();
+    if let Some(v) = origin {
+        verts.push(v);
+        walk(t, ctx, &mut w, &mut verts, TransportMode::Importance, stride);
+    }
+    for (k, v) in verts.iter().enumerate() {
+        t.store(staging, i * stride + k, *v);
+    }
+    t.store(done, i, [i as u32, path, verts.len() as u32]);
+}
+
+/// `lvc::splat`: the camera splats of cache subpath `p`, each shadow ray traced at
+/// once; the visible ones fill its `stride` entries (`state` 2) in vertex order.
+#[allow(clippy::too_many_arguments)]
+pub fn splat(
+    t: &Thread,
+    ctx: &Context,
+    p: usize,
+    (paths, vertices): (&Global<[u32; 3]>, &Global<Vertex>),
+    (counts, n_light): (StrategyCounts, u32),
+    stride: usize,
+    splats: &GlobalMut<SplatData>,
+) {
+    let [_, start, len] = t.load(paths, p);
+    let mut verts = VertexList::default();
+    for k in 0..len as usize {
+        verts.push(t.load(vertices, start as usize + k));
+    }
+    let (mut path, mut next) = (VertexList::default(), 0);
+    light_splats(ctx, &verts, counts, n_light, &mut path, &mut |ray, value, film| {
+        if unblocked(t, ctx, ray) {
+            t.store(splats, p * stride + next, SplatData { ray, value, film, state: 2 });
+            next += 1;
+        }
+    });
+    for k in next..stride {
+        t.store(splats, p * stride + k, SplatData::default());
+    }
+}
+
+/// The light vertex cache as the camera kernel reads it.
+#[derive(Clone, Copy)]
+pub struct CacheRead<'a> {
+    /// Vertices, subpath after subpath.
+    pub vertices: Global<'a, Vertex>,
+    /// Per entry: its subpath's first vertex and `s`.
+    pub entries: Global<'a, [u32; 2]>,
+    /// MIS sample counts.
+    pub counts: StrategyCounts,
+    /// Uniform connections per camera vertex.
+    pub n_c: u32,
+}
+
+/// `lvc::camera_path`: pixel `pixel`'s sample of pass `pass`, whole: its camera subpath
+/// traced, then every strategy at every vertex, each shadow ray traced at once; the
+/// estimate goes to `estimates[pixel]`.
+pub fn camera_path(
+    t: &Thread,
+    ctx: &Context,
+    pixel: u32,
+    pass: u32,
+    cache: &CacheRead,
+    estimates: &GlobalMut<[f32; 3]>,
+) {
+    let (w, h) = (ctx.opts.width, ctx.opts.height);
+    let camera = &ctx.scene.camera;
+    let mut cam = VertexList::default();
+    cam.push(camera_vertex(camera));
+    let rng = Rng::for_sample(ctx.opts.seed, pixel as u64, pass as u64);
+    let (film_pos, weight) = ctx.camera_sample(pixel, pass);
+    let mut walker = Walker::new(camera.generate_ray(film_pos, w, h, Vec2::ZERO), Vec3::splat(weight), rng);
+    walk(t, ctx, &mut walker, &mut cam, TransportMode::Radiance, ctx.opts.max_depth as usize + 2);
+    let mut rng = walker.rng;
+    let subpath = |e: usize, light: &mut VertexList| {
+        let [start, s] = t.load(&cache.entries, e);
+        light.clear();
+        for k in 0..s as usize {
+            light.push(t.load(&cache.vertices, start as usize + k));
+        }
+        s as usize
+    };
+    let (mut path, mut estimate) = (VertexList::default(), Vec3::ZERO);
+    let connections = Connections::Uniform { n: cache.n_c };
+    for k in 2..=cam.len() {
+        let cache_len = cache.entries.len();
+        vertex_strategies(
+            ctx,
+            &cam,
+            k,
+            cache_len,
+            &subpath,
+            cache.counts,
+            connections,
+            &mut rng,
+            &mut path,
+            &mut |p| {
+                if p.0.is_none_or(|ray| unblocked(t, ctx, ray)) {
+                    estimate += p.1;
+                }
+            },
+        );
+    }
+    t.store(estimates, pixel as usize, estimate.to_array());
+}

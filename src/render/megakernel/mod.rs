@@ -1,0 +1,149 @@
+//! The LVC-BDPT megakernel on the `simt` device (`--integrator lvc --megakernel`): the
+//! baseline that CIS-LBDPT's stream is measured against, run the way a GPU megakernel
+//! runs it, one thread per subpath doing the whole subpath, so that the device measures
+//! its divergence.
+//!
+//! Each iteration:
+//! 1. `lvc::light_path`: one thread per light subpath traces it whole (a wave of up to
+//!    [`WAVE`] at a time) and stages its vertices; the wave is appended to the device
+//!    light vertex cache in subpath order (`cis::cache_counts`, scans, `cis::cache_store`,
+//!    shared with the stream);
+//! 2. `lvc::splat`: one thread per cached subpath connects each vertex to the camera,
+//!    tracing each shadow ray at once;
+//! 3. `lvc::camera_path`: one thread per pixel traces its camera subpath and evaluates
+//!    every strategy at every vertex, tracing each shadow ray at once.
+//!
+//! Threads draw the same random numbers in the same order as the wavefront LVC-BDPT
+//! (`lvc.rs`), and the cache holds the same subpaths in the same order, so the image is
+//! the same bit for bit: the megakernel differs in how the work is scheduled, never in
+//! what it computes. Rays go to the caster one at a time, so this wants a caster built
+//! for single rays (the BVH, or brute force on small scenes).
+
+pub mod kernels;
+
+use crate::cast::CastStats;
+use crate::film::Film;
+use crate::render::Context;
+use crate::render::bidir::Vertex;
+use crate::render::cis::light::kernels::SplatData;
+use crate::render::cis::light::{DeviceCache, append_paths, visible_splats};
+use crate::render::walk::{WAVE, waves};
+use kernels::*;
+use simt::{Device, LaunchConfig};
+
+/// Threads per block of the megakernel launches.
+const BLOCK: u32 = 128;
+
+/// Launches `kernel(thread, i)` for `i` in `0..n` in blocks of [`BLOCK`], with the
+/// `shade` and `trace` regions named.
+fn launch_per_item(dev: &Device, name: &'static str, n: usize, kernel: impl Fn(&simt::Thread, usize) + Sync) {
+    let cfg = LaunchConfig::linear(n, BLOCK).with_regions(REGIONS);
+    dev.launch(name, cfg, |blk| {
+        blk.for_each_thread(|t| {
+            let i = t.global_idx();
+            if i < n {
+                kernel(t, i)
+            }
+        })
+    })
+    .expect("a linear launch of 128-thread blocks is valid");
+}
+
+/// One pass of LVC-BDPT as megakernels on `dev`: `n_light` light subpaths, `n_c`
+/// uniform cache connections per camera vertex.
+pub(crate) fn render_pass(
+    dev: &Device,
+    ctx: &Context,
+    pass: u32,
+    (n_light, n_c): (u32, u32),
+    film: &mut Film,
+) -> CastStats {
+    let stride = ctx.opts.max_depth as usize + 1;
+    let cache = light_paths(dev, ctx, pass, n_light, stride);
+    let counts = cache.counts(ctx, n_c);
+    // Splats, a wave of cached subpaths at a time.
+    let mut splats = Vec::new();
+    for wave in waves(cache.paths.len() as u32, WAVE) {
+        let (first, m) = (wave.start as usize, wave.len());
+        let mut entries = dev.alloc_pooled::<SplatData>(m * stride);
+        let (pv, vv, sv) = (cache.paths.slice(first, m), cache.vertices.view(), entries.view_mut());
+        launch_per_item(dev, "lvc::splat", m, |t, p| splat(t, ctx, p, (&pv, &vv), (counts, n_light), stride, &sv));
+        splats.extend(visible_splats(dev, &entries));
+    }
+    film.add_splats(splats);
+    // Camera subpaths, one thread per pixel.
+    let pixels = (ctx.opts.width * ctx.opts.height) as usize;
+    let mut estimates = dev.alloc::<[f32; 3]>(pixels);
+    {
+        let read = CacheRead { vertices: cache.vertices.view(), entries: cache.entries.view(), counts, n_c };
+        let ev = estimates.view_mut();
+        launch_per_item(dev, "lvc::camera_path", pixels, |t, i| camera_path(t, ctx, i as u32, pass, &read, &ev));
+    }
+    let est: Vec<glam::Vec3> = estimates.as_slice().iter().map(|&e| glam::Vec3::from_array(e)).collect();
+    film.add_pass(pass, &est);
+    CastStats { peak_working_bytes: dev.memory().peak, ..Default::default() }
+}
+
+/// Stage 1: the light subpaths, one thread each, a wave at a time, appended to the
+/// cache in subpath order.
+fn light_paths(dev: &Device, ctx: &Context, pass: u32, n_light: u32, stride: usize) -> DeviceCache {
+    let mut cache = DeviceCache::new(dev, n_light);
+    for wave in waves(n_light, WAVE) {
+        let m = wave.len();
+        let mut staging = dev.alloc_pooled::<Vertex>(m * stride);
+        let mut done = dev.alloc_pooled::<[u32; 3]>(m);
+        {
+            let (sv, dv) = (staging.view_mut(), done.view_mut());
+            launch_per_item(dev, "lvc::light_path", m, |t, i| {
+                light_path(t, ctx, i, (wave.start, pass), stride, &sv, &dv)
+            });
+        }
+        append_paths(dev, ctx, &done, &staging, stride, &mut cache);
+    }
+    cache
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::cast::BvhCaster;
+    use crate::render::{IntegratorKind, LvcParams, RenderOptions, Renderer};
+    use crate::scene::cornell_box;
+
+    /// The megakernel schedules LVC-BDPT differently and computes the same thing: its
+    /// image equals the wavefront one bit for bit, over two passes (so the light pass,
+    /// the splats and the camera pass all count), with its kernels on the device.
+    #[test]
+    fn the_megakernel_renders_the_wavefront_image() {
+        let scene = cornell_box();
+        let caster = BvhCaster::new(&scene);
+        let image = |megakernel: bool| {
+            let lvc = LvcParams { megakernel, ..Default::default() };
+            let opts = RenderOptions {
+                width: 40,
+                height: 30,
+                integrator: IntegratorKind::Lvc,
+                seed: 9,
+                max_depth: 6,
+                lvc,
+                ..Default::default()
+            };
+            let mut r = Renderer::new(&scene, &caster, &opts).unwrap();
+            let mut film = r.film().unwrap();
+            for pass in 0..2 {
+                r.pass(pass, &mut film);
+            }
+            let kernels: Vec<&str> =
+                r.device().map(|d| d.kernel_stats().iter().map(|k| k.name).collect()).unwrap_or_default();
+            (film.mean(), kernels)
+        };
+        let (wavefront, none) = image(false);
+        let (mega, kernels) = image(true);
+        assert!(none.is_empty());
+        for k in ["lvc::light_path", "cis::cache_store", "lvc::splat", "lvc::camera_path"] {
+            assert!(kernels.contains(&k), "{k} did not run: {kernels:?}");
+        }
+        assert!(wavefront.iter().any(|p| p.max_element() > 0.0));
+        let differ = wavefront.iter().zip(&mega).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "{differ} pixels differ");
+    }
+}
