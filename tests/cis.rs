@@ -5,11 +5,10 @@ mod common;
 
 use common::*;
 use warpray::cast::BvhCaster;
-use warpray::cis::{CisLbdpt, CisParams};
+use warpray::cis::CisParams;
 use warpray::film::Film;
 use warpray::glam::Vec3;
-use warpray::lights::Lights;
-use warpray::render::{Budget, Context, IntegratorKind, LvcParams, RenderOptions, render};
+use warpray::render::{Budget, IntegratorKind, LvcParams, RenderOptions, Renderer, render};
 use warpray::scene::{Scene, cornell_box};
 
 fn opts(kind: IntegratorKind, spp: u32, cis: CisParams, lvc: LvcParams) -> RenderOptions {
@@ -116,16 +115,15 @@ fn sorting_by_material_raises_the_shading_kernels_simd_efficiency() {
     let scene = glossy_glass_box(); // diffuse, layered, rough glass, conductor, glossy
     let kinds: std::collections::HashSet<&str> = scene.materials.iter().map(|m| m.kind_name()).collect();
     assert!(kinds.len() >= 4, "{kinds:?}");
-    let lights = Lights::new(&scene);
     let caster = BvhCaster::new(&scene);
     let (mut efficiency, mut whole) = (Vec::new(), Vec::new());
     for sort in [false, true] {
         let p = CisParams { sort, measure: true, pool: 1024, ..CisParams::default() };
         let o = opts(IntegratorKind::Cis, 1, p, LvcParams::default());
-        let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &o };
-        let mut cis = CisLbdpt::new(p);
-        let mut f = Film::new(32, 32).unwrap();
-        cis.render_pass(&ctx, 0, &mut f);
+        let mut renderer = Renderer::new(&scene, &caster, &o).unwrap();
+        let mut f = renderer.film().unwrap();
+        renderer.pass(0, &mut f);
+        let cis = renderer.cis().unwrap();
         let shade = cis.device().kernel_stats().into_iter().find(|k| k.name == "cis::shade").unwrap();
         let e = shade.regions.iter().find(|r| r.name == "shade").unwrap().simd_efficiency().unwrap();
         // The queue records saw the materials and the bounces.

@@ -6,9 +6,7 @@ use common::*;
 use warpray::cast::BvhCaster;
 use warpray::film::Film;
 use warpray::glam::{Vec2, Vec3};
-use warpray::lights::Lights;
-use warpray::render::bidir::{Vertex, VertexKind, mis_weight};
-use warpray::render::{Budget, Context, IntegratorKind, RenderOptions, render};
+use warpray::render::{Budget, IntegratorKind, RenderOptions, render};
 use warpray::scene::{Camera, Material, Scene, cornell_box};
 
 fn render_mean(scene: &Scene, kind: IntegratorKind, size: u32, spp: u32, max_depth: u32) -> (Vec3, Film) {
@@ -121,44 +119,6 @@ fn path_light_and_bdpt_agree_on_the_cornell_box() {
 #[test]
 fn path_light_and_bdpt_agree_on_a_glossy_and_glass_scene() {
     converge_together(&glossy_glass_box(), 32, [1024, 1024, 256], "glossy+glass");
-}
-
-/// A concrete path through the Cornell box: light, floor, back wall, camera.
-fn sample_path(scene: &Scene, mirror_in_middle: bool) -> Vec<Vertex> {
-    let surf = |p: Vec3, n: Vec3, tri: u32, delta: bool| {
-        Vertex::new(VertexKind::Surface, p, n, tri, Vec3::ONE, delta, Vec3::ZERO)
-    };
-    let light_tri = (0..scene.triangle_count() as u32).find(|&t| scene.emission_of(t).max_element() > 0.0).unwrap();
-    let floor = 0; // first quad of the built-in box
-    let back = 4;
-    let cam = &scene.camera;
-    vec![
-        Vertex::new(VertexKind::Light, Vec3::new(0.05, 1.98, 0.0), -Vec3::Y, light_tri, Vec3::ONE, false, Vec3::ONE),
-        surf(Vec3::new(0.2, 0.0, 0.6), Vec3::Y, floor, mirror_in_middle),
-        surf(Vec3::new(-0.3, 1.2, -1.0), Vec3::Z, back, false),
-        Vertex::new(VertexKind::Camera, cam.position, cam.forward, u32::MAX, Vec3::ONE, false, Vec3::ZERO),
-    ]
-}
-
-#[test]
-fn mis_weights_of_all_strategies_sum_to_one() {
-    let scene = cornell_box();
-    let lights = Lights::new(&scene);
-    let caster = BvhCaster::new(&scene);
-    let opts = RenderOptions { width: 64, height: 64, ..Default::default() };
-    let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts };
-    let path = sample_path(&scene, false);
-    let weights: Vec<f32> = (0..path.len()).map(|s| mis_weight(&ctx, &path, s)).collect();
-    let sum: f32 = weights.iter().sum();
-    assert!((sum - 1.0).abs() < 1e-4, "weights {weights:?} sum to {sum}");
-    assert!(weights.iter().all(|&w| w > 0.0 && w < 1.0), "every strategy can make this path: {weights:?}");
-    // A delta vertex in the middle: the strategies connecting at it are impossible and
-    // get weight 0; the others still sum to 1.
-    let path = sample_path(&scene, true);
-    let weights: Vec<f32> = (0..path.len()).map(|s| mis_weight(&ctx, &path, s)).collect();
-    assert_eq!((weights[1], weights[2]), (0.0, 0.0), "{weights:?}");
-    let sum: f32 = weights.iter().sum();
-    assert!((sum - 1.0).abs() < 1e-4, "weights {weights:?} sum to {sum}");
 }
 
 #[test]

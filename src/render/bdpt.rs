@@ -1,7 +1,7 @@
 //! Light tracing and bidirectional path tracing (Veach 1997), run as wavefronts.
 //!
 //! Both take the pixels (or light paths) of a pass in waves of up to
-//! [`WAVE`](super::walk::WAVE) samples. Per wave, the host loop reads like the algorithm:
+//! 65,536 samples (`walk::WAVE`). Per wave, the host loop reads like the algorithm:
 //!
 //! 1. *camera subpaths* (BDPT): every sample's camera subpath, one batch of rays per bounce;
 //! 2. *light subpaths*: every sample's light subpath, the same way;
@@ -11,7 +11,7 @@
 //!    the sample's pixel or, for camera connections (t = 1), onto the film as splats.
 //!
 //! Light tracing is the t = 1 strategies alone, unweighted. The strategies and their
-//! weights live in [`super::bidir`], the wavefront walks in [`super::walk`].
+//! weights live in [`super::bidir`], the wavefront walks in `render/walk.rs`.
 
 use super::Context;
 use super::bidir::{
@@ -60,7 +60,7 @@ pub struct LightTracer {
 
 impl LightTracer {
     /// Renders one pass: one light subpath per pixel, splatted through the camera.
-    pub fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
+    pub(crate) fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let max_vertices = ctx.opts.max_depth as usize + 1;
         let cam_v = camera_vertex(&ctx.scene.camera);
         let b = &mut self.buffers;
@@ -94,7 +94,7 @@ impl LightTracer {
 
 impl Bdpt {
     /// Renders one pass: one camera and one light subpath per pixel, every connection weighted by MIS.
-    pub fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
+    pub(crate) fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let max_vertices = ctx.opts.max_depth as usize + 1;
         let b = &mut self.buffers;
         let mut stats = CastStats::default();

@@ -1,7 +1,7 @@
 //! The bidirectional core shared by light tracing, BDPT, LVC-BDPT and CIS-LBDPT
 //! (Veach 1997; the vertex bookkeeping follows the structure of pbrt's BDPT): subpath
 //! vertices, the strategies that join a light and a camera subpath, and their
-//! multiple-importance weights. How subpaths are extended is in [`super::walk`].
+//! multiple-importance weights. How subpaths are extended is in `render/walk.rs`.
 //!
 //! A light subpath starts at a point sampled on a light (by power), a camera subpath at
 //! the pinhole. Strategy (s, t) joins the first s light vertices to the first t camera
@@ -9,7 +9,7 @@
 //! next-event estimation), t = 1 (a light vertex connected to the camera and splatted
 //! onto the film), and the general connections. Each is weighted by the balance
 //! heuristic over all strategies that could have produced the same path, computed from
-//! the area densities of every vertex in both directions ([`mis_weight`]). Densities
+//! the area densities of every vertex in both directions (`mis_weight`). Densities
 //! through a vertex whose sampled lobe was a delta are taken as 1 on both sides and
 //! strategies that would connect at such a vertex are excluded, so delta factors cancel.
 //!
@@ -211,7 +211,7 @@ fn light_origin_pdf(ctx: &Context, v: &Vertex) -> f32 {
 
 /// Balance-heuristic weight of strategy `s` for the full path `path` (light end first,
 /// camera last), one sample per strategy (BDPT). See [`mis_weight_counts`].
-pub fn mis_weight(ctx: &Context, path: &[Vertex], s: usize) -> f32 {
+pub(crate) fn mis_weight(ctx: &Context, path: &[Vertex], s: usize) -> f32 {
     mis_weight_counts(ctx, path, s, |_, _| 1.0)
 }
 
@@ -220,7 +220,7 @@ pub fn mis_weight(ctx: &Context, path: &[Vertex], s: usize) -> f32 {
 /// connections more numerous than one per light path). Strategies whose connection
 /// would touch a delta vertex, and those that would need a path to hit the camera
 /// (t = 0) or a point light by chance (s = 0), are excluded.
-pub fn mis_weight_counts(ctx: &Context, path: &[Vertex], s: usize, count: impl Fn(usize, usize) -> f64) -> f32 {
+pub(crate) fn mis_weight_counts(ctx: &Context, path: &[Vertex], s: usize, count: impl Fn(usize, usize) -> f64) -> f32 {
     let k = path.len() - 1;
     let pl: Vec<f64> = (0..=k)
         .map(|i| match i {
@@ -427,4 +427,59 @@ pub(crate) fn strategy_connect(
     }
     full_path(light, cam, s, t, path);
     Some((l, shadow_ray(lv, c)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cast::BvhCaster;
+    use crate::lights::Lights;
+    use crate::render::RenderOptions;
+    use crate::scene::{Scene, cornell_box};
+
+    /// A concrete path through the Cornell box: light, floor, back wall, camera.
+    fn sample_path(scene: &Scene, mirror_in_middle: bool) -> Vec<Vertex> {
+        let surf = |p: Vec3, n: Vec3, tri: u32, delta: bool| {
+            Vertex::new(VertexKind::Surface, p, n, tri, Vec3::ONE, delta, Vec3::ZERO)
+        };
+        let light_tri = (0..scene.triangle_count() as u32).find(|&t| scene.emission_of(t).max_element() > 0.0).unwrap();
+        let floor = 0; // first quad of the built-in box
+        let back = 4;
+        let cam = &scene.camera;
+        vec![
+            Vertex::new(
+                VertexKind::Light,
+                Vec3::new(0.05, 1.98, 0.0),
+                -Vec3::Y,
+                light_tri,
+                Vec3::ONE,
+                false,
+                Vec3::ONE,
+            ),
+            surf(Vec3::new(0.2, 0.0, 0.6), Vec3::Y, floor, mirror_in_middle),
+            surf(Vec3::new(-0.3, 1.2, -1.0), Vec3::Z, back, false),
+            Vertex::new(VertexKind::Camera, cam.position, cam.forward, u32::MAX, Vec3::ONE, false, Vec3::ZERO),
+        ]
+    }
+
+    #[test]
+    fn mis_weights_of_all_strategies_sum_to_one() {
+        let scene = cornell_box();
+        let lights = Lights::new(&scene);
+        let caster = BvhCaster::new(&scene);
+        let opts = RenderOptions { width: 64, height: 64, ..Default::default() };
+        let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts };
+        let path = sample_path(&scene, false);
+        let weights: Vec<f32> = (0..path.len()).map(|s| mis_weight(&ctx, &path, s)).collect();
+        let sum: f32 = weights.iter().sum();
+        assert!((sum - 1.0).abs() < 1e-4, "weights {weights:?} sum to {sum}");
+        assert!(weights.iter().all(|&w| w > 0.0 && w < 1.0), "every strategy can make this path: {weights:?}");
+        // A delta vertex in the middle: the strategies connecting at it are impossible and
+        // get weight 0; the others still sum to 1.
+        let path = sample_path(&scene, true);
+        let weights: Vec<f32> = (0..path.len()).map(|s| mis_weight(&ctx, &path, s)).collect();
+        assert_eq!((weights[1], weights[2]), (0.0, 0.0), "{weights:?}");
+        let sum: f32 = weights.iter().sum();
+        assert!((sum - 1.0).abs() < 1e-4, "weights {weights:?} sum to {sum}");
+    }
 }

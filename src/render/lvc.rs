@@ -207,7 +207,7 @@ impl LvcBdpt {
     }
 
     /// Renders one pass: trace and cache light subpaths, then one camera path per pixel connecting to the cache.
-    pub fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
+    pub(crate) fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let (w, h) = (ctx.opts.width, ctx.opts.height);
         let n_light = if self.params.light_paths == 0 { w * h } else { self.params.light_paths };
         let n_c = self.params.connections;

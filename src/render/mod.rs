@@ -10,7 +10,7 @@ pub mod bidir;
 pub mod cis;
 mod compact;
 pub mod lvc;
-pub mod megakernel;
+pub(crate) mod megakernel;
 mod path;
 mod walk;
 
@@ -206,7 +206,7 @@ impl RenderStats {
 }
 
 /// Everything one pass needs.
-pub struct Context<'a> {
+pub(crate) struct Context<'a> {
     /// The scene.
     pub scene: &'a Scene,
     /// Its lights.

@@ -46,7 +46,7 @@ pub struct PathTracer {
 
 impl PathTracer {
     /// A path tracer with buffers for the render's image size.
-    pub fn new(ctx: &Context) -> Self {
+    pub(crate) fn new(ctx: &Context) -> Self {
         let n = (ctx.opts.width * ctx.opts.height) as usize;
         PathTracer {
             paths: Vec::with_capacity(n),
@@ -63,7 +63,7 @@ impl PathTracer {
     }
 
     /// One sample per pixel, added to `film`. Returns the caster statistics of the pass.
-    pub fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
+    pub(crate) fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let (w, h) = (ctx.opts.width, ctx.opts.height);
         let cam = &ctx.scene.camera;
         let seed = ctx.opts.seed;

@@ -146,6 +146,22 @@ pub struct ShadeArgs<'a> {
     pub connections: Connections,
 }
 
+/// Cache entry `e`'s light subpath up to its vertex, loaded into `light`; returns `s`.
+pub fn cache_subpath(
+    t: &Thread,
+    entries: &Global<[u32; 2]>,
+    vertices: &Global<Vertex>,
+    e: usize,
+    light: &mut VertexList,
+) -> usize {
+    let [start, s] = t.load(entries, e);
+    light.clear();
+    for k in 0..s as usize {
+        light.push(t.load(vertices, start as usize + k));
+    }
+    s as usize
+}
+
 /// Region of the shading kernel's SIMD accounting.
 pub const SHADE_REGION: usize = 0;
 
@@ -189,14 +205,7 @@ pub fn shade(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
 
     // Every strategy at this vertex, into this slot's pending entries.
     let cache_len = a.cache_entries.len();
-    let subpath = |e: usize, light: &mut VertexList| {
-        let [start, s] = t.load(&a.cache_entries, e);
-        light.clear();
-        for k in 0..s as usize {
-            light.push(t.load(&a.cache_vertices, start as usize + k));
-        }
-        s as usize
-    };
+    let subpath = |e: usize, light: &mut VertexList| cache_subpath(t, &a.cache_entries, &a.cache_vertices, e, light);
     let mut path = VertexList::default();
     let mut next = 0;
     let mut sink = |(ray, value, _): Pending| {

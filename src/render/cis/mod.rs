@@ -21,8 +21,8 @@
 //! importance sampling (uniform connections), and compaction/regeneration (dead samples
 //! stay in the pool as idle lanes until the whole pool is done).
 
-pub mod kernels;
-pub mod light;
+pub(crate) mod kernels;
+pub(crate) mod light;
 mod pool;
 
 use crate::cast::CastStats;
@@ -126,7 +126,7 @@ impl CisLbdpt {
     /// Renders one pass into `film`: the light pass streams the iteration's light
     /// subpaths into the cache (`light`), then the camera pass streams one sample per
     /// pixel through the pool, bounce by bounce.
-    pub fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
+    pub(crate) fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let dev = &self.dev;
         let p = self.params;
         let pixels = ctx.opts.width * ctx.opts.height;

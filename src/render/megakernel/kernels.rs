@@ -9,9 +9,9 @@ use crate::bsdf::TransportMode;
 use crate::geometry::{Hit, Ray};
 use crate::render::Context;
 use crate::render::bidir::{Vertex, VertexList, camera_vertex};
-use crate::render::cis::kernels::{SHADE_REGION, kind_index};
-use crate::render::cis::light::kernels::SplatData;
-use crate::render::lvc::{Connections, StrategyCounts, light_path_rng, light_splats, vertex_strategies};
+use crate::render::cis::kernels::{SHADE_REGION, cache_subpath, kind_index};
+use crate::render::cis::light::kernels::{SplatData, splat_entries};
+use crate::render::lvc::{Connections, StrategyCounts, light_path_rng, vertex_strategies};
 use crate::render::walk::{Walker, start_light_subpath, step};
 use crate::sampling::Rng;
 use glam::{Vec2, Vec3};
@@ -88,21 +88,8 @@ pub fn splat(
     stride: usize,
     splats: &GlobalMut<SplatData>,
 ) {
-    let [_, start, len] = t.load(paths, p);
-    let mut verts = VertexList::default();
-    for k in 0..len as usize {
-        verts.push(t.load(vertices, start as usize + k));
-    }
-    let (mut path, mut next) = (VertexList::default(), 0);
-    light_splats(ctx, &verts, counts, n_light, &mut path, &mut |ray, value, film| {
-        if unblocked(t, ctx, ray) {
-            t.store(splats, p * stride + next, SplatData { ray, value, film, state: 2 });
-            next += 1;
-        }
-    });
-    for k in next..stride {
-        t.store(splats, p * stride + k, SplatData::default());
-    }
+    let visible = |ray| if unblocked(t, ctx, ray) { 2 } else { 0 };
+    splat_entries(t, ctx, p, (paths, vertices), (counts, n_light), (stride, splats), &visible);
 }
 
 /// The light vertex cache as the camera kernel reads it.
@@ -138,14 +125,7 @@ pub fn camera_path(
     let mut walker = Walker::new(camera.generate_ray(film_pos, w, h, Vec2::ZERO), Vec3::splat(weight), rng);
     walk(t, ctx, &mut walker, &mut cam, TransportMode::Radiance, ctx.opts.max_depth as usize + 2);
     let mut rng = walker.rng;
-    let subpath = |e: usize, light: &mut VertexList| {
-        let [start, s] = t.load(&cache.entries, e);
-        light.clear();
-        for k in 0..s as usize {
-            light.push(t.load(&cache.vertices, start as usize + k));
-        }
-        s as usize
-    };
+    let subpath = |e: usize, light: &mut VertexList| cache_subpath(t, &cache.entries, &cache.vertices, e, light);
     let (mut path, mut estimate) = (VertexList::default(), Vec3::ZERO);
     let connections = Connections::Uniform { n: cache.n_c };
     for k in 2..=cam.len() {

@@ -19,7 +19,7 @@
 //! what it computes. Rays go to the caster one at a time, so this wants a caster built
 //! for single rays (the BVH, or brute force on small scenes).
 
-pub mod kernels;
+pub(crate) mod kernels;
 
 use crate::cast::CastStats;
 use crate::film::Film;

@@ -206,6 +206,20 @@ pub fn light_splat(
     stride: usize,
     splats: &GlobalMut<SplatData>,
 ) {
+    splat_entries(t, ctx, p, (paths, vertices), (counts, n_light), (stride, splats), &|_| 1);
+}
+
+/// The camera splats of cache subpath `p` into its `stride` entries, in vertex order,
+/// each with the state `state_of(shadow ray)` gives it (0: left out); the rest cleared.
+pub fn splat_entries(
+    t: &Thread,
+    ctx: &Context,
+    p: usize,
+    (paths, vertices): (&Global<[u32; 3]>, &Global<Vertex>),
+    (counts, n_light): (StrategyCounts, u32),
+    (stride, splats): (usize, &GlobalMut<SplatData>),
+    state_of: &dyn Fn(Ray) -> u32,
+) {
     let [_, start, len] = t.load(paths, p);
     let mut verts = VertexList::default();
     for k in 0..len as usize {
@@ -213,8 +227,11 @@ pub fn light_splat(
     }
     let (mut path, mut next) = (VertexList::default(), 0);
     light_splats(ctx, &verts, counts, n_light, &mut path, &mut |ray, value, film| {
-        t.store(splats, p * stride + next, SplatData { ray, value, film, state: 1 });
-        next += 1;
+        let state = state_of(ray);
+        if state != 0 {
+            t.store(splats, p * stride + next, SplatData { ray, value, film, state });
+            next += 1;
+        }
     });
     for k in next..stride {
         t.store(splats, p * stride + k, SplatData::default());

@@ -17,7 +17,7 @@
 //! depends on the subpaths' random numbers only, never on threads; its contents are
 //! those of the host light pass (`lvc::build_cache`), subpath for subpath.
 
-pub mod kernels;
+pub(crate) mod kernels;
 
 use super::pool::{append_active, extend, indices_where, material_queues, survivors};
 use crate::geometry::Ray;
