@@ -66,7 +66,7 @@ impl LightVertexCache {
 
     /// Samples drawn per connection strategy: `n_c · N_L / |cache|`.
     pub fn connection_count(&self, n_c: u32) -> f64 {
-        if self.entries.is_empty() { 0.0 } else { n_c as f64 * self.light_paths as f64 / self.entries.len() as f64 }
+        StrategyCounts::connections(n_c, self.light_paths, self.entries.len())
     }
 }
 
@@ -80,6 +80,18 @@ pub struct StrategyCounts {
 }
 
 impl StrategyCounts {
+    /// The counts of an iteration of `n_light` light subpaths whose cache holds
+    /// `entries` vertices, with `n_c` connections per camera vertex.
+    pub(crate) fn new(ctx: &Context, n_light: u32, entries: usize, n_c: u32) -> StrategyCounts {
+        let pixels = (ctx.opts.width * ctx.opts.height) as f64;
+        StrategyCounts { splat: n_light as f64 / pixels, connection: Self::connections(n_c, n_light, entries) }
+    }
+
+    /// Samples drawn per connection strategy: `n_c · N_L / |cache|` (0 for an empty cache).
+    fn connections(n_c: u32, n_light: u32, entries: usize) -> f64 {
+        if entries == 0 { 0.0 } else { n_c as f64 * n_light as f64 / entries as f64 }
+    }
+
     /// Sample count of strategy (s light vertices, t camera vertices) for the balance/power heuristic.
     pub fn count(&self, s: usize, t: usize) -> f64 {
         if t == 1 {
@@ -124,8 +136,7 @@ pub(crate) fn build_cache(
             cache.vertices.extend_from_slice(verts);
         }
     }
-    let pixels = (ctx.opts.width * ctx.opts.height) as f64;
-    let counts = StrategyCounts { splat: n_light as f64 / pixels, connection: cache.connection_count(n_c) };
+    let counts = StrategyCounts::new(ctx, n_light, cache.entries.len(), n_c);
     // Splats (t = 1) of every light vertex, in path order, their shadow rays cast one
     // wave at a time.
     let mut splats = Vec::new();

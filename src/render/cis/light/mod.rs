@@ -45,13 +45,7 @@ impl DeviceCache {
 
     /// MIS sample counts once the cache is complete (as [`LightVertexCache`]'s).
     pub fn counts(&self, ctx: &Context, n_c: u32) -> StrategyCounts {
-        let pixels = (ctx.opts.width * ctx.opts.height) as f64;
-        let connection = if self.entries.is_empty() {
-            0.0
-        } else {
-            n_c as f64 * self.light_paths as f64 / self.entries.len() as f64
-        };
-        StrategyCounts { splat: self.light_paths as f64 / pixels, connection }
+        StrategyCounts::new(ctx, self.light_paths, self.entries.len(), n_c)
     }
 
     /// A host copy, subpaths in the order of their numbers (as the host light pass
