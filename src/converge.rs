@@ -202,6 +202,81 @@ pub fn time_to_reach(rows: &[Checkpoint], integrator: &str, target: f64) -> Opti
     })
 }
 
+/// One integrator's line in the table a `converge` run ends with (the layout of the
+/// CIS-LBDPT paper's runtime table: samples per pixel reached, milliseconds per sample,
+/// and the speed-up over a baseline).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Summary {
+    /// The variant's label.
+    pub integrator: &'static str,
+    /// Samples per pixel reached in the budget (the effective spp: one camera subpath per
+    /// pixel per pass, with the pass's light subpaths).
+    pub spp: u32,
+    /// Rendering seconds at the last checkpoint.
+    pub seconds: f64,
+    /// Milliseconds per sample per pixel (a pass over the whole image).
+    pub ms_per_spp: f64,
+    /// RMSE at the last checkpoint.
+    pub rmse: f64,
+    /// Seconds to first reach the common target RMSE, when reached.
+    pub seconds_to_target: Option<f64>,
+    /// The baseline's milliseconds per spp over this one's.
+    pub speedup_per_spp: f64,
+    /// The baseline's seconds to the target over this one's, when both reached it.
+    pub speedup_to_target: Option<f64>,
+}
+
+/// The common target of a run: the worst final RMSE among `labels`, which every one of
+/// them reaches.
+pub fn common_target(rows: &[Checkpoint], labels: &[&str]) -> f64 {
+    labels.iter().filter_map(|l| rows.iter().rev().find(|r| r.integrator == *l).map(|r| r.rmse)).fold(0.0, f64::max)
+}
+
+/// One [`Summary`] per label that has checkpoints, against the first label as baseline.
+pub fn summarize(rows: &[Checkpoint], labels: &[&str]) -> Vec<Summary> {
+    let target = common_target(rows, labels);
+    let mut out: Vec<Summary> = labels
+        .iter()
+        .filter_map(|&l| {
+            let last = rows.iter().rev().find(|r| r.integrator == l)?;
+            Some(Summary {
+                integrator: last.integrator,
+                spp: last.spp,
+                seconds: last.seconds,
+                ms_per_spp: 1e3 * last.seconds / last.spp.max(1) as f64,
+                rmse: last.rmse,
+                seconds_to_target: time_to_reach(rows, l, target),
+                speedup_per_spp: 1.0,
+                speedup_to_target: None,
+            })
+        })
+        .collect();
+    if let Some(base) = out.first().cloned() {
+        for s in &mut out {
+            s.speedup_per_spp = base.ms_per_spp / s.ms_per_spp;
+            s.speedup_to_target = base.seconds_to_target.zip(s.seconds_to_target).map(|(b, t)| b / t);
+        }
+    }
+    out
+}
+
+/// The summaries as a Markdown table.
+pub fn summary_table(summaries: &[Summary]) -> String {
+    let base = summaries.first().map_or("", |s| s.integrator);
+    let mut t = format!(
+        "| integrator | spp reached | ms per spp | final RMSE | s to common RMSE | speed-up per spp (vs {base}) | speed-up to RMSE |\n|---|---:|---:|---:|---:|---:|---:|\n"
+    );
+    for s in summaries {
+        let reach = s.seconds_to_target.map_or("not reached".into(), |v| format!("{v:.2}"));
+        let to = s.speedup_to_target.map_or("-".into(), |v| format!("{v:.2}x"));
+        t.push_str(&format!(
+            "| {} | {} | {:.1} | {:.5} | {reach} | {:.2}x | {to} |\n",
+            s.integrator, s.spp, s.ms_per_spp, s.rmse, s.speedup_per_spp
+        ));
+    }
+    t
+}
+
 /// Writes the checkpoints as CSV (`integrator,seconds,spp,rmse,relmse`).
 pub fn write_csv(path: &Path, rows: &[Checkpoint]) -> Result<()> {
     let mut text = String::from("integrator,seconds,spp,rmse,relmse\n");
@@ -354,5 +429,24 @@ mod tests {
         assert!((t - 10.0).abs() < 1e-6, "{t}");
         assert_eq!(time_to_reach(&rows, "a", 0.2), Some(1.0));
         assert_eq!(time_to_reach(&rows, "b", 0.1), None);
+    }
+
+    #[test]
+    fn the_summary_compares_against_the_first_label() {
+        let mut rows = vec![row("mk", 1.0, 0.1), row("mk", 4.0, 0.02), row("cis", 1.0, 0.05), row("cis", 4.0, 0.01)];
+        rows[1].spp = 40;
+        rows[3].spp = 20;
+        let s = summarize(&rows, &["mk", "cis", "absent"]);
+        assert_eq!(s.len(), 2);
+        assert_eq!((s[0].integrator, s[0].spp, s[0].ms_per_spp), ("mk", 40, 100.0));
+        assert_eq!((s[1].spp, s[1].ms_per_spp, s[1].speedup_per_spp), (20, 200.0, 0.5));
+        // Common target 0.02: mk reaches it at 4 s; cis between 1 s (0.05) and 4 s (0.01),
+        // log-log: t = 4^(ln(0.02/0.05) / ln(0.01/0.05)).
+        let t = 4f64.powf((0.4f64).ln() / (0.2f64).ln());
+        assert!((s[1].seconds_to_target.unwrap() - t).abs() < 1e-9);
+        assert!((s[1].speedup_to_target.unwrap() - 4.0 / t).abs() < 1e-9);
+        assert_eq!(s[0].speedup_to_target, Some(1.0));
+        let table = summary_table(&s);
+        assert!(table.contains("| cis | 20 | 200.0 | 0.01000 |"), "{table}");
     }
 }

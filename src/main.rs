@@ -492,7 +492,9 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
 }
 
 fn run_converge(args: ConvergeArgs) -> Result<()> {
-    use warpray::converge::{ConvergeOptions, Variant, read_exr, run, time_to_reach, write_chart, write_csv};
+    use warpray::converge::{
+        ConvergeOptions, Variant, common_target, read_exr, run, summarize, summary_table, write_chart, write_csv,
+    };
     let desc = load_scene(&args.scene)?;
     let (width, height) = args.size;
     warpray::film::check_size(width, height)?;
@@ -582,19 +584,18 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
         let title = format!("{}: error against time", desc.scene.source.display());
         write_chart(&with_ext(".svg"), &rows, &title)?;
         write_chart(&with_ext(".png"), &rows, &title)?;
-        // The time each integrator needs to reach the worst final RMSE of them all.
-        let target = opts
-            .integrators
-            .iter()
-            .filter_map(|k| rows.iter().rev().find(|r| r.integrator == k.label).map(|r| r.rmse))
-            .fold(0.0f64, f64::max);
-        println!("time to reach RMSE {target:.5}:");
-        for k in &opts.integrators {
-            match time_to_reach(&rows, k.label, target) {
-                Some(t) => println!("  {:>13}: {t:.2} s", k.label),
-                None => println!("  {:>13}: not reached", k.label),
+        // The time each integrator needs to reach the worst final RMSE of them all, and
+        // the paper-style table against the first integrator listed.
+        let labels: Vec<&str> = opts.integrators.iter().map(|k| k.label).collect();
+        println!("time to reach RMSE {:.5}:", common_target(&rows, &labels));
+        let summaries = summarize(&rows, &labels);
+        for s in &summaries {
+            match s.seconds_to_target {
+                Some(t) => println!("  {:>13}: {t:.2} s", s.integrator),
+                None => println!("  {:>13}: not reached", s.integrator),
             }
         }
+        print!("{}", summary_table(&summaries));
         println!(
             "wrote {}, {}, {}",
             with_ext(".csv").display(),
