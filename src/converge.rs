@@ -286,6 +286,47 @@ pub fn write_csv(path: &Path, rows: &[Checkpoint]) -> Result<()> {
     atomic_write(path, |tmp| std::fs::write(tmp, &text).map_err(|e| e.to_string()))
 }
 
+/// Reads checkpoints back from a CSV that [`write_csv`] wrote (to redraw charts or
+/// tables without rendering again). Errors name the file, line and field.
+pub fn read_csv(path: &Path) -> Result<Vec<Checkpoint>> {
+    let text = crate::scene::input::read_text(path, crate::scene::input::max_input_bytes())?;
+    let bad = |line: usize, msg: String| Error::MalformedCsv { at: crate::error::Location::new(path, line), msg };
+    let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l));
+    match lines.next() {
+        Some((_, "integrator,seconds,spp,rmse,relmse")) => {}
+        other => {
+            return Err(bad(1, format!("expected the header 'integrator,seconds,spp,rmse,relmse', found {other:?}")));
+        }
+    }
+    let mut rows = Vec::new();
+    for (n, line) in lines.filter(|(_, l)| !l.trim().is_empty()) {
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 5 {
+            return Err(bad(n, format!("expected 5 fields, found {}", f.len())));
+        }
+        let integrator = Variant::parse(f[0]).map_err(|e| bad(n, format!("field 'integrator': {e}")))?.label;
+        let num = |i: usize, name: &str| -> Result<f64> {
+            f[i].trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite() && *v >= 0.0)
+                .ok_or_else(|| bad(n, format!("field '{name}': '{}' is not a finite number >= 0", f[i])))
+        };
+        let spp = f[2].trim().parse::<u32>().map_err(|_| bad(n, format!("field 'spp': '{}' is not a count", f[2])))?;
+        rows.push(Checkpoint {
+            integrator,
+            seconds: num(1, "seconds")?,
+            spp,
+            rmse: num(3, "rmse")?,
+            relmse: num(4, "relmse")?,
+        });
+    }
+    if rows.is_empty() {
+        return Err(bad(1, "no checkpoints".into()));
+    }
+    Ok(rows)
+}
+
 static FONT: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
 
 /// A log-log chart of RMSE and relMSE against seconds, one line per integrator; SVG or
@@ -348,7 +389,13 @@ fn chart<DB: plotters::prelude::DrawingBackend>(
             .y_label_area_size(70)
             .build_cartesian_2d((t0 * 0.9..t1 * 1.1).log_scale(), (e0 * 0.8..e1 * 1.25).log_scale())
             .map_err(|e| err(&e))?;
-        c.configure_mesh().x_desc("seconds").y_desc(label).draw().map_err(|e| err(&e))?;
+        c.configure_mesh()
+            .x_desc("seconds")
+            .y_desc(label)
+            .x_label_formatter(&|v| tick(*v))
+            .y_label_formatter(&|v| tick(*v))
+            .draw()
+            .map_err(|e| err(&e))?;
         for (i, name) in names.iter().enumerate() {
             let colour = colours[i % colours.len()];
             let series: Vec<(f64, f64)> =
@@ -361,6 +408,17 @@ fn chart<DB: plotters::prelude::DrawingBackend>(
         c.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))
+}
+
+/// An axis label with three significant digits and no trailing zeros (log axes put
+/// ticks at values like 0.30000000000000004).
+fn tick(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let decimals = (2 - v.abs().log10().floor() as i32).max(0) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
 }
 
 /// Reads a linear RGB EXR (e.g. a reference written by `warpray render -o ref.exr`).
@@ -429,6 +487,38 @@ mod tests {
         assert!((t - 10.0).abs() < 1e-6, "{t}");
         assert_eq!(time_to_reach(&rows, "a", 0.2), Some(1.0));
         assert_eq!(time_to_reach(&rows, "b", 0.1), None);
+    }
+
+    #[test]
+    fn the_csv_reads_back_and_bad_rows_name_their_line() {
+        let dir = std::env::temp_dir().join(format!("warpray-csv-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("c.csv");
+        let rows = vec![
+            Checkpoint { integrator: "cis", seconds: 0.5, spp: 3, rmse: 0.25, relmse: 0.125 },
+            Checkpoint { integrator: "lvc-mk", seconds: 2.0, spp: 9, rmse: 0.0625, relmse: 0.03125 },
+        ];
+        write_csv(&path, &rows).unwrap();
+        assert_eq!(read_csv(&path).unwrap(), rows);
+        for (text, want) in [
+            ("integrator,seconds,spp,rmse,relmse\ncis,0.5,3,0.25\n", "c.csv:2: expected 5 fields"),
+            ("integrator,seconds,spp,rmse,relmse\ncis,0.5,3,0.25,0.1\nnope,1,1,1,1\n", "c.csv:3: field 'integrator'"),
+            ("integrator,seconds,spp,rmse,relmse\ncis,NaN,3,0.25,0.1\n", "c.csv:2: field 'seconds'"),
+            ("integrator,seconds,spp,rmse,relmse\ncis,1,-3,0.25,0.1\n", "c.csv:2: field 'spp'"),
+            ("x,y\n", "c.csv:1: expected the header"),
+            ("integrator,seconds,spp,rmse,relmse\n", "c.csv:1: no checkpoints"),
+        ] {
+            std::fs::write(&path, text).unwrap();
+            let e = read_csv(&path).unwrap_err().to_string();
+            assert!(e.contains(want), "{e:?} should contain {want:?}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn axis_labels_keep_three_significant_digits() {
+        let got: Vec<String> = [0.30000000000000004, 0.004, 8.0, 1234.0, 0.0125].into_iter().map(tick).collect();
+        assert_eq!(got, ["0.3", "0.004", "8", "1234", "0.0125"]);
     }
 
     #[test]

@@ -141,6 +141,14 @@ pub enum Error {
         /// The key and what is wrong with it.
         msg: String,
     },
+    /// A `converge` CSV (replotted with `--replot`) that is not what `converge` writes.
+    #[error("{at}: {msg}")]
+    MalformedCsv {
+        /// File and line.
+        at: Location,
+        /// The field and what is wrong with it.
+        msg: String,
+    },
     /// An image size of zero or beyond the limits.
     #[error("image size {width}x{height} is not allowed: {why}")]
     BadImageSize {

@@ -105,6 +105,10 @@ struct ConvergeArgs {
     seed: u64,
     #[arg(long)]
     threads: Option<usize>,
+    /// Render nothing: read the checkpoints from this CSV (written by an earlier run)
+    /// and write PREFIX.svg and PREFIX.png from them, with the summary table.
+    #[arg(long, conflicts_with_all = ["reference", "integrators", "seconds"])]
+    replot: Option<PathBuf>,
     /// Output prefix: writes PREFIX.csv, PREFIX.svg, PREFIX.png (and
     /// PREFIX-reference.exr when the reference is rendered here).
     #[arg(short, long, default_value = "converge")]
@@ -493,8 +497,44 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
 
 fn run_converge(args: ConvergeArgs) -> Result<()> {
     use warpray::converge::{
-        ConvergeOptions, Variant, common_target, read_exr, run, summarize, summary_table, write_chart, write_csv,
+        ConvergeOptions, Variant, common_target, read_csv, read_exr, run, summarize, summary_table, write_chart,
+        write_csv,
     };
+    let with_ext = |ext: &str| {
+        let mut name = args.output.clone().into_os_string();
+        name.push(ext);
+        PathBuf::from(name)
+    };
+    let finish = |rows: &[warpray::converge::Checkpoint], labels: &[&str], title: &str| -> Result<()> {
+        write_chart(&with_ext(".svg"), rows, title)?;
+        write_chart(&with_ext(".png"), rows, title)?;
+        // The time each integrator needs to reach the worst final RMSE of them all, and
+        // the paper-style table against the first integrator listed.
+        println!("time to reach RMSE {:.5}:", common_target(rows, labels));
+        let summaries = summarize(rows, labels);
+        for s in &summaries {
+            match s.seconds_to_target {
+                Some(t) => println!("  {:>13}: {t:.2} s", s.integrator),
+                None => println!("  {:>13}: not reached", s.integrator),
+            }
+        }
+        print!("{}", summary_table(&summaries));
+        Ok(())
+    };
+    if let Some(csv) = &args.replot {
+        check_outputs(&[with_ext(".svg")], &["svg"])?;
+        check_outputs(&[with_ext(".png")], &["png"])?;
+        let rows = read_csv(csv)?;
+        let mut labels: Vec<&str> = Vec::new();
+        for r in &rows {
+            if !labels.contains(&r.integrator) {
+                labels.push(r.integrator);
+            }
+        }
+        finish(&rows, &labels, &format!("{}: error against time", args.scene.display()))?;
+        println!("wrote {}, {}", with_ext(".svg").display(), with_ext(".png").display());
+        return Ok(());
+    }
     let desc = load_scene(&args.scene)?;
     let (width, height) = args.size;
     warpray::film::check_size(width, height)?;
@@ -505,11 +545,6 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
             args.seconds
         )));
     }
-    let with_ext = |ext: &str| {
-        let mut name = args.output.clone().into_os_string();
-        name.push(ext);
-        PathBuf::from(name)
-    };
     // Everything that can be wrong is found before the reference is rendered.
     let integrators = args.integrators.iter().map(|n| Variant::parse(n)).collect::<Result<Vec<_>>>()?;
     check_outputs(&[with_ext(".csv")], &["csv"])?;
@@ -581,21 +616,8 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
             )
         })?;
         write_csv(&with_ext(".csv"), &rows)?;
-        let title = format!("{}: error against time", desc.scene.source.display());
-        write_chart(&with_ext(".svg"), &rows, &title)?;
-        write_chart(&with_ext(".png"), &rows, &title)?;
-        // The time each integrator needs to reach the worst final RMSE of them all, and
-        // the paper-style table against the first integrator listed.
         let labels: Vec<&str> = opts.integrators.iter().map(|k| k.label).collect();
-        println!("time to reach RMSE {:.5}:", common_target(&rows, &labels));
-        let summaries = summarize(&rows, &labels);
-        for s in &summaries {
-            match s.seconds_to_target {
-                Some(t) => println!("  {:>13}: {t:.2} s", s.integrator),
-                None => println!("  {:>13}: not reached", s.integrator),
-            }
-        }
-        print!("{}", summary_table(&summaries));
+        finish(&rows, &labels, &format!("{}: error against time", desc.scene.source.display()))?;
         println!(
             "wrote {}, {}, {}",
             with_ext(".csv").display(),

@@ -122,6 +122,18 @@ fn converge_writes_csv_and_charts_and_reads_a_reference() {
         .output()
         .unwrap();
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("24x16"));
+    // --replot redraws the charts and prints the table from the CSV alone.
+    let out =
+        warpray().args(["converge", "--replot"]).arg(dir.join("c.csv")).arg("-o").arg(dir.join("r")).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(table.contains("| integrator | spp reached | ms per spp |") && table.contains("| bdpt |"), "{table}");
+    assert!(
+        image::open(dir.join("r.png")).is_ok() && std::fs::read_to_string(dir.join("r.svg")).unwrap().contains("<svg")
+    );
+    // It renders nothing, so rendering options conflict with it.
+    let out = warpray().args(["converge", "--seconds", "2", "--replot"]).arg(dir.join("c.csv")).output().unwrap();
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("cannot be used with"));
 }
 
 #[test]
