@@ -8,7 +8,7 @@
 use crate::cast::RayCaster;
 use crate::error::{Error, Result};
 use crate::film::{Film, atomic_write};
-use crate::render::{Budget, IntegratorKind, RenderOptions, render};
+use crate::render::{Budget, RenderOptions, render};
 use crate::scene::Scene;
 use glam::Vec3;
 use std::path::Path;
@@ -38,46 +38,8 @@ pub fn relmse_eps(image: &[Vec3], reference: &[Vec3], eps: f64) -> f64 {
     sum / (3 * image.len().max(1)) as f64
 }
 
-/// An integrator with its settings, under a label for charts: `path`, `light`, `bdpt`,
-/// `lvc`, `lvc-mk` (LVC-BDPT as megakernels on the device), `cis`, and the CIS ablations `cis-nosort`, `cis-nois` (uniform connections)
-/// and `cis-nocompact` (no compaction or regeneration).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Variant {
-    /// The name in charts and CSV.
-    pub label: &'static str,
-    /// The integrator.
-    pub kind: IntegratorKind,
-    /// CIS-LBDPT switches (ablations).
-    pub cis: crate::render::cis::CisParams,
-    /// LVC-BDPT settings (the megakernel).
-    pub lvc: crate::render::LvcParams,
-}
-
-impl Variant {
-    /// Every label [`Variant::parse`] accepts.
-    pub const NAMES: [&'static str; 9] =
-        ["path", "light", "bdpt", "lvc", "lvc-mk", "cis", "cis-nosort", "cis-nois", "cis-nocompact"];
-
-    /// The variant of a label (case-insensitive); an error lists the known ones.
-    pub fn parse(name: &str) -> Result<Variant> {
-        let label = Self::NAMES.iter().find(|n| n.eq_ignore_ascii_case(name)).copied().ok_or_else(|| {
-            Error::BadSetting(format!("unknown integrator '{name}' (known: {})", Self::NAMES.join(", ")))
-        })?;
-        let d = crate::render::cis::CisParams::default();
-        let (kind, cis) = match label {
-            "path" => (IntegratorKind::Path, d),
-            "light" => (IntegratorKind::Light, d),
-            "bdpt" => (IntegratorKind::Bdpt, d),
-            "lvc" | "lvc-mk" => (IntegratorKind::Lvc, d),
-            "cis" => (IntegratorKind::Cis, d),
-            "cis-nosort" => (IntegratorKind::Cis, crate::render::cis::CisParams { sort: false, ..d }),
-            "cis-nois" => (IntegratorKind::Cis, crate::render::cis::CisParams { importance: false, ..d }),
-            _ => (IntegratorKind::Cis, crate::render::cis::CisParams { regenerate: false, ..d }),
-        };
-        let lvc = crate::render::LvcParams { megakernel: label == "lvc-mk", ..Default::default() };
-        Ok(Variant { label, kind, cis, lvc })
-    }
-}
+/// The integrators `converge` compares are the registry's variants.
+pub use crate::render::registry::Variant;
 
 /// One measurement of one integrator's progress.
 #[derive(Clone, Debug, PartialEq)]
@@ -138,19 +100,16 @@ pub fn run(
     let times: Vec<f64> = (0..n).map(|i| opts.seconds / 200.0 * 200f64.powf(i as f64 / (n - 1) as f64)).collect();
     let mut rows = Vec::new();
     for variant in &opts.integrators {
-        let render_opts = RenderOptions {
+        let render_opts = variant.apply(RenderOptions {
             width: opts.width,
             height: opts.height,
             budget: Budget::Seconds(opts.seconds),
             max_depth: opts.max_depth,
             seed: opts.seed,
-            integrator: variant.kind,
-            cis: variant.cis,
-            lvc: variant.lvc,
             filter: opts.filter,
             filter_mode: opts.filter_mode,
             ..Default::default()
-        };
+        });
         let label = variant.label;
         let start = Instant::now();
         let mut measuring = Duration::ZERO;

@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 use warpray::cast::{BvhCaster, CasterKind, RayCaster, Traversal};
 use warpray::error::{Error, Result};
-use warpray::render::{Budget, IntegratorKind, RenderOptions, render};
+use warpray::render::{Budget, IntegratorKind, RenderOptions, Variant, render};
 use warpray::scene::load_scene;
 
 #[derive(Parser)]
@@ -123,9 +123,11 @@ struct RenderArgs {
     /// built-in box.
     #[arg(default_value = "cornell")]
     scene: PathBuf,
-    /// Light-transport algorithm [default: path].
-    #[arg(long, value_enum)]
-    integrator: Option<IntegratorKind>,
+    /// Light-transport algorithm [default: path, or the scene file's]: path, light,
+    /// bdpt, lvc, lvc-mk (LVC-BDPT as megakernels on the simt device), cis, and the CIS
+    /// ablations cis-nosort, cis-nois, cis-nocompact (the labels `converge` takes).
+    #[arg(long, value_parser = parse_variant)]
+    integrator: Option<Variant>,
     /// Samples per pixel [default: 64, or the scene file's].
     #[arg(long, conflicts_with = "seconds")]
     spp: Option<u32>,
@@ -184,6 +186,11 @@ struct RenderArgs {
     /// shade time, memory, and the simt kernel table of the GPU methods.
     #[arg(long)]
     stats: bool,
+}
+
+/// `--integrator`: a label of the integrator registry.
+fn parse_variant(s: &str) -> std::result::Result<Variant, String> {
+    Variant::parse(s).map_err(|e| e.to_string())
 }
 
 fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
@@ -281,11 +288,20 @@ fn run_render(args: RenderArgs) -> Result<bool> {
     let desc = load_scene(&args.scene)?;
     let s = &desc.settings;
     let (width, height) = args.size.unwrap_or((s.width.unwrap_or(512), s.height.unwrap_or(512)));
-    let integrator = match (args.integrator, &s.integrator) {
-        (Some(i), _) => i,
-        (None, Some(name)) => name.parse()?,
-        (None, None) => IntegratorKind::Path,
+    let mut variant = match (args.integrator, &s.integrator) {
+        (Some(v), _) => v,
+        (None, Some(name)) => Variant::parse(name)?,
+        (None, None) => Variant::of(IntegratorKind::Path),
     };
+    if args.megakernel {
+        if variant.kind != IntegratorKind::Lvc {
+            return Err(Error::BadSetting(format!(
+                "--megakernel runs LVC-BDPT on the device; it needs --integrator lvc, not {}",
+                variant.label
+            )));
+        }
+        variant = Variant::parse("lvc-mk")?;
+    }
     let budget = match (args.spp, args.seconds, s.spp, s.seconds) {
         (Some(n), ..) => Budget::Samples(n),
         (None, Some(t), ..) => Budget::Seconds(t),
@@ -297,25 +313,11 @@ fn run_render(args: RenderArgs) -> Result<bool> {
         return Err(Error::BadSetting("--spp must be at least 1".into()));
     }
     // The scene file's depth and filter, unless a flag says otherwise.
-    let mut opts = RenderOptions::for_scene(
-        &s,
-        RenderOptions {
-            width,
-            height,
-            budget,
-            seed: args.seed.or(s.seed).unwrap_or(0),
-            integrator,
-            ..Default::default()
-        },
-    );
+    let mut opts = variant.apply(RenderOptions::for_scene(
+        s,
+        RenderOptions { width, height, budget, seed: args.seed.or(s.seed).unwrap_or(0), ..Default::default() },
+    ));
     opts.max_depth = args.max_depth.unwrap_or(opts.max_depth);
-    if args.megakernel && integrator != IntegratorKind::Lvc {
-        return Err(Error::BadSetting(format!(
-            "--megakernel runs LVC-BDPT on the device; it needs --integrator lvc, not {}",
-            integrator.name()
-        )));
-    }
-    opts.lvc.megakernel = args.megakernel;
     opts.filter = args.filter.unwrap_or(opts.filter);
     opts.filter_mode = args.filter_mode.unwrap_or(opts.filter_mode);
     warpray::film::check_size(width, height)?;
@@ -344,7 +346,7 @@ fn run_render(args: RenderArgs) -> Result<bool> {
         let interrupted = interrupt::requested();
         let metadata = [
             ("scene", desc.scene.source.display().to_string()),
-            ("integrator", integrator.name().to_string()),
+            ("integrator", variant.label.to_string()),
             ("caster", caster.name().to_string()),
             ("spp", stats.passes.to_string()),
             ("seed", opts.seed.to_string()),
@@ -384,7 +386,7 @@ fn run_render(args: RenderArgs) -> Result<bool> {
             width,
             height,
             stats.passes,
-            integrator.name(),
+            variant.label,
             caster.name(),
             threads,
             stats.seconds,
@@ -497,8 +499,7 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
 
 fn run_converge(args: ConvergeArgs) -> Result<()> {
     use warpray::converge::{
-        ConvergeOptions, Variant, common_target, read_csv, read_exr, run, summarize, summary_table, write_chart,
-        write_csv,
+        ConvergeOptions, common_target, read_csv, read_exr, run, summarize, summary_table, write_chart, write_csv,
     };
     let with_ext = |ext: &str| {
         let mut name = args.output.clone().into_os_string();

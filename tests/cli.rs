@@ -199,6 +199,9 @@ fn outputs_and_names_are_checked_before_any_work() {
             vec!["render", "cornell", "--integrator", "lvc", "--megakernel", "--caster", "pdacrt", "-o", "m.png"],
             "one at a time",
         ),
+        // The registry's labels: the megakernel by label, and an unknown one listed against them.
+        (vec!["render", "cornell", "--integrator", "lvc-mk", "--caster", "dacrt", "-o", "m.png"], "one at a time"),
+        (vec!["render", "cornell", "--integrator", "pt", "-o", "m.png"], "known: path, light, bdpt, lvc, lvc-mk, cis"),
     ] {
         let start = std::time::Instant::now();
         let out = warpray().args(&args).arg("-q").current_dir(&dir).output().unwrap();

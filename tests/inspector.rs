@@ -77,7 +77,7 @@ fn start_stop_and_select_a_level() {
 #[test]
 fn queue_panel_shows_cis_records() {
     let mut h = harness();
-    h.state_mut().integrator = warpray::render::IntegratorKind::Cis;
+    h.state_mut().integrator = warpray::render::Variant::parse("cis").unwrap();
     h.state_mut().spp = 2;
     h.step();
     h.get_by_label("Start").click();

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use warpray::cast::CasterKind;
 use warpray::inspector::Inspector;
-use warpray::render::IntegratorKind;
+use warpray::render::Variant;
 
 #[derive(Parser)]
 #[command(
@@ -22,9 +22,10 @@ struct Cli {
     /// Start rendering the selected scene at once.
     #[arg(long)]
     start: bool,
-    /// Integrator to select.
-    #[arg(long, value_enum)]
-    integrator: Option<IntegratorKind>,
+    /// Integrator to select: a label as `warpray render --integrator` takes (path, light,
+    /// bdpt, lvc, lvc-mk, cis, cis-nosort, cis-nois, cis-nocompact).
+    #[arg(long, value_parser = |s: &str| Variant::parse(s).map_err(|e| e.to_string()))]
+    integrator: Option<Variant>,
     /// Caster to select.
     #[arg(long, value_enum)]
     caster: Option<CasterKind>,

@@ -11,8 +11,8 @@ use crate::cast::{BvhCaster, CasterKind, RayCaster};
 use crate::converge::rmse;
 use crate::film::encode_srgb8;
 use crate::geometry::{Aabb, Hit};
-use crate::render::cis::{CisLbdpt, CisParams, QueueRecord};
-use crate::render::{Budget, Context, IntegratorKind, RenderOptions, Renderer};
+use crate::render::cis::{CisParams, QueueRecord};
+use crate::render::{Budget, IntegratorKind, RenderOptions, Renderer, Variant};
 use crate::scene::{Scene, load_scene};
 use egui::{Color32, ColorImage, RichText, TextureHandle, TextureOptions, Ui};
 use glam::{Vec2, Vec3};
@@ -106,8 +106,8 @@ pub struct Inspector {
     pub scenes: Vec<(String, PathBuf)>,
     /// The selected scene.
     pub scene: usize,
-    /// The selected integrator.
-    pub integrator: IntegratorKind,
+    /// The selected integrator (a variant of the registry that the command line uses).
+    pub integrator: Variant,
     /// The selected caster.
     pub caster: CasterKind,
     /// Samples per pixel of a render.
@@ -175,7 +175,7 @@ impl Inspector {
         Inspector {
             scenes,
             scene: 0,
-            integrator: IntegratorKind::Path,
+            integrator: Variant::of(IntegratorKind::Path),
             caster: CasterKind::Bvh,
             spp: 64,
             size: 128,
@@ -286,10 +286,10 @@ impl Inspector {
                 .labelled_by(label.id);
             let label = ui.label("Integrator");
             egui::ComboBox::from_id_salt("integrator")
-                .selected_text(self.integrator.name())
+                .selected_text(self.integrator.label)
                 .show_ui(ui, |ui| {
-                    for k in IntegratorKind::ALL {
-                        ui.selectable_value(&mut self.integrator, k, k.name());
+                    for v in Variant::all() {
+                        ui.selectable_value(&mut self.integrator, v, v.label).on_hover_text(v.summary);
                     }
                 })
                 .response
@@ -638,7 +638,7 @@ pub fn project_box(cam: &crate::scene::Camera, b: &Aabb, width: u32, height: u32
 struct Job {
     name: String,
     path: PathBuf,
-    integrator: IntegratorKind,
+    integrator: Variant,
     caster: CasterKind,
     spp: u32,
     size: u32,
@@ -656,24 +656,19 @@ impl Job {
         let reference = self.reference(&scene, &desc.settings, shared, stop)?;
         let caster = self.caster.build(&scene);
         // The scene file's depth and filter, as `warpray render` uses them.
-        let opts = RenderOptions::for_scene(
+        let mut opts = self.integrator.apply(RenderOptions::for_scene(
             &desc.settings,
-            RenderOptions {
-                width: w,
-                height: h,
-                budget: Budget::Samples(self.spp),
-                integrator: self.integrator,
-                cis: CisParams { measure: true, pool: 4096, ..CisParams::default() },
-                ..Default::default()
-            },
-        );
+            RenderOptions { width: w, height: h, budget: Budget::Samples(self.spp), ..Default::default() },
+        ));
+        // Measured, with a pool that fills the inspector's small images.
+        opts.cis = CisParams { measure: true, pool: 4096, ..opts.cis };
         let mut renderer = Renderer::new(&scene, caster.as_ref(), &opts)?;
         let mut film = renderer.film()?;
         {
             let mut s = lock(shared);
             s.series
-                .push(Series { label: format!("{} / {}", self.integrator.name(), caster.name()), points: Vec::new() });
-            s.status = format!("rendering {} with {}: 0/{} spp", self.name, self.integrator.name(), self.spp);
+                .push(Series { label: format!("{} / {}", self.integrator.label, caster.name()), points: Vec::new() });
+            s.status = format!("rendering {} with {}: 0/{} spp", self.name, self.integrator.label, self.spp);
             s.passes = 0;
             s.width = w;
             s.height = h;
@@ -697,7 +692,7 @@ impl Job {
             s.image = mean;
             s.passes = film.passes;
             s.status =
-                format!("rendering {} with {}: {}/{} spp", self.name, self.integrator.name(), film.passes, self.spp);
+                format!("rendering {} with {}: {}/{} spp", self.name, self.integrator.label, film.passes, self.spp);
             if let (Some(e), Some(series)) = (err, s.series.last_mut()) {
                 series.points.push((render_time, e));
             }
@@ -730,22 +725,19 @@ impl Job {
         if scene.camera.aperture_radius == 0.0 {
             lock(shared).status = "analysing (2 of 2): one CIS-LBDPT pass unsorted and sorted".into();
             let bvh = BvhCaster::new(scene);
-            let lights = crate::lights::Lights::new(scene);
             let mut eff = [0.0; 2];
             for (k, sort) in [false, true].into_iter().enumerate() {
-                let p = CisParams { sort, measure: true, pool: 1024, ..CisParams::default() };
                 let o = RenderOptions {
                     width: 32,
                     height: 32,
                     integrator: IntegratorKind::Cis,
-                    cis: p,
+                    cis: CisParams { sort, measure: true, pool: 1024, ..CisParams::default() },
                     ..Default::default()
                 };
-                let ctx = Context { scene, lights: &lights, caster: &bvh, opts: &o };
-                let mut cis = CisLbdpt::new(p);
-                let mut f = crate::film::Film::new(32, 32)?;
-                cis.render_pass(&ctx, 0, &mut f);
-                let st = cis.device().kernel_stats();
+                let mut renderer = Renderer::new(scene, &bvh, &o)?;
+                let mut f = renderer.film()?;
+                renderer.pass(0, &mut f);
+                let st = renderer.device().map(|d| d.kernel_stats()).unwrap_or_default();
                 // Measured over everything the lanes executed, not the declared region.
                 eff[k] = st.iter().find(|x| x.name == "cis::shade").and_then(|x| x.simd_efficiency()).unwrap_or(0.0);
                 if sort {

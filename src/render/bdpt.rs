@@ -1,7 +1,7 @@
-//! Light tracing and bidirectional path tracing (Veach 1997), run as wavefronts.
+//! Bidirectional path tracing (Veach 1997), run as wavefronts.
 //!
-//! Both take the pixels (or light paths) of a pass in waves of up to
-//! 65,536 samples (`walk::WAVE`). Per wave, the host loop reads like the algorithm:
+//! It takes the pixels of a pass in waves of up to 65,536 samples (`walk::WAVE`).
+//! Per wave, the host loop reads like the algorithm:
 //!
 //! 1. *camera subpaths* (BDPT): every sample's camera subpath, one batch of rays per bounce;
 //! 2. *light subpaths*: every sample's light subpath, the same way;
@@ -10,86 +10,25 @@
 //! 4. *resolve*: all shadow rays of the wave as one batch; visible contributions go to
 //!    the sample's pixel or, for camera connections (t = 1), onto the film as splats.
 //!
-//! Light tracing is the t = 1 strategies alone, unweighted. The strategies and their
-//! weights live in [`super::bidir`], the wavefront walks in `render/walk.rs`.
+//! Light tracing (`render/light.rs`) is the t = 1 strategies alone, unweighted. The
+//! strategies and their weights live in [`super::bidir`], the wavefront walks in
+//! `render/walk.rs`.
 
 use super::Context;
 use super::bidir::{
     Pending, Vertex, VertexList, camera_vertex, connect_to_camera, full_path, mis_weight, strategy_connect,
     strategy_emitter, strategy_light_sample,
 };
-use super::walk::{Subpaths, WAVE, Walker, extend_together, resolve_wave, start_camera_wave, start_light_wave, waves};
+use super::walk::{Walker, WaveBuffers, extend_together, resolve_wave, start_camera_wave, start_light_wave, waves};
 use crate::cast::CastStats;
 use crate::film::Film;
 use crate::sampling::Rng;
 use rayon::prelude::*;
 
-/// Buffers of one wave, kept across waves and passes, and the wave size.
-pub(crate) struct WaveBuffers {
-    pub camera: Subpaths,
-    pub light: Subpaths,
-    pub camera_walkers: Vec<Walker>,
-    pub light_walkers: Vec<Walker>,
-    /// Samples per wave (the image does not depend on it).
-    pub wave: u32,
-}
-
-impl Default for WaveBuffers {
-    fn default() -> Self {
-        WaveBuffers {
-            camera: Subpaths::default(),
-            light: Subpaths::default(),
-            camera_walkers: Vec::new(),
-            light_walkers: Vec::new(),
-            wave: WAVE,
-        }
-    }
-}
-
 /// Bidirectional path tracing, one camera and one light subpath per pixel sample.
 #[derive(Default)]
 pub struct Bdpt {
     buffers: WaveBuffers,
-}
-
-/// Light tracing: light subpaths splatted onto the film through the camera.
-#[derive(Default)]
-pub struct LightTracer {
-    buffers: WaveBuffers,
-}
-
-impl LightTracer {
-    /// Renders one pass: one light subpath per pixel, splatted through the camera.
-    pub(crate) fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
-        let max_vertices = ctx.opts.max_depth as usize + 1;
-        let cam_v = camera_vertex(&ctx.scene.camera);
-        let b = &mut self.buffers;
-        let mut stats = CastStats::default();
-        for wave in waves(ctx.opts.width * ctx.opts.height, b.wave) {
-            let rng_of =
-                |i: usize| Rng::for_sample(ctx.opts.seed ^ 0x4c54, (wave.start as usize + i) as u64, pass as u64);
-            let light = start_light_wave(ctx, wave.len(), rng_of, max_vertices, &mut b.light, &mut b.light_walkers);
-            stats = stats.merge(extend_together(ctx, &mut [light]));
-            let light = &b.light;
-            let pending: Vec<Vec<Pending>> = (0..light.len())
-                .into_par_iter()
-                .map(|i| {
-                    let verts = light.get(i);
-                    (1..=verts.len())
-                        .filter_map(|s| connect_to_camera(ctx, verts, s, &cam_v))
-                        .map(|(l, px, ray)| (Some(ray), l, Some(px)))
-                        .collect()
-                })
-                .collect();
-            let (resolved, shadow) = resolve_wave(ctx, &pending);
-            stats = stats.merge(shadow);
-            for (_, splats) in resolved {
-                film.add_splats(splats);
-            }
-        }
-        film.end_pass();
-        stats
-    }
 }
 
 impl Bdpt {
@@ -180,7 +119,7 @@ mod tests {
     use super::*;
     use crate::cast::BvhCaster;
     use crate::lights::Lights;
-    use crate::render::{IntegratorKind, LvcBdpt, LvcParams, RenderOptions};
+    use crate::render::{IntegratorKind, LightTracer, LvcBdpt, LvcParams, RenderOptions};
     use crate::scene::cornell_box;
 
     /// Each sample draws from its own streams, so cutting a pass into waves of any size

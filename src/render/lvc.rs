@@ -10,11 +10,11 @@
 //! splats with `N_L / pixels`).
 
 use super::Context;
-use super::bdpt::WaveBuffers;
 use super::bidir::{
     Pending, Vertex, VertexKind, VertexList, camera_vertex, connect_to_camera, connectible, full_path,
     mis_weight_counts, strategy_connect, strategy_emitter, strategy_light_sample,
 };
+use super::walk::WaveBuffers;
 use super::walk::{Subpaths, extend_together, resolve_wave, start_camera_wave, start_light_wave, waves};
 use crate::cast::CastStats;
 use crate::film::Film;

@@ -9,14 +9,18 @@ pub mod bdpt;
 pub mod bidir;
 pub mod cis;
 mod compact;
+mod light;
 pub mod lvc;
 pub(crate) mod megakernel;
 mod path;
+pub mod registry;
 mod walk;
 
-pub use bdpt::{Bdpt, LightTracer};
+pub use bdpt::Bdpt;
+pub use light::LightTracer;
 pub use lvc::{LvcBdpt, LvcParams};
 pub use path::PathTracer;
+pub use registry::Variant;
 
 use crate::cast::{CastStats, CountingCaster, RayCaster};
 use crate::error::{Error, Result};

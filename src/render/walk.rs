@@ -307,3 +307,25 @@ pub(crate) fn resolve_wave(ctx: &Context, pending: &[Vec<Pending>]) -> (Vec<Reso
         .collect();
     (resolved, stats)
 }
+
+/// Buffers of one wave, kept across waves and passes, and the wave size.
+pub(crate) struct WaveBuffers {
+    pub camera: Subpaths,
+    pub light: Subpaths,
+    pub camera_walkers: Vec<Walker>,
+    pub light_walkers: Vec<Walker>,
+    /// Samples per wave (the image does not depend on it).
+    pub wave: u32,
+}
+
+impl Default for WaveBuffers {
+    fn default() -> Self {
+        WaveBuffers {
+            camera: Subpaths::default(),
+            light: Subpaths::default(),
+            camera_walkers: Vec::new(),
+            light_walkers: Vec::new(),
+            wave: WAVE,
+        }
+    }
+}

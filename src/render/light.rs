@@ -1,0 +1,52 @@
+//! Light tracing as wavefronts: per wave, every light subpath (one batch of rays per
+//! bounce), then every vertex's connection to the camera, whose shadow rays go to the
+//! caster as one batch; visible contributions land on the film as splats. These are
+//! BDPT's t = 1 strategies alone, unweighted.
+
+use super::Context;
+use super::bidir::{Pending, camera_vertex, connect_to_camera};
+use super::walk::{WaveBuffers, extend_together, resolve_wave, start_light_wave, waves};
+use crate::cast::CastStats;
+use crate::film::Film;
+use crate::sampling::Rng;
+use rayon::prelude::*;
+
+/// Light tracing: light subpaths splatted onto the film through the camera.
+#[derive(Default)]
+pub struct LightTracer {
+    pub(super) buffers: WaveBuffers,
+}
+
+impl LightTracer {
+    /// Renders one pass: one light subpath per pixel, splatted through the camera.
+    pub(crate) fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
+        let max_vertices = ctx.opts.max_depth as usize + 1;
+        let cam_v = camera_vertex(&ctx.scene.camera);
+        let b = &mut self.buffers;
+        let mut stats = CastStats::default();
+        for wave in waves(ctx.opts.width * ctx.opts.height, b.wave) {
+            let rng_of =
+                |i: usize| Rng::for_sample(ctx.opts.seed ^ 0x4c54, (wave.start as usize + i) as u64, pass as u64);
+            let light = start_light_wave(ctx, wave.len(), rng_of, max_vertices, &mut b.light, &mut b.light_walkers);
+            stats = stats.merge(extend_together(ctx, &mut [light]));
+            let light = &b.light;
+            let pending: Vec<Vec<Pending>> = (0..light.len())
+                .into_par_iter()
+                .map(|i| {
+                    let verts = light.get(i);
+                    (1..=verts.len())
+                        .filter_map(|s| connect_to_camera(ctx, verts, s, &cam_v))
+                        .map(|(l, px, ray)| (Some(ray), l, Some(px)))
+                        .collect()
+                })
+                .collect();
+            let (resolved, shadow) = resolve_wave(ctx, &pending);
+            stats = stats.merge(shadow);
+            for (_, splats) in resolved {
+                film.add_splats(splats);
+            }
+        }
+        film.end_pass();
+        stats
+    }
+}
