@@ -173,3 +173,27 @@ fn modules_import_only_downwards() {
     assert!(seen > 40, "only {seen} source files found under {}", src.display());
     assert!(violations.is_empty(), "imports against the layering:\n{}", violations.join("\n"));
 }
+
+#[test]
+fn files_past_500_lines_say_why_at_the_top() {
+    // The style guide: files of 150-400 lines, split past ~500 unless the file's
+    // header states a reason (the phrase "on purpose" in its opening comment).
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut stack = vec![root.join("src"), root.join("simt/src")];
+    let mut long = Vec::new();
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                let text = std::fs::read_to_string(&path).unwrap();
+                let header: String = text.lines().take_while(|l| l.starts_with("//!")).collect::<Vec<_>>().join(" ");
+                if text.lines().count() > 500 && !header.contains("on purpose") {
+                    long.push(format!("{} ({} lines)", path.display(), text.lines().count()));
+                }
+            }
+        }
+    }
+    assert!(long.is_empty(), "files over 500 lines with no reason at the top: {long:?}");
+}
