@@ -136,30 +136,52 @@ pub struct ShadeArgs<'a> {
     pub vertices: GlobalMut<'a, Vertex>,
     /// Pending contributions, `PENDING_PER_SLOT` per slot.
     pub pending: GlobalMut<'a, PendingData>,
-    /// The light vertex cache's vertices.
-    pub cache_vertices: Global<'a, Vertex>,
+    /// The light vertex cache and how camera vertices connect to it.
+    pub cache: CacheRead<'a>,
+}
+
+/// The light vertex cache as camera-side kernels read it: CIS's `cis::shade` and the
+/// LVC megakernel's `lvc::camera_path`.
+#[derive(Clone, Copy)]
+pub struct CacheRead<'a> {
+    /// Vertices, subpath after subpath.
+    pub vertices: Global<'a, Vertex>,
     /// Per cache entry: its subpath's first vertex and `s`.
-    pub cache_entries: Global<'a, [u32; 2]>,
+    pub entries: Global<'a, [u32; 2]>,
     /// Light subpaths per vertex count, for the MIS weights.
     pub counts: StrategyCounts,
     /// How camera vertices pick cache vertices.
     pub connections: Connections,
 }
 
-/// Cache entry `e`'s light subpath up to its vertex, loaded into `light`; returns `s`.
-pub fn cache_subpath(
-    t: &Thread,
-    entries: &Global<[u32; 2]>,
-    vertices: &Global<Vertex>,
-    e: usize,
-    light: &mut VertexList,
-) -> usize {
-    let [start, s] = t.load(entries, e);
-    light.clear();
-    for k in 0..s as usize {
-        light.push(t.load(vertices, start as usize + k));
+impl CacheRead<'_> {
+    /// Cache entry `e`'s light subpath up to its vertex, loaded into `light`; returns `s`.
+    pub fn subpath(&self, t: &Thread, e: usize, light: &mut VertexList) -> usize {
+        let [start, s] = t.load(&self.entries, e);
+        light.clear();
+        for k in 0..s as usize {
+            light.push(t.load(&self.vertices, start as usize + k));
+        }
+        s as usize
     }
-    s as usize
+
+    /// Every strategy at vertex `t_len` of the camera subpath `cam`, with its cache
+    /// connections, into `sink` (LVC's `vertex_strategies` over this cache).
+    #[allow(clippy::too_many_arguments)]
+    pub fn strategies(
+        &self,
+        t: &Thread,
+        ctx: &Context,
+        cam: &[Vertex],
+        t_len: usize,
+        rng: &mut Rng,
+        path: &mut VertexList,
+        sink: &mut dyn FnMut(Pending),
+    ) {
+        let subpath = |e: usize, light: &mut VertexList| self.subpath(t, e, light);
+        let n = self.entries.len();
+        vertex_strategies(ctx, cam, t_len, n, &subpath, self.counts, self.connections, rng, path, sink);
+    }
 }
 
 /// Region of the shading kernel's SIMD accounting.
@@ -204,8 +226,6 @@ pub fn shade(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
     let t_len = depth + 1;
 
     // Every strategy at this vertex, into this slot's pending entries.
-    let cache_len = a.cache_entries.len();
-    let subpath = |e: usize, light: &mut VertexList| cache_subpath(t, &a.cache_entries, &a.cache_vertices, e, light);
     let mut path = VertexList::default();
     let mut next = 0;
     let mut sink = |(ray, value, _): Pending| {
@@ -215,18 +235,7 @@ pub fn shade(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
             next += 1;
         }
     };
-    vertex_strategies(
-        ctx,
-        &cam,
-        t_len,
-        cache_len,
-        &subpath,
-        a.counts,
-        a.connections,
-        &mut slot.rng,
-        &mut path,
-        &mut sink,
-    );
+    a.cache.strategies(t, ctx, &cam, t_len, &mut slot.rng, &mut path, &mut sink);
 
     // Continue the subpath.
     let max_vertices = ctx.opts.max_depth as usize + 2;

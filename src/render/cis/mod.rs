@@ -245,10 +245,12 @@ impl<'d> CameraPool<'d> {
             slots: self.slots.view_mut(),
             vertices: self.vertices.view_mut(),
             pending: self.pending.view_mut(),
-            cache_vertices: cache.vertices.view(),
-            cache_entries: cache.entries.view(),
-            counts,
-            connections,
+            cache: kernels::CacheRead {
+                vertices: cache.vertices.view(),
+                entries: cache.entries.view(),
+                counts,
+                connections,
+            },
         };
         let cfg = simt::LaunchConfig::linear(n, 128).with_regions(&["shade"]);
         self.dev

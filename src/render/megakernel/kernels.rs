@@ -9,13 +9,13 @@ use crate::bsdf::TransportMode;
 use crate::geometry::{Hit, Ray};
 use crate::render::Context;
 use crate::render::bidir::{Vertex, VertexList, camera_vertex};
-use crate::render::cis::kernels::{SHADE_REGION, cache_subpath, kind_index};
+use crate::render::cis::kernels::{CacheRead, SHADE_REGION, kind_index};
 use crate::render::cis::light::kernels::{SplatData, splat_entries};
-use crate::render::lvc::{Connections, StrategyCounts, light_path_rng, vertex_strategies};
+use crate::render::lvc::{StrategyCounts, light_path_rng};
 use crate::render::walk::{Walker, start_light_subpath, step};
 use crate::sampling::Rng;
 use glam::{Vec2, Vec3};
-use simt::{Global, GlobalMut, Readable, Thread};
+use simt::{Global, GlobalMut, Thread};
 
 /// Region of the declared ray casts.
 pub const TRACE_REGION: usize = 1;
@@ -92,19 +92,6 @@ pub fn splat(
     splat_entries(t, ctx, p, (paths, vertices), (counts, n_light), (stride, splats), &visible);
 }
 
-/// The light vertex cache as the camera kernel reads it.
-#[derive(Clone, Copy)]
-pub struct CacheRead<'a> {
-    /// Vertices, subpath after subpath.
-    pub vertices: Global<'a, Vertex>,
-    /// Per entry: its subpath's first vertex and `s`.
-    pub entries: Global<'a, [u32; 2]>,
-    /// MIS sample counts.
-    pub counts: StrategyCounts,
-    /// Uniform connections per camera vertex.
-    pub n_c: u32,
-}
-
 /// `lvc::camera_path`: pixel `pixel`'s sample of pass `pass`, whole: its camera subpath
 /// traced, then every strategy at every vertex, each shadow ray traced at once; the
 /// estimate goes to `estimates[pixel]`.
@@ -125,27 +112,13 @@ pub fn camera_path(
     let mut walker = Walker::new(camera.generate_ray(film_pos, w, h, Vec2::ZERO), Vec3::splat(weight), rng);
     walk(t, ctx, &mut walker, &mut cam, TransportMode::Radiance, ctx.opts.max_depth as usize + 2);
     let mut rng = walker.rng;
-    let subpath = |e: usize, light: &mut VertexList| cache_subpath(t, &cache.entries, &cache.vertices, e, light);
     let (mut path, mut estimate) = (VertexList::default(), Vec3::ZERO);
-    let connections = Connections::Uniform { n: cache.n_c };
     for k in 2..=cam.len() {
-        let cache_len = cache.entries.len();
-        vertex_strategies(
-            ctx,
-            &cam,
-            k,
-            cache_len,
-            &subpath,
-            cache.counts,
-            connections,
-            &mut rng,
-            &mut path,
-            &mut |p| {
-                if p.0.is_none_or(|ray| unblocked(t, ctx, ray)) {
-                    estimate += p.1;
-                }
-            },
-        );
+        cache.strategies(t, ctx, &cam, k, &mut rng, &mut path, &mut |p| {
+            if p.0.is_none_or(|ray| unblocked(t, ctx, ray)) {
+                estimate += p.1;
+            }
+        });
     }
     t.store(estimates, pixel as usize, estimate.to_array());
 }

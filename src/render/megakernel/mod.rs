@@ -25,8 +25,10 @@ use crate::cast::CastStats;
 use crate::film::Film;
 use crate::render::Context;
 use crate::render::bidir::Vertex;
+use crate::render::cis::kernels::CacheRead;
 use crate::render::cis::light::kernels::SplatData;
 use crate::render::cis::light::{DeviceCache, append_paths, visible_splats};
+use crate::render::lvc::Connections;
 use crate::render::walk::{WAVE, waves};
 use kernels::*;
 use simt::{Device, LaunchConfig};
@@ -75,7 +77,8 @@ pub(crate) fn render_pass(
     let pixels = (ctx.opts.width * ctx.opts.height) as usize;
     let mut estimates = dev.alloc::<[f32; 3]>(pixels);
     {
-        let read = CacheRead { vertices: cache.vertices.view(), entries: cache.entries.view(), counts, n_c };
+        let connections = Connections::Uniform { n: n_c };
+        let read = CacheRead { vertices: cache.vertices.view(), entries: cache.entries.view(), counts, connections };
         let ev = estimates.view_mut();
         launch_per_item(dev, "lvc::camera_path", pixels, |t, i| camera_path(t, ctx, i as u32, pass, &read, &ev));
     }
