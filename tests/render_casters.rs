@@ -66,3 +66,40 @@ fn one_device_holds_a_whole_render_of_pdacrt_and_cis() {
     let r = Renderer::new(&scene, bvh.as_ref(), &opts).unwrap();
     assert!(r.device().is_some());
 }
+
+/// `render` groups the passes of a small image into shared waves
+/// (`Renderer::pass_group`): the film is bit for bit the one of passes rendered one
+/// at a time, with the same rays, in fewer and larger caster calls.
+#[test]
+fn grouped_passes_make_the_same_film_in_fewer_caster_calls() {
+    let scene = cornell_box();
+    let caster = BvhCaster::new(&scene);
+    for integrator in [IntegratorKind::Light, IntegratorKind::Bdpt, IntegratorKind::Lvc] {
+        let opts = RenderOptions {
+            width: 16,
+            height: 12,
+            budget: Budget::Samples(5),
+            integrator,
+            seed: 9,
+            max_depth: 6,
+            ..Default::default()
+        };
+        let (grouped, stats) = render(&scene, &caster, &opts, |_, _| true).unwrap();
+        let mut one = Renderer::new(&scene, &caster, &opts).unwrap();
+        assert!(one.pass_group() >= 5, "{}: a 16x12 image should group its passes", integrator.name());
+        let mut film = one.film().unwrap();
+        let rays: usize = (0..5).map(|p| one.pass(p, &mut film).rays).sum();
+        let (_, calls) = one.ray_counts();
+        let name = integrator.name();
+        assert_eq!((grouped.passes, stats.rays), (film.passes, rays as u64), "{name}: passes and rays");
+        assert!(
+            grouped.sum == film.sum && grouped.splat == film.splat && grouped.sum_sq == film.sum_sq,
+            "{name}: film"
+        );
+        assert!(
+            stats.cast_calls * 3 <= calls,
+            "{name}: {} grouped calls against {calls} one pass at a time",
+            stats.cast_calls
+        );
+    }
+}

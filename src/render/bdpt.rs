@@ -1,6 +1,8 @@
 //! Bidirectional path tracing (Veach 1997), run as wavefronts.
 //!
-//! It takes the pixels of a pass in waves of up to 65,536 samples (`walk::WAVE`).
+//! It takes the samples of one or more passes (`walk::Passes`: a small image's passes
+//! share waves, so the caster still gets large batches) in waves of up to 65,536
+//! samples (`walk::WAVE`).
 //! Per wave, the host loop reads like the algorithm:
 //!
 //! 1. *camera subpaths* (BDPT): every sample's camera subpath, one batch of rays per bounce;
@@ -19,7 +21,9 @@ use super::bidir::{
     Pending, Vertex, VertexList, camera_vertex, connect_to_camera, full_path, mis_weight, strategy_connect,
     strategy_emitter, strategy_light_sample,
 };
-use super::walk::{Walker, WaveBuffers, extend_together, resolve_wave, start_camera_wave, start_light_wave, waves};
+use super::walk::{
+    Passes, Walker, WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave, start_light_wave,
+};
 use crate::cast::CastStats;
 use crate::film::Film;
 use crate::sampling::Rng;
@@ -28,20 +32,21 @@ use rayon::prelude::*;
 /// Bidirectional path tracing, one camera and one light subpath per pixel sample.
 #[derive(Default)]
 pub struct Bdpt {
-    buffers: WaveBuffers,
+    pub(super) buffers: WaveBuffers,
 }
 
 impl Bdpt {
-    /// Renders one pass: one camera and one light subpath per pixel, every connection weighted by MIS.
-    pub(crate) fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
+    /// Renders the passes of `span` (one camera and one light subpath per pixel and
+    /// pass, every connection weighted by MIS), in waves that may hold several passes.
+    pub(crate) fn render_passes(&mut self, ctx: &Context, span: Passes, film: &mut Film) -> CastStats {
         let max_vertices = ctx.opts.max_depth as usize + 1;
         let b = &mut self.buffers;
         let mut stats = CastStats::default();
-        let mut estimates = Vec::with_capacity((ctx.opts.width * ctx.opts.height) as usize);
-        for wave in waves(ctx.opts.width * ctx.opts.height, b.wave) {
+        let mut estimates = Vec::with_capacity(span.per_pass as usize);
+        for wave in span.waves(b.wave) {
             // Camera and light subpaths, extended together: one batch of rays per bounce.
             let n = wave.len();
-            let camera = start_camera_wave(ctx, pass, wave, &mut b.camera, &mut b.camera_walkers);
+            let camera = start_camera_wave(ctx, span, wave.clone(), &mut b.camera, &mut b.camera_walkers);
             // A sample's light stream derives from its camera stream's key (not its state).
             let keys: &[Walker] = camera.walkers;
             let light =
@@ -58,12 +63,8 @@ impl Bdpt {
                 .collect();
             let (resolved, shadow) = resolve_wave(ctx, &pending);
             stats = stats.merge(shadow);
-            for (estimate, splats) in resolved {
-                estimates.push(estimate);
-                film.add_splats(splats);
-            }
+            flush_wave(film, span, wave, resolved, Some(&mut estimates));
         }
-        film.add_pass(pass, &estimates);
         stats
     }
 }
@@ -122,33 +123,47 @@ mod tests {
     use crate::render::{IntegratorKind, LightTracer, LvcBdpt, LvcParams, RenderOptions};
     use crate::scene::cornell_box;
 
-    /// Each sample draws from its own streams, so cutting a pass into waves of any size
-    /// (here 4,096 samples in one wave against waves of 1,000 and of 7) leaves the image
-    /// bit for bit the same.
+    /// Each sample draws from its own streams, so rendering passes one at a time, or
+    /// several together in waves of any size (one wave for all three passes, waves of
+    /// 1,000 that straddle the passes' ends, waves of 7), leaves the film bit for bit
+    /// the same: its sums, splats and squared sums.
     #[test]
-    fn the_wave_size_does_not_change_the_image() {
+    fn grouping_passes_and_the_wave_size_do_not_change_the_image() {
         let scene = cornell_box();
         let lights = Lights::new(&scene);
         let caster = BvhCaster::new(&scene);
+        let (size, passes) = (32u32, 3u32);
+        let per_pass = size * size;
         for integrator in [IntegratorKind::Light, IntegratorKind::Bdpt, IntegratorKind::Lvc] {
-            let opts = RenderOptions { width: 64, height: 64, integrator, seed: 5, max_depth: 5, ..Default::default() };
+            let opts =
+                RenderOptions { width: size, height: size, integrator, seed: 5, max_depth: 5, ..Default::default() };
             let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts };
-            let images: Vec<Vec<glam::Vec3>> = [4096, 1000, 7]
-                .into_iter()
-                .map(|wave| {
-                    let mut film = Film::new(64, 64).unwrap();
-                    let buffers = WaveBuffers { wave, ..Default::default() };
+            let render = |spans: &[Passes], wave: u32| {
+                let mut film = Film::new(size, size).unwrap();
+                let buffers = WaveBuffers { wave, ..Default::default() };
+                let mut light = LightTracer { buffers };
+                let mut bdpt = Bdpt { buffers: WaveBuffers { wave, ..Default::default() } };
+                let mut lvc = LvcBdpt {
+                    buffers: WaveBuffers { wave, ..Default::default() },
+                    ..LvcBdpt::new(LvcParams::default())
+                };
+                for &span in spans {
                     match integrator {
-                        IntegratorKind::Light => LightTracer { buffers }.render_pass(&ctx, 0, &mut film),
-                        IntegratorKind::Bdpt => Bdpt { buffers }.render_pass(&ctx, 0, &mut film),
-                        _ => LvcBdpt { buffers, ..LvcBdpt::new(LvcParams::default()) }.render_pass(&ctx, 0, &mut film),
+                        IntegratorKind::Light => light.render_passes(&ctx, span, &mut film),
+                        IntegratorKind::Bdpt => bdpt.render_passes(&ctx, span, &mut film),
+                        _ => lvc.render_passes(&ctx, span, &mut film),
                     };
-                    film.mean()
-                })
-                .collect();
-            assert!(images[0].iter().any(|p| p.max_element() > 0.0), "{integrator:?}: black image");
-            for (k, img) in images.iter().enumerate().skip(1) {
-                assert!(*img == images[0], "{integrator:?}: wave size #{k} changed the image");
+                }
+                let bits = |v: &[glam::Vec3]| v.iter().flat_map(|c| c.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+                (film.passes, bits(&film.sum), bits(&film.splat), bits(&film.sum_sq))
+            };
+            let one_by_one: Vec<Passes> = (0..passes).map(|first| Passes { first, count: 1, per_pass }).collect();
+            let reference = render(&one_by_one, per_pass);
+            assert_eq!(reference.0, passes);
+            assert!(reference.1.iter().chain(&reference.2).any(|&b| f32::from_bits(b) > 0.0), "{integrator:?}: black");
+            let together = [Passes { first: 0, count: passes, per_pass }];
+            for wave in [per_pass * passes, 1000, 7] {
+                assert!(render(&together, wave) == reference, "{integrator:?}: grouped, waves of {wave}: another film");
             }
         }
     }

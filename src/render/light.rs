@@ -5,7 +5,7 @@
 
 use super::Context;
 use super::bidir::{Pending, camera_vertex, connect_to_camera};
-use super::walk::{WaveBuffers, extend_together, resolve_wave, start_light_wave, waves};
+use super::walk::{Passes, WaveBuffers, extend_together, flush_wave, resolve_wave, start_light_wave};
 use crate::cast::CastStats;
 use crate::film::Film;
 use crate::sampling::Rng;
@@ -18,15 +18,18 @@ pub struct LightTracer {
 }
 
 impl LightTracer {
-    /// Renders one pass: one light subpath per pixel, splatted through the camera.
-    pub(crate) fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
+    /// Renders the passes of `span` (one light subpath per pixel and pass, splatted
+    /// through the camera), in waves that may hold several passes.
+    pub(crate) fn render_passes(&mut self, ctx: &Context, span: Passes, film: &mut Film) -> CastStats {
         let max_vertices = ctx.opts.max_depth as usize + 1;
         let cam_v = camera_vertex(&ctx.scene.camera);
         let b = &mut self.buffers;
         let mut stats = CastStats::default();
-        for wave in waves(ctx.opts.width * ctx.opts.height, b.wave) {
-            let rng_of =
-                |i: usize| Rng::for_sample(ctx.opts.seed ^ 0x4c54, (wave.start as usize + i) as u64, pass as u64);
+        for wave in span.waves(b.wave) {
+            let rng_of = |i: usize| {
+                let (path, pass) = span.at(wave.start + i as u32);
+                Rng::for_sample(ctx.opts.seed ^ 0x4c54, path as u64, pass as u64)
+            };
             let light = start_light_wave(ctx, wave.len(), rng_of, max_vertices, &mut b.light, &mut b.light_walkers);
             stats = stats.merge(extend_together(ctx, &mut [light]));
             let light = &b.light;
@@ -42,11 +45,8 @@ impl LightTracer {
                 .collect();
             let (resolved, shadow) = resolve_wave(ctx, &pending);
             stats = stats.merge(shadow);
-            for (_, splats) in resolved {
-                film.add_splats(splats);
-            }
+            flush_wave(film, span, wave, resolved, None);
         }
-        film.end_pass();
         stats
     }
 }

@@ -15,7 +15,7 @@ use super::bidir::{
     mis_weight_counts, strategy_connect, strategy_emitter, strategy_light_sample,
 };
 use super::walk::WaveBuffers;
-use super::walk::{Subpaths, extend_together, resolve_wave, start_camera_wave, start_light_wave, waves};
+use super::walk::{Passes, Subpaths, extend_together, resolve_wave, start_camera_wave, start_light_wave};
 use crate::cast::CastStats;
 use crate::film::Film;
 use crate::film::luminance;
@@ -104,49 +104,63 @@ impl StrategyCounts {
     }
 }
 
-/// Traces the iteration's light subpaths as wavefronts: the cache, and the splats of
-/// every light vertex to the camera (weighted with `counts`, which need the cache size:
-/// the splats are weighted after the cache is built).
-pub(crate) fn build_cache(
-    ctx: &Context,
-    pass: u32,
-    n_light: u32,
-    n_c: u32,
-    wave_size: u32,
-) -> (LightVertexCache, StrategyCounts, Vec<(Vec2, Vec3)>, CastStats) {
+/// One iteration's light pass: the cache, its MIS counts, and the camera splats of
+/// every light vertex (in path order).
+pub(crate) struct LightPass {
+    pub cache: LightVertexCache,
+    pub counts: StrategyCounts,
+    pub splats: Vec<(Vec2, Vec3)>,
+}
+
+/// The light passes of the iterations of `span` (`span.per_pass` light subpaths each),
+/// traced as wavefronts together: each wave's light subpaths may belong to several
+/// iterations, and each subpath goes to its own iteration's cache, in path order. The
+/// splats of every light vertex to the camera are weighted with its iteration's
+/// `counts`, which need the cache size, so they are made after the caches are built.
+pub(crate) fn build_caches(ctx: &Context, span: Passes, n_c: u32, wave_size: u32) -> (Vec<LightPass>, CastStats) {
     let max_vertices = ctx.opts.max_depth as usize + 1;
-    let mut cache = LightVertexCache { light_paths: n_light, ..Default::default() };
+    let n_light = span.per_pass;
+    let mut caches: Vec<LightVertexCache> =
+        (0..span.count).map(|_| LightVertexCache { light_paths: n_light, ..Default::default() }).collect();
+    let iteration = |k: u32| (k / n_light) as usize;
     let mut stats = CastStats::default();
     let (mut subpaths, mut walkers) = (Subpaths::default(), Vec::new());
-    // Per light path: where its vertices start in the cache, and how many it has.
-    let mut paths = Vec::with_capacity(n_light as usize);
-    for wave in waves(n_light, wave_size) {
-        let rng_of = |i: usize| light_path_rng(ctx, wave.start + i as u32, pass);
+    // Per light path: where its vertices start in its iteration's cache, and how many it has.
+    let mut paths = Vec::with_capacity(span.total() as usize);
+    for wave in span.waves(wave_size) {
+        let rng_of = |i: usize| {
+            let (path, pass) = span.at(wave.start + i as u32);
+            light_path_rng(ctx, path, pass)
+        };
         let light = start_light_wave(ctx, wave.len(), rng_of, max_vertices, &mut subpaths, &mut walkers);
         stats = stats.merge(extend_together(ctx, &mut [light]));
-        for i in 0..subpaths.len() {
+        for (i, k) in wave.enumerate() {
+            let cache = &mut caches[iteration(k)];
             let verts = subpaths.get(i);
             let start = cache.vertices.len() as u32;
             paths.push((start, verts.len() as u32));
-            for (k, v) in verts.iter().enumerate() {
+            for (v_idx, v) in verts.iter().enumerate() {
                 if v.kind == VertexKind::Surface && connectible(ctx, v) {
-                    cache.entries.push((start, k as u32 + 1));
+                    cache.entries.push((start, v_idx as u32 + 1));
                 }
             }
             cache.vertices.extend_from_slice(verts);
         }
     }
-    let counts = StrategyCounts::new(ctx, n_light, cache.entries.len(), n_c);
+    let counts: Vec<StrategyCounts> =
+        caches.iter().map(|c| StrategyCounts::new(ctx, n_light, c.entries.len(), n_c)).collect();
     // Splats (t = 1) of every light vertex, in path order, their shadow rays cast one
     // wave at a time.
-    let mut splats = Vec::new();
-    for wave in waves(n_light, wave_size) {
+    let mut splats = vec![Vec::new(); span.count as usize];
+    for wave in span.waves(wave_size) {
         let pending: Vec<Vec<Pending>> = paths[wave.start as usize..wave.end as usize]
             .par_iter()
-            .map_init(VertexList::default, |path, &(start, len)| {
-                let verts = &cache.vertices[start as usize..(start + len) as usize];
+            .zip(wave.clone())
+            .map_init(VertexList::default, |path, (&(start, len), k)| {
+                let q = iteration(k);
+                let verts = &caches[q].vertices[start as usize..(start + len) as usize];
                 let mut pending = Vec::new();
-                light_splats(ctx, verts, counts, n_light, path, &mut |ray, l, px| {
+                light_splats(ctx, verts, counts[q], n_light, path, &mut |ray, l, px| {
                     pending.push((Some(ray), l, Some(px)))
                 });
                 pending
@@ -154,9 +168,12 @@ pub(crate) fn build_cache(
             .collect();
         let (resolved, shadow) = resolve_wave(ctx, &pending);
         stats = stats.merge(shadow);
-        splats.extend(resolved.into_iter().flat_map(|(_, s)| s));
+        for (k, (_, s)) in wave.zip(resolved) {
+            splats[iteration(k)].extend(s);
+        }
     }
-    (cache, counts, splats, stats)
+    let passes = caches.into_iter().zip(counts).zip(splats);
+    (passes.map(|((cache, counts), splats)| LightPass { cache, counts, splats }).collect(), stats)
 }
 
 /// The random stream of light subpath `path` in pass `pass` (by path and pass, never
@@ -217,36 +234,53 @@ impl LvcBdpt {
         self.dev.as_ref()
     }
 
-    /// Renders one pass: trace and cache light subpaths, then one camera path per pixel connecting to the cache.
-    pub(crate) fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
+    /// Renders the passes of `span` (one camera path per pixel and pass): first every
+    /// iteration's light pass, traced together ([`build_caches`]), then the camera
+    /// paths in waves that may hold several passes, each connecting to its own
+    /// iteration's cache. The megakernel form renders one pass at a time.
+    pub(crate) fn render_passes(&mut self, ctx: &Context, span: Passes, film: &mut Film) -> CastStats {
         let (w, h) = (ctx.opts.width, ctx.opts.height);
         let n_light = if self.params.light_paths == 0 { w * h } else { self.params.light_paths };
         let n_c = self.params.connections;
         if let Some(dev) = &self.dev {
-            return super::megakernel::render_pass(dev, ctx, pass, (n_light, n_c), film);
+            return (span.first..span.first + span.count).fold(CastStats::default(), |stats, pass| {
+                stats.merge(super::megakernel::render_pass(dev, ctx, pass, (n_light, n_c), film))
+            });
         }
-        let (cache, counts, splats, mut stats) = build_cache(ctx, pass, n_light, n_c, self.buffers.wave);
-        film.add_splats(splats);
+        let light_span = Passes { per_pass: n_light, ..span };
+        let (mut light, mut stats) = build_caches(ctx, light_span, n_c, self.buffers.wave);
         let b = &mut self.buffers;
-        let mut estimates = Vec::with_capacity((w * h) as usize);
-        for wave in waves(w * h, b.wave) {
-            let camera = start_camera_wave(ctx, pass, wave, &mut b.camera, &mut b.camera_walkers);
+        let mut estimates = Vec::with_capacity(span.per_pass as usize);
+        for wave in span.waves(b.wave) {
+            let camera = start_camera_wave(ctx, span, wave.clone(), &mut b.camera, &mut b.camera_walkers);
             stats = stats.merge(extend_together(ctx, &mut [camera]));
             let (camera, walkers) = (&b.camera, &b.camera_walkers);
+            let caches = &light;
             let pending: Vec<Vec<Pending>> = (0..camera.len())
                 .into_par_iter()
                 .map_init(VertexList::default, |path, i| {
                     let mut rng = walkers[i].rng;
+                    let it = &caches[(span.at(wave.start + i as u32).1 - span.first) as usize];
                     let connections = Connections::Uniform { n: n_c };
-                    camera_strategies(ctx, camera.get(i), &cache, counts, connections, &mut rng, path)
+                    camera_strategies(ctx, camera.get(i), &it.cache, it.counts, connections, &mut rng, path)
                 })
                 .collect();
             let (resolved, shadow) = resolve_wave(ctx, &pending);
             stats = stats.merge(shadow);
-            estimates.extend(resolved.into_iter().map(|(e, _)| e));
+            // A pass's light splats reach the film just before its camera estimates.
+            for (k, (e, _)) in wave.zip(resolved) {
+                estimates.push(e);
+                if span.ends_pass(k) {
+                    let pass = span.at(k).1;
+                    film.add_splats(std::mem::take(&mut light[(pass - span.first) as usize].splats));
+                    film.add_pass(pass, &estimates);
+                    estimates.clear();
+                }
+            }
         }
-        film.add_pass(pass, &estimates);
-        self.last_cache = cache;
+        if let Some(last) = light.pop() {
+            self.last_cache = last.cache;
+        }
         stats
     }
 }

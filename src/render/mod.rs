@@ -28,6 +28,7 @@ use crate::film::Film;
 use crate::lights::Lights;
 use crate::scene::Scene;
 use std::time::{Duration, Instant};
+use walk::Passes;
 
 /// Light-transport algorithms selectable from the command line and the library.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -89,7 +90,9 @@ impl std::str::FromStr for IntegratorKind {
 pub enum Budget {
     /// This many samples per pixel.
     Samples(u32),
-    /// Passes until this much wall time has gone (at least one pass).
+    /// Passes until this much wall time has gone (at least one pass). The clock is
+    /// read between groups of passes ([`Renderer::pass_group`]), each sized to about an
+    /// eighth of the time left, so a render overshoots by at most about that much.
     Seconds(f64),
 }
 
@@ -334,15 +337,55 @@ impl<'a> Renderer<'a> {
     /// The returned statistics count every caster call the pass made, whichever
     /// integrator made them and from whichever thread.
     pub fn pass(&mut self, pass: u32, film: &mut Film) -> CastStats {
+        self.passes(pass, 1, film)
+    }
+
+    /// How many passes [`Renderer::passes`] renders together: as many as fit in one
+    /// wave of 65,536 samples (light tracing, BDPT and LVC's wavefront form; at least
+    /// one), so that a small image still hands the caster large batches; one for the
+    /// path tracer, CIS-LBDPT and the LVC megakernel, which keep their own batches.
+    pub fn pass_group(&self) -> u32 {
+        let pixels = self.opts.width * self.opts.height;
+        let per_pass = match &self.integrator {
+            Integrator::Light(_) | Integrator::Bdpt(_) => pixels,
+            Integrator::Lvc(l) if l.dev.is_none() => pixels.max(l.params.light_paths),
+            _ => return 1,
+        };
+        (walk::WAVE / per_pass.max(1)).max(1)
+    }
+
+    /// Adds passes `first..first + count` to `film`: the same film, bit for bit, as
+    /// that many calls of [`Renderer::pass`] in order, but rendered in groups of
+    /// [`Renderer::pass_group`] passes whose samples share waves (and caster calls).
+    /// The whole call runs on the rayon pool, so the integrator's parallel steps do
+    /// not hand over from the calling thread one by one.
+    pub fn passes(&mut self, first: u32, count: u32, film: &mut Film) -> CastStats {
         let counter = CountingCaster::new(self.caster);
         let ctx = Context { scene: self.scene, lights: &self.lights, caster: &counter, opts: &self.opts };
-        let own = match &mut self.integrator {
-            Integrator::Path(i) => i.render_pass(&ctx, pass, film),
-            Integrator::Light(i) => i.render_pass(&ctx, pass, film),
-            Integrator::Bdpt(i) => i.render_pass(&ctx, pass, film),
-            Integrator::Lvc(i) => i.render_pass(&ctx, pass, film),
-            Integrator::Cis(i) => i.render_pass(&ctx, pass, film),
+        let (group, per_pass) = (self.pass_group(), self.opts.width * self.opts.height);
+        let integrator = &mut self.integrator;
+        let mut body = || {
+            let mut stats = CastStats::default();
+            let end = first.saturating_add(count);
+            let mut at = first;
+            while at < end {
+                let span = Passes { first: at, count: group.min(end - at), per_pass };
+                let one_by_one = |render: &mut dyn FnMut(u32, &mut Film) -> CastStats, film: &mut Film| {
+                    (span.first..span.first + span.count).fold(CastStats::default(), |s, p| s.merge(render(p, film)))
+                };
+                let done = match &mut *integrator {
+                    Integrator::Path(i) => one_by_one(&mut |p, f| i.render_pass(&ctx, p, f), film),
+                    Integrator::Light(i) => i.render_passes(&ctx, span, film),
+                    Integrator::Bdpt(i) => i.render_passes(&ctx, span, film),
+                    Integrator::Lvc(i) => i.render_passes(&ctx, span, film),
+                    Integrator::Cis(i) => one_by_one(&mut |p, f| i.render_pass(&ctx, p, f), film),
+                };
+                stats = stats.merge(done);
+                at += span.count;
+            }
+            stats
         };
+        let own = rayon::scope(|_| body());
         let counted = counter.stats();
         self.counts.0 += counter.shadow_rays();
         self.counts.1 += counter.calls();
@@ -386,6 +429,7 @@ pub fn render(
     let mut film = renderer.film()?;
     let mut stats = RenderStats::default();
     let start = Instant::now();
+    let mut pass_seconds: Option<f64> = None;
     loop {
         let done = match opts.budget {
             Budget::Samples(n) => stats.passes >= n,
@@ -394,12 +438,26 @@ pub fn render(
         if done {
             break;
         }
-        let pass = renderer.pass(stats.passes, &mut film);
+        // Under a time budget the groups start at one pass and then take about an
+        // eighth of the time left, so the clock (and `on_pass`) is read often enough.
+        let group = match opts.budget {
+            Budget::Samples(n) => renderer.pass_group().min(n - stats.passes),
+            Budget::Seconds(s) => match pass_seconds {
+                None => 1,
+                Some(t) => {
+                    let left = s - start.elapsed().as_secs_f64();
+                    ((left / 8.0 / t.max(1e-9)).min(u32::MAX as f64) as u32).clamp(1, renderer.pass_group())
+                }
+            },
+        };
+        let group_start = Instant::now();
+        let pass = renderer.passes(stats.passes, group, &mut film);
+        pass_seconds = Some(group_start.elapsed().as_secs_f64() / group as f64);
         stats.rays += pass.rays as u64;
         stats.cast_seconds += pass.seconds;
         stats.tests += pass.tests;
         stats.peak_working_bytes = stats.peak_working_bytes.max(pass.peak_working_bytes);
-        stats.passes += 1;
+        stats.passes += group;
         if !on_pass(stats.passes, &film) {
             break;
         }

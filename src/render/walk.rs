@@ -1,7 +1,8 @@
 //! Subpaths extended as a wavefront, for the bidirectional integrators (light tracing,
 //! BDPT, LVC-BDPT and the light pass of CIS-LBDPT).
 //!
-//! A wave holds up to [`WAVE`] subpaths side by side. Each bounce gathers the next ray
+//! A wave holds up to [`WAVE`] subpaths side by side, of one pass or, for a small
+//! image, of several ([`Passes`]). Each bounce gathers the next ray
 //! of every live subpath into one batch, casts it through the caster (so DACRT and
 //! PDACRT see thousands of rays per call, never one), and then advances every subpath
 //! in parallel with its hit: store the vertex, sample the BSDF, apply Russian roulette.
@@ -31,6 +32,71 @@ pub(crate) const WAVE: u32 = 1 << 16;
 pub(crate) fn waves(n: u32, size: u32) -> impl Iterator<Item = Range<u32>> {
     let size = size.max(1);
     (0..n.div_ceil(size)).map(move |k| k * size..((k + 1) * size).min(n))
+}
+
+/// Consecutive passes rendered together, their samples numbered pass-major: sample
+/// `k` is pixel (or light path) `k % per_pass` of pass `first + k / per_pass`. Waves
+/// run over this numbering, so one wave may hold several passes of a small image
+/// (fewer, larger caster batches), and every sample keeps the stream of its pixel and
+/// pass: the image is the same however the passes are grouped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Passes {
+    pub first: u32,
+    pub count: u32,
+    pub per_pass: u32,
+}
+
+impl Passes {
+    /// Samples in all the passes. Callers keep this within `u32` (see
+    /// [`super::Renderer::passes`]: several passes are grouped only below one wave).
+    pub fn total(&self) -> u32 {
+        self.per_pass * self.count
+    }
+
+    /// Sample `k`'s index within its pass, and its pass number.
+    #[inline]
+    pub fn at(&self, k: u32) -> (u32, u32) {
+        (k % self.per_pass, self.first + k / self.per_pass)
+    }
+
+    /// Whether sample `k` is the last of its pass.
+    #[inline]
+    pub fn ends_pass(&self, k: u32) -> bool {
+        (k + 1) % self.per_pass == 0
+    }
+
+    /// The waves of up to `size` samples over all the passes, in order.
+    pub fn waves(&self, size: u32) -> impl Iterator<Item = Range<u32>> + use<> {
+        waves(self.total(), size)
+    }
+}
+
+/// Adds a wave's resolved samples to the film in sample order: each sample's splats,
+/// then, at the end of each pass, that pass's estimates (`add_pass`, when `estimates`
+/// is given) or the end of a splat-only pass. The film sees the same calls in the same
+/// order as when passes are rendered one at a time.
+pub(crate) fn flush_wave(
+    film: &mut crate::film::Film,
+    span: Passes,
+    wave: Range<u32>,
+    resolved: Vec<Resolved>,
+    mut estimates: Option<&mut Vec<Vec3>>,
+) {
+    for (k, (estimate, splats)) in wave.zip(resolved) {
+        film.add_splats(splats);
+        if let Some(e) = estimates.as_deref_mut() {
+            e.push(estimate);
+        }
+        if span.ends_pass(k) {
+            match estimates.as_deref_mut() {
+                Some(e) => {
+                    film.add_pass(span.at(k).1, e);
+                    e.clear();
+                }
+                None => film.end_pass(),
+            }
+        }
+    }
 }
 
 /// One subpath being extended: its next ray, throughput and random stream.
@@ -97,25 +163,26 @@ impl Subpaths {
     }
 }
 
-/// Camera subpaths through the pixels `pixels` of pass `pass` (jittered, up to
-/// `max_depth` bounces), sample `i` of the wave in slot `i`: started, not yet extended
-/// (see [`extend_together`]). Each walker keeps its pixel sample's random stream for
-/// the connections that follow.
+/// Camera subpaths of the samples `wave` of `span` (jittered, up to `max_depth`
+/// bounces), the wave's sample `i` in slot `i`: started, not yet extended (see
+/// [`extend_together`]). Each walker keeps its pixel sample's random stream for the
+/// connections that follow.
 pub(crate) fn start_camera_wave<'a>(
     ctx: &Context,
-    pass: u32,
-    pixels: Range<u32>,
+    span: Passes,
+    wave: Range<u32>,
     subpaths: &'a mut Subpaths,
     walkers: &'a mut Vec<Walker>,
 ) -> Walk<'a> {
     let (w, h) = (ctx.opts.width, ctx.opts.height);
     let camera = &ctx.scene.camera;
     let max_vertices = ctx.opts.max_depth as usize + 2;
-    subpaths.reset(pixels.len(), max_vertices);
+    subpaths.reset(wave.len(), max_vertices);
     subpaths
         .par_slots_mut()
-        .zip(pixels)
-        .map(|((verts, len), pixel)| {
+        .zip(wave)
+        .map(|((verts, len), k)| {
+            let (pixel, pass) = span.at(k);
             verts[0] = camera_vertex(camera);
             *len = 1;
             let rng = Rng::for_sample(ctx.opts.seed, pixel as u64, pass as u64);

@@ -55,7 +55,9 @@ pub struct DacrtParams {
     /// Nodes with at least this many triangles split by binned SAH on a subsample
     /// (`usize::MAX`: spatial median everywhere).
     pub sah_min_triangles: usize,
-    /// Smallest ray group traced on its own when several threads run.
+    /// Smallest ray group traced on its own when several threads run; a group also
+    /// carries at least a quarter as many rays as a shared-top cell has triangles (so
+    /// 1,024 for cells of 4,096, and this floor on small scenes).
     pub min_group_rays: usize,
     /// The shared top levels stop splitting at cells of at most this many triangles
     /// (0: no shared top; every group starts from the root).
@@ -71,7 +73,7 @@ impl Default for DacrtParams {
             leaf_triangles: 12,
             max_depth: 48,
             sah_min_triangles: 10_000,
-            min_group_rays: 1024,
+            min_group_rays: 128,
             top_cell_triangles: 4096,
             groups_per_thread: 8,
         }
@@ -389,7 +391,11 @@ impl Dacrt {
         if threads <= 1 || p.groups_per_thread == 0 {
             return 1;
         }
-        (threads * p.groups_per_thread).min(n / p.min_group_rays.max(1)).max(1)
+        // A group re-partitions the triangles of every cell it reaches: it should carry
+        // at least a quarter as many rays as a cell has triangles.
+        let cell = if p.top_cell_triangles == 0 { self.tris.len() } else { self.tris.len().min(p.top_cell_triangles) };
+        let min_rays = p.min_group_rays.max(cell / 4).max(1);
+        (threads * p.groups_per_thread).min(n / min_rays).max(1)
     }
 
     /// Runs the recursion for one batch; returns the per-ray keys, the peak bytes and

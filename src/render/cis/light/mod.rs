@@ -237,7 +237,8 @@ mod tests {
     use crate::cast::BvhCaster;
     use crate::lights::Lights;
     use crate::render::RenderOptions;
-    use crate::render::lvc::build_cache;
+    use crate::render::lvc::{LightPass, build_caches};
+    use crate::render::walk::Passes;
     use crate::render::walk::WAVE;
     use crate::scene::cornell_box;
 
@@ -262,7 +263,8 @@ mod tests {
         let opts = RenderOptions { width: 32, height: 24, seed: 11, max_depth: 6, ..Default::default() };
         let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts };
         let n_light = 32 * 24;
-        let (host, host_counts, host_splats, _) = build_cache(&ctx, 2, n_light, 3, WAVE);
+        let (mut host, _) = build_caches(&ctx, Passes { first: 2, count: 1, per_pass: n_light }, 3, WAVE);
+        let LightPass { cache: host, counts: host_counts, splats: host_splats } = host.pop().expect("one pass");
         assert!(host.entries.len() > n_light as usize / 2 && !host_splats.is_empty());
         for (pool, sort) in [(32, true), (100, false), (1 << 16, true)] {
             let dev = Device::default();
