@@ -126,7 +126,9 @@ mod tests {
     /// Each sample draws from its own streams, so rendering passes one at a time, or
     /// several together in waves of any size (one wave for all three passes, waves of
     /// 1,000 that straddle the passes' ends, waves of 7), leaves the film bit for bit
-    /// the same: its sums, splats and squared sums.
+    /// the same: its sums, splats and squared sums. The squared sums are also checked
+    /// against each pass's own estimate (rendered alone), so a splat counted in the
+    /// wrong pass's variance is caught even when every grouping makes the same error.
     #[test]
     fn grouping_passes_and_the_wave_size_do_not_change_the_image() {
         let scene = cornell_box();
@@ -165,6 +167,18 @@ mod tests {
             for wave in [per_pass * passes, 1000, 7] {
                 assert!(render(&together, wave) == reference, "{integrator:?}: grouped, waves of {wave}: another film");
             }
+            // Each pass's own estimate (its camera estimate plus its splats) is what the
+            // squared sums add up: rendered alone on a fresh film, pass p's estimate is
+            // that film's sum plus its splats, bit for bit.
+            let mut expected = vec![0u32; reference.3.len()];
+            for p in &one_by_one {
+                let (_, sum, splat, _) = render(std::slice::from_ref(p), per_pass);
+                for ((q, s), l) in expected.iter_mut().zip(sum).zip(splat) {
+                    let x = f32::from_bits(s) + f32::from_bits(l);
+                    *q = (f32::from_bits(*q) + x * x).to_bits();
+                }
+            }
+            assert!(expected == reference.3, "{integrator:?}: squared sums are not the passes' own estimates");
         }
     }
 }
