@@ -63,7 +63,7 @@ impl Bdpt {
                 .collect();
             let (resolved, shadow) = resolve_wave(ctx, &pending);
             stats = stats.merge(shadow);
-            flush_wave(film, span, wave, resolved, Some(&mut estimates));
+            flush_wave(film, span, wave, resolved, Some(&mut estimates), |_, _| {});
         }
         stats
     }

@@ -45,7 +45,7 @@ impl LightTracer {
                 .collect();
             let (resolved, shadow) = resolve_wave(ctx, &pending);
             stats = stats.merge(shadow);
-            flush_wave(film, span, wave, resolved, None);
+            flush_wave(film, span, wave, resolved, None, |_, _| {});
         }
         stats
     }

@@ -15,7 +15,7 @@ use super::bidir::{
     mis_weight_counts, strategy_connect, strategy_emitter, strategy_light_sample,
 };
 use super::walk::WaveBuffers;
-use super::walk::{Passes, Subpaths, extend_together, resolve_wave, start_camera_wave, start_light_wave};
+use super::walk::{Passes, Subpaths, extend_together, flush_wave, resolve_wave, start_camera_wave, start_light_wave};
 use crate::cast::CastStats;
 use crate::film::Film;
 use crate::film::luminance;
@@ -243,7 +243,7 @@ impl LvcBdpt {
         let n_light = if self.params.light_paths == 0 { w * h } else { self.params.light_paths };
         let n_c = self.params.connections;
         if let Some(dev) = &self.dev {
-            return (span.first..span.first + span.count).fold(CastStats::default(), |stats, pass| {
+            return span.numbers().fold(CastStats::default(), |stats, pass| {
                 stats.merge(super::megakernel::render_pass(dev, ctx, pass, (n_light, n_c), film))
             });
         }
@@ -268,15 +268,9 @@ impl LvcBdpt {
             let (resolved, shadow) = resolve_wave(ctx, &pending);
             stats = stats.merge(shadow);
             // A pass's light splats reach the film just before its camera estimates.
-            for (k, (e, _)) in wave.zip(resolved) {
-                estimates.push(e);
-                if span.ends_pass(k) {
-                    let pass = span.at(k).1;
-                    film.add_splats(std::mem::take(&mut light[(pass - span.first) as usize].splats));
-                    film.add_pass(pass, &estimates);
-                    estimates.clear();
-                }
-            }
+            flush_wave(film, span, wave, resolved, Some(&mut estimates), |film, pass| {
+                film.add_splats(std::mem::take(&mut light[(pass - span.first) as usize].splats))
+            });
         }
         if let Some(last) = light.pop() {
             self.last_cache = last.cache;

@@ -370,15 +370,13 @@ impl<'a> Renderer<'a> {
             let mut at = first;
             while at < end {
                 let span = Passes { first: at, count: group.min(end - at), per_pass };
-                let one_by_one = |render: &mut dyn FnMut(u32, &mut Film) -> CastStats, film: &mut Film| {
-                    (span.first..span.first + span.count).fold(CastStats::default(), |s, p| s.merge(render(p, film)))
-                };
+                let zero = CastStats::default();
                 let done = match &mut *integrator {
-                    Integrator::Path(i) => one_by_one(&mut |p, f| i.render_pass(&ctx, p, f), film),
+                    Integrator::Path(i) => span.numbers().fold(zero, |s, p| s.merge(i.render_pass(&ctx, p, film))),
                     Integrator::Light(i) => i.render_passes(&ctx, span, film),
                     Integrator::Bdpt(i) => i.render_passes(&ctx, span, film),
                     Integrator::Lvc(i) => i.render_passes(&ctx, span, film),
-                    Integrator::Cis(i) => one_by_one(&mut |p, f| i.render_pass(&ctx, p, f), film),
+                    Integrator::Cis(i) => span.numbers().fold(zero, |s, p| s.merge(i.render_pass(&ctx, p, film))),
                 };
                 stats = stats.merge(done);
                 at += span.count;

@@ -59,6 +59,11 @@ impl Passes {
         (k % self.per_pass, self.first + k / self.per_pass)
     }
 
+    /// The pass numbers.
+    pub fn numbers(&self) -> Range<u32> {
+        self.first..self.first + self.count
+    }
+
     /// Whether sample `k` is the last of its pass.
     #[inline]
     pub fn ends_pass(&self, k: u32) -> bool {
@@ -72,8 +77,9 @@ impl Passes {
 }
 
 /// Adds a wave's resolved samples to the film in sample order: each sample's splats,
-/// then, at the end of each pass, that pass's estimates (`add_pass`, when `estimates`
-/// is given) or the end of a splat-only pass. The film sees the same calls in the same
+/// then, at the end of each pass, `before_close(film, pass)` (LVC adds the pass's
+/// light splats there) and that pass's estimates (`add_pass`, when `estimates` is
+/// given) or the end of a splat-only pass. The film sees the same calls in the same
 /// order as when passes are rendered one at a time.
 pub(crate) fn flush_wave(
     film: &mut crate::film::Film,
@@ -81,6 +87,7 @@ pub(crate) fn flush_wave(
     wave: Range<u32>,
     resolved: Vec<Resolved>,
     mut estimates: Option<&mut Vec<Vec3>>,
+    mut before_close: impl FnMut(&mut crate::film::Film, u32),
 ) {
     for (k, (estimate, splats)) in wave.zip(resolved) {
         film.add_splats(splats);
@@ -88,6 +95,7 @@ pub(crate) fn flush_wave(
             e.push(estimate);
         }
         if span.ends_pass(k) {
+            before_close(film, span.at(k).1);
             match estimates.as_deref_mut() {
                 Some(e) => {
                     film.add_pass(span.at(k).1, e);
