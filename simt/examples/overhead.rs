@@ -3,8 +3,10 @@
 //!
 //! `cargo run --release -p simt --example overhead -- [--json] [--n 16777216] [--repeat 5]`
 //!
-//! Rows: `saxpy` (16M f32, memory-bound), `hash` (~32 integer operations per element,
-//! compute-bound), `leaf` (the PDACRT terminal kernel: a block stages 64 triangles in
+//! Rows: `saxpy` (16M f32, memory-bound, `Device::transform_in_place`: each thread owns
+//! its element), `saxpy_any_store` (the same through `for_each` and a read-write view,
+//! where any thread may store anywhere), `hash` (~32 integer operations per element,
+//! compute-bound, `Device::transform`), `leaf` (the PDACRT terminal kernel: a block stages 64 triangles in
 //! shared memory, each thread tests its ray against them), `inclusive_scan`,
 //! `sort_by_key` (u32/u32), `reduce_by_key` and `copy_if`. The reference is a rayon loop
 //! (or, where faster, a sequential loop; for the sort, the `rdst` parallel radix sort).
@@ -136,12 +138,27 @@ fn kernels(n: usize, repeat: usize, rows: &mut Vec<Row>) {
         |dev| (dev.alloc_from(&x), dev.alloc_from(&y0)),
         |dev, (xb, yb)| {
             let (xv, yv) = (xb.view(), yb.view_mut());
-            dev.for_each("overhead::saxpy", n, |t, i| t.store(&yv, i, 2.0 * t.load(&xv, i) + t.load(&yv, i)));
+            dev.for_each("overhead::saxpy_any_store", n, |t, i| t.store(&yv, i, 2.0 * t.load(&xv, i) + t.load(&yv, i)));
         },
     );
     let mut ys = y0.clone();
     let reference_ms = median_ms(repeat, || ys.par_iter_mut().zip(&x).for_each(|(y, &x)| *y += 2.0 * x));
-    rows.push(Row { name: "saxpy", simt_ms, measured_ms, reference_ms, reference: "rayon zip loop" });
+    let [owned_ms, owned_measured_ms] = time(
+        &devs,
+        repeat,
+        |dev| (dev.alloc_from(&x), dev.alloc_from(&y0)),
+        |dev, (xb, yb)| {
+            dev.transform_in_place("overhead::saxpy", &xb.view(), yb, |_, _, x, y| 2.0 * x + y);
+        },
+    );
+    rows.push(Row {
+        name: "saxpy",
+        simt_ms: owned_ms,
+        measured_ms: owned_measured_ms,
+        reference_ms,
+        reference: "rayon zip loop",
+    });
+    rows.push(Row { name: "saxpy_any_store", simt_ms, measured_ms, reference_ms, reference: "rayon zip loop" });
 
     let data = random(n, 11);
     let [simt_ms, measured_ms] = time(
@@ -149,8 +166,7 @@ fn kernels(n: usize, repeat: usize, rows: &mut Vec<Row>) {
         repeat,
         |dev| (dev.alloc_from(&data), dev.alloc::<u32>(n)),
         |dev, (ib, ob)| {
-            let (iv, ov) = (ib.view(), ob.view_mut());
-            dev.for_each("overhead::hash", n, |t, k| t.store(&ov, k, hash(t.load(&iv, k))));
+            dev.transform("overhead::hash", &ib.view(), ob, |_, _, x| hash(x));
         },
     );
     let mut out = vec![0u32; n];

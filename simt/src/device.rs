@@ -333,16 +333,29 @@ impl Device {
     /// Runs `f` on the host (a primitive's CPU backend) and records it like a launch:
     /// `name`, its time and the number of elements as threads; grid and block are 0.
     pub(crate) fn host<R>(&self, name: &'static str, elements: usize, f: impl FnOnce() -> R) -> R {
+        self.unmeasured_launch(name, 0, 0, elements, f).0
+    }
+
+    /// Runs `f`, natively and unmeasured, and records it as launch `name` of `grid`
+    /// blocks of `block` threads with `threads` threads; returns `f`'s result and the record.
+    pub(crate) fn unmeasured_launch<R>(
+        &self,
+        name: &'static str,
+        grid: u32,
+        block: u32,
+        threads: usize,
+        f: impl FnOnce() -> R,
+    ) -> (R, LaunchRecord) {
         let start = Instant::now();
         let r = f();
         let record = LaunchRecord {
             name,
-            grid: 0,
-            block: 0,
+            grid,
+            block,
             shared_bytes: 0,
             seconds: start.elapsed().as_secs_f64(),
             measured: false,
-            threads: elements as u64,
+            threads: threads as u64,
             ops: RegionStats { name: "ops", issued: 0, active: 0 },
             regions: Vec::new(),
             loads: Default::default(),
@@ -351,7 +364,7 @@ impl Device {
             barriers: 0,
         };
         self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).add(&record);
-        r
+        (r, record)
     }
 
     // ---- statistics ---------------------------------------------------------------

@@ -421,6 +421,14 @@ fn site() -> usize {
     Location::caller() as *const Location as usize
 }
 
+impl Thread<'static> {
+    /// A thread of an unmeasured launch that uses no shared memory or registers.
+    #[inline(always)]
+    pub(crate) fn unmeasured(thread_idx: u32, block_idx: u32, block_dim: u32, grid_dim: u32) -> Self {
+        Thread { thread_idx, block_idx, block_dim, grid_dim, shared: &[], regs: &[], meter: None }
+    }
+}
+
 impl Thread<'_> {
     /// `threadIdx.x`.
     #[inline(always)]

@@ -24,6 +24,7 @@
 //! |---|---|
 //! | `kernel<<<grid, block, shmem>>>(args)` | `dev.launch("name", LaunchConfig { grid, block, shared_bytes, .. }, \|blk\| ..)` |
 //! | one thread per element | `dev.for_each("name", n, \|t, i\| ..)` |
+//! | `thrust::transform(x, x + n, y, y, op)` (each thread owns `y[i]`) | `dev.transform("name", &x, &mut y, \|t, i, x\| ..)`, `dev.transform_in_place("name", &x, &mut y, \|t, i, x, y\| ..)` |
 //! | `threadIdx.x`, `blockIdx.x`, `blockDim.x`, `gridDim.x` | `t.thread_idx()`, `t.block_idx()`, `t.block_dim()`, `t.grid_dim()` |
 //! | code between barriers | `blk.for_each_thread(\|t\| ..)` (one phase) |
 //! | `__syncthreads()` | `blk.sync_threads()` (between phases) |
@@ -53,6 +54,7 @@ pub mod meter;
 pub mod prims;
 pub mod seq;
 pub mod stats;
+mod transform;
 
 pub use device::{Device, DeviceConfig, LaunchConfig, LaunchError, MAX_BLOCK_DIM, MemoryStats};
 pub use exec::{

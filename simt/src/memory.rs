@@ -323,6 +323,14 @@ pub trait Readable<T: DeviceCopy>: Copy + Send + Sync {
     fn address(&self, i: usize) -> u64;
     /// Loads element `i` without measurement (bounds-checked).
     fn read(&self, i: usize) -> T;
+    /// Loads element `i` without measurement or a bounds check.
+    ///
+    /// # Safety
+    /// `i < self.len()`.
+    #[inline(always)]
+    unsafe fn read_unchecked(&self, i: usize) -> T {
+        self.read(i)
+    }
 }
 
 impl<T: DeviceCopy> Readable<T> for Global<'_, T> {
@@ -337,6 +345,11 @@ impl<T: DeviceCopy> Readable<T> for Global<'_, T> {
     fn read(&self, i: usize) -> T {
         assert!(i < self.len, "load of element {i} from a buffer of {}", self.len);
         // SAFETY: in bounds; the buffer is borrowed immutably for 'a, so no store races.
+        unsafe { self.ptr.add(i).read() }
+    }
+    #[inline(always)]
+    unsafe fn read_unchecked(&self, i: usize) -> T {
+        // SAFETY: the caller keeps `i` in bounds; nothing stores while 'a lives.
         unsafe { self.ptr.add(i).read() }
     }
 }

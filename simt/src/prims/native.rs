@@ -86,28 +86,45 @@ where
     totals.into_iter().fold(init, op)
 }
 
-/// Chunks count their selected elements, a scan places them, each chunk copies its own.
+/// Chunks evaluate the predicate once per element into a bitmask and count the set
+/// bits; a scan of the counts places each chunk, which then copies the elements its
+/// mask selects. The stencil is read and the predicate evaluated once (PDACRT's
+/// predicates are ray-box tests), and neither pass branches on the data.
 pub(crate) fn copy_if_stencil<T, S, P>(input: &[T], stencil: &[S], output: &mut [T], pred: P) -> usize
 where
     T: DeviceCopy,
     S: DeviceCopy,
     P: Fn(S) -> bool + Sync,
 {
-    let counts: Vec<usize> = stencil.par_chunks(CHUNK).map(|c| c.iter().filter(|&&s| pred(s)).count()).collect();
-    let total = counts.iter().sum();
+    const WORDS: usize = CHUNK / 64;
+    let masks: Vec<(usize, [u64; WORDS])> = stencil
+        .par_chunks(CHUNK)
+        .map(|c| {
+            let mut mask = [0u64; WORDS];
+            for (word, part) in mask.iter_mut().zip(c.chunks(64)) {
+                for (b, &s) in part.iter().enumerate() {
+                    *word |= (pred(s) as u64) << b;
+                }
+            }
+            (mask.iter().map(|w| w.count_ones() as usize).sum(), mask)
+        })
+        .collect();
+    let total = masks.iter().map(|m| m.0).sum();
     let mut rest = &mut output[..total];
-    let mut parts = Vec::with_capacity(counts.len());
-    for &c in &counts {
+    let mut parts = Vec::with_capacity(masks.len());
+    for &(c, _) in &masks {
         let (head, tail) = rest.split_at_mut(c);
         parts.push(head);
         rest = tail;
     }
-    input.par_chunks(CHUNK).zip(stencil.par_chunks(CHUNK)).zip(parts).for_each(|((inp, st), out)| {
-        let mut k = 0;
-        for (&x, &s) in inp.iter().zip(st) {
-            if pred(s) {
-                out[k] = x;
-                k += 1;
+    input.par_chunks(CHUNK).zip(parts).zip(&masks).for_each(|((inp, out), (_, mask))| {
+        let mut slots = out.iter_mut();
+        for (w, &word) in mask.iter().enumerate() {
+            let mut bits = word;
+            while bits != 0 {
+                let i = w * 64 + bits.trailing_zeros() as usize;
+                *slots.next().expect("a slot per set bit") = inp[i];
+                bits &= bits - 1;
             }
         }
     });

@@ -41,8 +41,8 @@ pub fn gather<T: DeviceCopy>(
     output: &mut DeviceBuffer<T>,
 ) {
     assert_eq!(map.len(), output.len(), "gather: one map entry per output");
-    let (m, inp, out) = (map.view(), input.view(), output.view_mut());
-    dev.for_each("simt::gather", m.len(), |t, i| t.store(&out, i, t.load(&inp, t.load(&m, i) as usize)));
+    let inp = input.view();
+    dev.transform("simt::gather", &map.view(), output, |t, _, m| t.load(&inp, m as usize));
 }
 
 /// `output[map[i]] = input[i]` (map entries should be distinct).
