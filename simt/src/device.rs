@@ -5,6 +5,7 @@ use crate::memory::{BufferPool, DeviceBuffer, DeviceCopy, MemCounter, Scratch};
 use crate::meter::{Counters, Race};
 use crate::stats::{KernelSummary, LaunchRecord, RegionStats, Stats};
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -113,7 +114,19 @@ struct Inner {
     pool: Mutex<Vec<u128>>,
     /// Allocations of dropped pooled buffers.
     buffers: Arc<BufferPool>,
+    /// Per kernel (and measurement mode): seconds and threads of its serial launches.
+    serial_cost: Mutex<HashMap<(&'static str, bool), SerialCost>>,
 }
+
+/// Seconds and threads of a kernel's serial launches, summed.
+type SerialCost = (f64, u64);
+
+/// A launch whose work on one thread is expected to take less than this runs on the
+/// calling thread: handing blocks to the rayon pool costs more (waking workers).
+const SERIAL_SECONDS: f64 = 20e-6;
+/// A kernel whose serial cost is not yet known runs serially up to this many threads,
+/// which measures it.
+const SERIAL_PROBE_THREADS: u64 = 1024;
 
 /// The race in the lowest block, so that the report does not depend on scheduling.
 fn first_race(a: Option<Race>, b: Option<Race>) -> Option<Race> {
@@ -151,7 +164,9 @@ impl Device {
         let measure = AtomicBool::new(config.measure);
         let (mem, stats, pool) = (Arc::default(), Mutex::new(Stats::default()), Mutex::new(Vec::new()));
         let buffers = Arc::default();
-        Device { inner: Arc::new(Inner { config, measure, mem, stats, pool, buffers }) }
+        Device {
+            inner: Arc::new(Inner { config, measure, mem, stats, pool, buffers, serial_cost: Default::default() }),
+        }
     }
 
     /// The configuration it was made with.
@@ -260,25 +275,33 @@ impl Device {
         let measure = self.measuring();
         let shared_words = cfg.shared_bytes.div_ceil(4);
         let start = Instant::now();
-        let (counters, race) = (0..cfg.grid)
-            .into_par_iter()
-            .fold(
-                || Worker::new(shared_words),
-                |mut w, b| {
-                    let mut block = Block::new(&mut w, b, cfg.block, cfg.grid, shared_words, measure);
-                    kernel(&mut block);
-                    w
-                },
-            )
-            .map(|w| {
-                let m = w.meter.into_inner();
-                (m.totals, m.race)
-            })
-            .reduce(|| (Counters::default(), None), |(a, ra), (b, rb)| (a.merge(b), first_race(ra, rb)));
+        let run_block = |mut w: Worker, b| {
+            let mut block = Block::new(&mut w, b, cfg.block, cfg.grid, shared_words, measure);
+            kernel(&mut block);
+            w
+        };
+        let finish = |w: Worker| {
+            let m = w.meter.into_inner();
+            (m.totals, m.race)
+        };
+        let threads = cfg.grid as u64 * cfg.block as u64;
+        let serial = self.runs_serially(name, threads);
+        let (counters, race) = if serial {
+            finish((0..cfg.grid).fold(Worker::new(shared_words), run_block))
+        } else {
+            (0..cfg.grid)
+                .into_par_iter()
+                .fold(|| Worker::new(shared_words), run_block)
+                .map(finish)
+                .reduce(|| (Counters::default(), None), |(a, ra), (b, rb)| (a.merge(b), first_race(ra, rb)))
+        };
         if let Some(race) = race {
             return Err(LaunchError::SharedRace { kernel: name, race });
         }
         let seconds = start.elapsed().as_secs_f64();
+        if serial {
+            self.note_serial(name, threads, seconds);
+        }
         let record = LaunchRecord {
             name,
             grid: cfg.grid,
@@ -301,6 +324,29 @@ impl Device {
         };
         self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).add(&record);
         Ok(record)
+    }
+
+    /// Whether a launch of `threads` threads of kernel `name` should run on the calling
+    /// thread: its serial cost per thread, from its earlier serial launches, times
+    /// `threads` is under [`SERIAL_SECONDS`] (unknown: `threads` is at most
+    /// [`SERIAL_PROBE_THREADS`]). Blocks are independent, so the result is the same.
+    pub(crate) fn runs_serially(&self, name: &'static str, threads: u64) -> bool {
+        if rayon::current_num_threads() == 1 {
+            return true;
+        }
+        let costs = self.inner.serial_cost.lock().unwrap_or_else(|e| e.into_inner());
+        match costs.get(&(name, self.measuring())) {
+            Some(&(seconds, n)) => seconds / n.max(1) as f64 * threads as f64 <= SERIAL_SECONDS,
+            None => threads <= SERIAL_PROBE_THREADS,
+        }
+    }
+
+    /// Records a serial launch's time for [`Device::runs_serially`].
+    pub(crate) fn note_serial(&self, name: &'static str, threads: u64, seconds: f64) {
+        let mut costs = self.inner.serial_cost.lock().unwrap_or_else(|e| e.into_inner());
+        let c = costs.entry((name, self.measuring())).or_default();
+        c.0 += seconds;
+        c.1 += threads;
     }
 
     /// One thread per element: runs `f(thread, i)` for `i in 0..n` in blocks of 256
@@ -392,5 +438,40 @@ impl Device {
     /// Forgets all launch statistics (memory accounting is kept).
     pub fn reset_stats(&self) {
         *self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()) = Stats::default();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Small launches run on the calling thread; the choice follows each kernel's serial
+    /// cost per thread (costs are injected here, so the test does not depend on timing).
+    #[test]
+    fn tiny_launches_run_serially_and_expensive_ones_in_parallel() {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        pool.install(|| {
+            let dev = Device::default();
+            // Unknown kernels: serial up to the probe size, parallel above it.
+            assert!(dev.runs_serially("tiny", SERIAL_PROBE_THREADS));
+            assert!(!dev.runs_serially("tiny", SERIAL_PROBE_THREADS + 1));
+            // A serial launch records its cost; a parallel one does not.
+            let mut out = dev.alloc::<u32>(4096);
+            let v = out.view_mut();
+            dev.for_each("tiny", 256, |t, i| t.store(&v, i, i as u32));
+            dev.for_each("big", 4096, |t, i| t.store(&v, i, i as u32));
+            let costs = |name| dev.inner.serial_cost.lock().unwrap().get(&(name, false)).copied();
+            assert_eq!(costs("tiny").map(|c| c.1), Some(256));
+            assert_eq!(costs("big"), None);
+            // 1 ns per thread: 4,096 threads (4 µs) stay serial, 100,000 (100 µs) do not.
+            dev.note_serial("cheap", 1000, 1e-6);
+            assert!(dev.runs_serially("cheap", 4096) && !dev.runs_serially("cheap", 100_000));
+            // 10 µs per thread: one thread is under the bar, four are not.
+            dev.note_serial("heavy", 10, 1e-4);
+            assert!(dev.runs_serially("heavy", 1) && !dev.runs_serially("heavy", 4));
+            // Measured and unmeasured costs are kept apart.
+            dev.set_measure(true);
+            assert!(!dev.runs_serially("cheap", 4096));
+        });
     }
 }

@@ -331,6 +331,15 @@ pub trait Readable<T: DeviceCopy>: Copy + Send + Sync {
     unsafe fn read_unchecked(&self, i: usize) -> T {
         self.read(i)
     }
+    /// Elements `start..start + len` as a plain slice, where nothing can store to them
+    /// while the view lives (a read-only view); `None` for a read-write view.
+    ///
+    /// # Safety
+    /// `start + len <= self.len()`.
+    unsafe fn plain_slice(&self, start: usize, len: usize) -> Option<&[T]> {
+        let _ = (start, len);
+        None
+    }
 }
 
 impl<T: DeviceCopy> Readable<T> for Global<'_, T> {
@@ -351,6 +360,11 @@ impl<T: DeviceCopy> Readable<T> for Global<'_, T> {
     unsafe fn read_unchecked(&self, i: usize) -> T {
         // SAFETY: the caller keeps `i` in bounds; nothing stores while 'a lives.
         unsafe { self.ptr.add(i).read() }
+    }
+    #[inline(always)]
+    unsafe fn plain_slice(&self, start: usize, len: usize) -> Option<&[T]> {
+        // SAFETY: the caller keeps the range in bounds; nothing stores while 'a lives.
+        Some(unsafe { std::slice::from_raw_parts(self.ptr.add(start), len) })
     }
 }
 

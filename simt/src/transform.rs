@@ -104,17 +104,39 @@ impl Device {
             });
         }
         let grid = n.div_ceil(BLOCK) as u32;
-        self.unmeasured_launch(name, grid, BLOCK as u32, grid as usize * BLOCK, || {
-            output.as_mut_slice().par_chunks_mut(BLOCK).enumerate().for_each(|(b, chunk)| {
-                let base = b * BLOCK;
-                for (k, o) in chunk.iter_mut().enumerate() {
-                    let t = Thread::unmeasured(k as u32, b as u32, BLOCK as u32, grid);
-                    // SAFETY: base + k < n <= input.len(), checked above.
-                    let x = unsafe { input.read_unchecked(base + k) };
-                    f(&t, base + k, x, o);
+        let run_block = |(b, chunk): (usize, &mut [O])| {
+            let base = b * BLOCK;
+            let thread = |k: usize| Thread::unmeasured(k as u32, b as u32, BLOCK as u32, grid);
+            // SAFETY (both arms): base + chunk.len() <= n <= input.len(), checked above.
+            // A zip over two slices is the loop LLVM vectorises best.
+            match unsafe { input.plain_slice(base, chunk.len()) } {
+                Some(xs) => {
+                    for (k, (o, &x)) in chunk.iter_mut().zip(xs).enumerate() {
+                        f(&thread(k), base + k, x, o);
+                    }
+                }
+                None => {
+                    for (k, o) in chunk.iter_mut().enumerate() {
+                        f(&thread(k), base + k, unsafe { input.read_unchecked(base + k) }, o);
+                    }
+                }
+            }
+        };
+        let threads = grid as usize * BLOCK;
+        let serial = self.runs_serially(name, threads as u64);
+        let out = output.as_mut_slice();
+        let record = self
+            .unmeasured_launch(name, grid, BLOCK as u32, threads, || {
+                if serial {
+                    out.chunks_mut(BLOCK).enumerate().for_each(run_block)
+                } else {
+                    out.par_chunks_mut(BLOCK).enumerate().for_each(run_block)
                 }
             })
-        })
-        .1
+            .1;
+        if serial {
+            self.note_serial(name, threads as u64, record.seconds);
+        }
+        record
     }
 }
