@@ -279,3 +279,38 @@ fn depth_cap_holds_on_coincident_triangles_with_tiny_leaves() {
     assert!(hits.iter().all(|h| h.is_hit() && (h.t - 1.0).abs() < 1e-6 && h.prim == 0), "smallest id wins ties");
     assert!(p.levels().len() as u32 <= params.max_depth + 1);
 }
+
+/// PDACRT keeps its workspace between calls (buffers with stale contents of a larger
+/// batch): every call still matches brute force, the same batch gives the same hits and
+/// reports the same working set again, and a batch after a larger one matches a fresh
+/// caster's result.
+#[test]
+fn pdacrt_reuses_its_workspace_without_changing_results() {
+    let scene = cornell_box();
+    let [primary, shadow, specular, ambient] = batches(&scene, 32, 32, 4);
+    let oracle = BruteForce::new(&scene);
+    let reused = Pdacrt::new(&scene);
+    let closest = |c: &dyn RayCaster, rays: &[Ray]| {
+        let mut h = vec![Hit::MISS; rays.len()];
+        let st = c.closest(rays, &mut h);
+        (h.iter().map(|h| (h.is_hit(), h.prim, h.t.to_bits())).collect::<Vec<_>>(), (st.peak_working_bytes, st.tests))
+    };
+    let (first, first_peak) = closest(&reused, &ambient);
+    for rays in [&primary, &specular] {
+        let fresh = Pdacrt::new(&scene);
+        assert_eq!(closest(&reused, rays).0, closest(&fresh, rays).0);
+        let (mut a, mut b) = (vec![false; shadow.len()], vec![false; shadow.len()]);
+        reused.occluded(&shadow, &mut a);
+        oracle.occluded(&shadow, &mut b);
+        assert_eq!(a, b);
+    }
+    let (again, again_peak) = closest(&reused, &ambient);
+    assert_eq!(first, again);
+    assert_eq!(
+        first_peak, again_peak,
+        "a reused workspace counts in the call's working set; its test counter restarts"
+    );
+    let mut want = vec![Hit::MISS; ambient.len()];
+    oracle.closest(&ambient, &mut want);
+    assert!(want.iter().zip(&first).all(|(w, g)| w.is_hit() == g.0 && (!w.is_hit() || w.prim == g.1)));
+}

@@ -96,6 +96,10 @@ pub struct Pdacrt {
     pub params: PdacrtParams,
     levels: Mutex<Vec<LevelRecord>>,
     visits: Mutex<Vec<u32>>,
+    /// Workspaces of finished calls, kept for the next ones: their buffers keep their
+    /// allocations, so a call does not allocate and first-touch its working set again
+    /// (on 16 threads that cost up to 0.15 ms per fill of a fresh 100 kB buffer).
+    spare: Mutex<Vec<Workspace>>,
 }
 
 /// The buffers of one trace call, reused by every level and chunk ([`DeviceBuffer::resize`]
@@ -154,7 +158,53 @@ impl LevelBuffers {
     }
 }
 
+impl LevelBuffers {
+    fn held_bytes(&self) -> usize {
+        self.nodes.held_bytes()
+            + self.ray_ids.held_bytes()
+            + self.ray_node.held_bytes()
+            + self.tri_ids.held_bytes()
+            + self.tri_node.held_bytes()
+    }
+}
+
 impl Workspace {
+    /// Bytes its buffers hold.
+    fn held_bytes(&self) -> usize {
+        let w = self;
+        [
+            w.rays.held_bytes(),
+            w.keys.held_bytes(),
+            w.hits.held_bytes(),
+            w.visits.held_bytes(),
+            w.cur.held_bytes(),
+            w.next.held_bytes(),
+            w.ray_codes.held_bytes(),
+            w.tri_codes.held_bytes(),
+            w.tight.held_bytes(),
+            w.child_boxes.held_bytes(),
+            w.ray_counts.held_bytes(),
+            w.tri_counts.held_bytes(),
+            w.ray_ranks.held_bytes(),
+            w.tri_ranks.held_bytes(),
+            w.ray_base.held_bytes(),
+            w.tri_base.held_bytes(),
+            w.children.held_bytes(),
+            w.inner.held_bytes(),
+            w.terminal.held_bytes(),
+            w.inner_scan.held_bytes(),
+            w.terminal_scan.held_bytes(),
+            w.term_nodes.held_bytes(),
+            w.term_ray_ids.held_bytes(),
+            w.term_tri_ids.held_bytes(),
+            w.chunks.held_bytes(),
+            w.chunk_start.held_bytes(),
+            w.tests.held_bytes(),
+        ]
+        .iter()
+        .sum()
+    }
+
     fn new(dev: &Device) -> Self {
         Workspace {
             rays: dev.alloc_filled(0, Ray::new(glam::Vec3::ZERO, glam::Vec3::ZERO)),
@@ -228,6 +278,7 @@ impl Pdacrt {
             params,
             levels: Mutex::new(Vec::new()),
             visits: Mutex::new(Vec::new()),
+            spare: Mutex::new(Vec::new()),
         }
     }
 
@@ -251,9 +302,12 @@ impl Pdacrt {
     /// rays) from the workspace. Returns the peak working bytes and the tests made.
     fn trace(&self, rays: &[Ray], any_hit: bool, mut emit: impl FnMut(usize, &mut Workspace)) -> (usize, u64) {
         let dev = &self.dev;
+        let spare = self.spare.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        let mut ws = spare.unwrap_or_else(|| Workspace::new(dev));
+        ws.tests.as_mut_slice()[0] = 0;
+        // The working set counts the reused workspace's buffers as if allocated now.
         dev.reset_peak_memory();
-        let resident = dev.memory().current;
-        let mut ws = Workspace::new(dev);
+        let resident = dev.memory().current - ws.held_bytes();
         let chunk = if self.params.chunk_rays == 0 { rays.len().max(1) } else { self.params.chunk_rays };
         let mut levels: Levels = Vec::new();
         let mut visits = Vec::new();
@@ -281,8 +335,9 @@ impl Pdacrt {
         let records = levels.into_iter().map(|(r, launches)| record::finish(r, &launches)).collect();
         *self.levels.lock().unwrap_or_else(|e| e.into_inner()) = records;
         *self.visits.lock().unwrap_or_else(|e| e.into_inner()) = visits;
-        drop(ws);
-        (dev.memory().peak.saturating_sub(resident), tests)
+        let peak = dev.memory().peak.saturating_sub(resident);
+        self.spare.lock().unwrap_or_else(|e| e.into_inner()).push(ws);
+        (peak, tests)
     }
 
     /// The breadth-first recursion over the chunk in `ws.rays`.
