@@ -440,12 +440,14 @@ impl Dacrt {
                 .fold(|| (0, u64::MAX), |(o, a), &k| (o | k, a & k))
                 .reduce(|| (0, u64::MAX), |x, y| (x.0 | y.0, x.1 & y.1));
             let shift = (64 - (or ^ and).leading_zeros()).saturating_sub(32);
-            let mut keyed: Vec<u64> =
-                keys.par_iter().zip(&ray_ids).map(|(&k, &i)| (k >> shift & 0xffff_ffff) << 32 | i as u64).collect();
+            // A stable radix sort (simt's, on its CPU backend) of the 32 bits: the ids
+            // are in ascending order, so ties stay ordered by id.
+            let dev = simt::Device::default();
+            let mut coarse = dev.alloc_vec(keys.par_iter().map(|&k| (k >> shift) as u32).collect::<Vec<u32>>());
             drop(keys);
-            keyed.par_sort_unstable();
-            ray_ids.par_iter_mut().zip(&keyed).for_each(|(id, &k)| *id = k as u32);
-            drop(keyed);
+            let mut ids = dev.alloc_vec(std::mem::take(&mut ray_ids));
+            simt::sort_by_key(&dev, &mut coarse, &mut ids);
+            ray_ids = ids.to_vec();
             let size = ray_ids.len().div_ceil(groups);
             ray_ids.par_chunks_mut(size).for_each_init(Vec::new, |scratch, group| {
                 self.trace_top(&tr, &top, &top.root, group, scratch, 0);
