@@ -90,6 +90,9 @@ struct Slot {
     kind: Kind,
     max_units: u32,
     sum_units: u64,
+    /// The sector this instruction recorded last: consecutive lanes of a coalesced
+    /// access touch the same sector, which is then recorded once.
+    last_sector: u64,
 }
 
 /// Where a lane phase stands, for the race check.
@@ -200,7 +203,7 @@ impl Meter {
                 let s = self.slots.len() as u32;
                 per_site.push(s);
                 for _ in 0..parts {
-                    self.slots.push(Slot { kind, max_units: 0, sum_units: 0 });
+                    self.slots.push(Slot { kind, max_units: 0, sum_units: 0, last_sector: u64::MAX });
                 }
                 s
             }
@@ -220,8 +223,15 @@ impl Meter {
         let first = self.op(site, kind, parts, 1);
         for p in 0..parts as u64 {
             let a = addr + p * width;
+            let slot = first + p as u32;
             for sector in a / SECTOR_BYTES..=(a + width - 1) / SECTOR_BYTES {
-                self.sectors.push((first + p as u32, sector));
+                // Repeats of the slot's last sector are left out here; the rest are
+                // deduplicated when the phase closes.
+                let last = &mut self.slots[slot as usize].last_sector;
+                if *last != sector {
+                    *last = sector;
+                    self.sectors.push((slot, sector));
+                }
             }
         }
     }
@@ -320,7 +330,9 @@ impl Meter {
             }
         }
         if !self.sectors.is_empty() {
-            self.sectors.sort_unstable();
+            if !self.sectors.is_sorted() {
+                self.sectors.sort_unstable();
+            }
             self.sectors.dedup();
             for &(slot, _) in &self.sectors {
                 match self.slots[slot as usize].kind {
