@@ -464,6 +464,8 @@ struct BruteForceArgs {
 __global__ void brute_force(BruteForceArgs a) {
     __shared__ Tri stage[STAGE];
     __shared__ uint32_t stage_ids[STAGE];
+    __shared__ unsigned long long block_tests;
+    if (threadIdx.x == 0) block_tests = 0;
     uint32_t b = blockIdx.x;
     uint32_t lo = 0, hi = a.terminal_count;
     while (hi - lo > 1) {
@@ -519,9 +521,11 @@ __global__ void brute_force(BruteForceArgs a) {
     }
     __syncthreads();
     if (ray_id != 0xffffffffu) {
-        atomicAdd(a.tests, tests);
+        atomicAdd(&block_tests, tests);
         if (best != NO_HIT) atomicMin((unsigned long long*)&a.keys[ray_id], (unsigned long long)best);
     }
+    __syncthreads();
+    if (threadIdx.x == 0) atomicAdd(a.tests, block_tests);
 }
 
 }  // namespace pdacrt

@@ -606,6 +606,24 @@ impl Thread<'_> {
         old
     }
 
+    /// `atomicAdd` on a 64-bit shared word (`unsigned long long`); returns the old value.
+    #[inline(always)]
+    #[track_caller]
+    pub fn atomic_add_shared_u64(&self, s: Shared<u64>, i: usize, value: u64) -> u64 {
+        assert!(i < s.len as usize, "shared atomic {i} of {}", s.len);
+        if let Some(m) = self.meter {
+            note_op(m, site());
+        }
+        // Two words, low first, as `load_shared::<u64>` reads them.
+        let at = s.offset as usize + 2 * i;
+        let (lo, hi) = (&self.shared[at], &self.shared[at + 1]);
+        let old = lo.get() as u64 | (hi.get() as u64) << 32;
+        let new = old.wrapping_add(value);
+        lo.set(new as u32);
+        hi.set((new >> 32) as u32);
+        old
+    }
+
     #[inline(always)]
     fn register<T: DeviceCopy>(&self, l: Local<T>) -> *mut T {
         let base = self.thread_idx as usize * REGISTER_WORDS_PER_THREAD + l.offset as usize;

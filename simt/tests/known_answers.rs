@@ -606,3 +606,34 @@ fn an_owned_launch_with_a_short_input_panics_clearly() {
     let msg = *r.unwrap_err().downcast::<String>().unwrap();
     assert!(msg.contains("short") && msg.contains("10") && msg.contains("11"), "{msg}");
 }
+
+/// A 64-bit shared `atomicAdd` carries into its high word, is one instruction per warp,
+/// and reads back through `load_shared::<u64>`.
+#[test]
+fn shared_u64_atomics_carry_and_count_once_per_warp() {
+    for dev in [Device::default(), measured()] {
+        let mut out = dev.alloc::<u64>(1);
+        let ov = out.view_mut();
+        let cfg = LaunchConfig { grid: 1, block: 64, shared_bytes: 8, regions: &[] };
+        let rec = dev
+            .launch("sum_u64", cfg, |blk| {
+                let sum = blk.shared::<u64>(1);
+                blk.for_each_thread(|t| {
+                    t.atomic_add_shared_u64(sum, 0, (1 << 31) + t.thread_idx() as u64);
+                });
+                blk.sync_threads();
+                blk.for_each_thread(|t| {
+                    if t.thread_idx() == 0 {
+                        t.store(&ov, 0, t.load_shared(sum, 0));
+                    }
+                });
+            })
+            .unwrap();
+        assert_eq!(out.as_slice()[0], 64 * (1 << 31) + (0..64).sum::<u64>());
+        if dev.measuring() {
+            // One atomic per warp (two warps); then only warp 0 issues the shared load
+            // and the store (one lane active each).
+            assert_eq!((rec.ops.issued, rec.ops.active), (2 + 1 + 1, 64 + 1 + 1));
+        }
+    }
+}

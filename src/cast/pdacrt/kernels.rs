@@ -455,8 +455,8 @@ pub(crate) fn scatter_ref(
 pub(crate) const STAGE: usize = 128;
 
 /// Shared memory of one brute-force block: `STAGE` (128) triangles (36 bytes) and their
-/// ids (4 bytes).
-pub const BRUTE_FORCE_SHARED_BYTES: usize = STAGE * 40;
+/// ids (4 bytes), and the block's test count (8 bytes).
+pub const BRUTE_FORCE_SHARED_BYTES: usize = STAGE * 40 + 8;
 
 /// Inputs of the terminal brute-force kernel.
 #[derive(Clone, Copy)]
@@ -495,6 +495,9 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
     let chunk = (b - blk.load_uniform(&a.chunk_start, lo)) as usize * blk.block_dim() as usize;
     let stage = blk.shared::<[f32; 9]>(STAGE);
     let stage_ids = blk.shared::<u32>(STAGE);
+    // The block's tests, summed in shared memory: one global atomic per block instead
+    // of one per thread (16 threads on one counter had cost PDACRT a fifth of its time).
+    let block_tests = blk.shared::<u64>(1);
     let best = blk.local::<u64>(NO_HIT);
     let ray_reg = blk.local::<Ray>(Ray::new(Vec3::ZERO, Vec3::ZERO));
     let ray_id = blk.local::<u32>(u32::MAX);
@@ -566,10 +569,16 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
             if let Some(v) = &a.visits {
                 t.atomic_add(v, id as usize, 1);
             }
-            t.atomic_add_u64(&a.tests, 0, t.get(tests));
+            t.atomic_add_shared_u64(block_tests, 0, t.get(tests));
             if t.get(best) != NO_HIT {
                 t.atomic_min_u64(&a.keys, id as usize, t.get(best));
             }
+        }
+    });
+    blk.sync_threads();
+    blk.for_each_thread(|t| {
+        if t.thread_idx() == 0 {
+            t.atomic_add_u64(&a.tests, 0, t.load_shared(block_tests, 0));
         }
     });
 }
