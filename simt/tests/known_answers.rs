@@ -1,5 +1,7 @@
 //! Known-answer tests of the emulator itself: launch errors, SIMD efficiency,
 //! coalescing, warp intrinsics, barriers, registers, atomics and memory accounting.
+//! About 560 lines: one known answer per rule of the execution model, which reads best
+//! beside the others; other launch forms are in `launch_forms.rs`.
 
 use simt::{Device, DeviceConfig, LaunchConfig, LaunchError, WorkQueue};
 
@@ -554,86 +556,4 @@ fn statistics_aggregate_per_kernel_name() {
     assert!(simt::stats::format_table(&s).contains("SIMD eff"));
     dev.reset_stats();
     assert!(dev.kernel_stats().is_empty());
-}
-
-/// `transform` and `transform_in_place` compute what the `for_each` kernel with the same
-/// accesses computes, and a measured one records that kernel's statistics: one load of
-/// the input (and, in place, of the old value) and one store per thread, coalesced.
-#[test]
-fn owned_element_launches_measure_as_the_same_kernel() {
-    let n = 1000; // 31.25 warps: the last warp is partial.
-    let x: Vec<f32> = (0..n).map(|i| i as f32 * 0.5).collect();
-    let y: Vec<f32> = (0..n).map(|i| 1.0 - i as f32).collect();
-    let want: Vec<f32> = x.iter().zip(&y).map(|(x, y)| 2.0 * x + y).collect();
-    for dev in [Device::default(), measured()] {
-        let xb = dev.alloc_from(&x);
-        let mut yb = dev.alloc_from(&y);
-        let rec = dev.transform_in_place("saxpy", &xb.view(), &mut yb, |_, _, x, y| 2.0 * x + y);
-        assert_eq!(yb.as_slice(), &want[..]);
-        assert_eq!((rec.grid, rec.block, rec.threads), (4, 256, 1024));
-        let mut zb = dev.alloc_from(&y);
-        let hand = {
-            let (xv, zv) = (xb.view(), zb.view_mut());
-            dev.for_each("saxpy_by_hand", n, |t, i| t.store(&zv, i, 2.0 * t.load(&xv, i) + t.load(&zv, i)))
-        };
-        assert_eq!(zb.as_slice(), yb.as_slice());
-        assert_eq!(
-            (rec.loads, rec.stores, rec.ops),
-            (hand.loads, hand.stores, simt::RegionStats { name: "ops", ..hand.ops })
-        );
-        let mut ib = dev.alloc::<u32>(n);
-        let rec = dev.transform("index", &xb.view(), &mut ib, |t, i, x| (t.global_idx() == i) as u32 + x as u32);
-        assert!(ib.as_slice().iter().enumerate().all(|(i, &v)| v == 1 + (i as u32) / 2));
-        if dev.measuring() {
-            assert!(rec.measured);
-            // 32 warps: one load and one store request each, 4 sectors (128 bytes) when full.
-            assert_eq!((rec.loads.requests, rec.stores.requests), (32, 32));
-            assert_eq!((rec.loads.sectors, rec.stores.sectors), (31 * 4 + 1, 31 * 4 + 1));
-            assert!((rec.ops.active as f64 / (rec.ops.issued as f64 * 32.0) - 1000.0 / 1024.0).abs() < 1e-9);
-        } else {
-            assert_eq!((rec.loads.requests, rec.stores.requests), (0, 0));
-        }
-    }
-}
-
-#[test]
-fn an_owned_launch_with_a_short_input_panics_clearly() {
-    let dev = Device::default();
-    let (x, mut y) = (dev.alloc::<u32>(10), dev.alloc::<u32>(11));
-    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        dev.transform("short", &x.view(), &mut y, |_, _, x| x)
-    }));
-    let msg = *r.unwrap_err().downcast::<String>().unwrap();
-    assert!(msg.contains("short") && msg.contains("10") && msg.contains("11"), "{msg}");
-}
-
-/// A 64-bit shared `atomicAdd` carries into its high word, is one instruction per warp,
-/// and reads back through `load_shared::<u64>`.
-#[test]
-fn shared_u64_atomics_carry_and_count_once_per_warp() {
-    for dev in [Device::default(), measured()] {
-        let mut out = dev.alloc::<u64>(1);
-        let ov = out.view_mut();
-        let cfg = LaunchConfig { grid: 1, block: 64, shared_bytes: 8, regions: &[] };
-        let rec = dev
-            .launch("sum_u64", cfg, |blk| {
-                let sum = blk.shared::<u64>(1);
-                blk.for_each_thread(|t| {
-                    t.atomic_add_shared_u64(sum, 0, (1 << 31) + t.thread_idx() as u64);
-                });
-                blk.sync_threads();
-                blk.for_each_thread(|t| {
-                    if t.thread_idx() == 0 {
-                        t.store(&ov, 0, t.load_shared(sum, 0));
-                    }
-                });
-            })
-            .unwrap();
-        assert_eq!(out.as_slice()[0], 64 * (1 << 31) + (0..64).sum::<u64>());
-        if dev.measuring() {
-            // One atomic per warp (two warps); then only warp 0 issues the shared load
-            // and the store (one lane active each).
-            assert_eq!((rec.ops.issued, rec.ops.active), (2 + 1 + 1, 64 + 1 + 1));
-        }
-    }
 }
