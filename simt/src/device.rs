@@ -127,6 +127,8 @@ const SERIAL_SECONDS: f64 = 20e-6;
 /// A kernel whose serial cost is not yet known runs serially up to this many threads,
 /// which measures it.
 const SERIAL_PROBE_THREADS: u64 = 1024;
+/// Threads per block of the element-wise launches (`for_each`, `transform`).
+pub(crate) const ELEMENT_BLOCK: u32 = 256;
 
 /// The race in the lowest block, so that the report does not depend on scheduling.
 fn first_race(a: Option<Race>, b: Option<Race>) -> Option<Race> {
@@ -364,7 +366,7 @@ impl Device {
     where
         F: Fn(&Thread, usize) + Sync,
     {
-        let cfg = LaunchConfig::linear(n, 256);
+        let cfg = LaunchConfig::linear(n, ELEMENT_BLOCK);
         self.launch(name, cfg, |blk| {
             blk.for_each_thread(|t| {
                 let i = t.global_idx();

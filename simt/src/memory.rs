@@ -248,6 +248,16 @@ impl<T: DeviceCopy> DeviceBuffer<T> {
         &mut self.data[..self.len]
     }
 
+    /// The contents as a host vector, without a copy; the buffer's bytes leave the
+    /// device's accounting (and a pooled allocation does not go back to the pool).
+    pub fn into_vec(mut self) -> Vec<T> {
+        self.mem.free(self.held_bytes());
+        self.pool = None;
+        let mut v = std::mem::take(&mut self.data);
+        v.truncate(self.len);
+        v
+    }
+
     /// A host copy of the contents (a device-to-host transfer).
     pub fn to_vec(&self) -> Vec<T> {
         self.as_slice().to_vec()

@@ -11,14 +11,13 @@
 //! the input (and, in place, the old output) and store the output through `simt`, so
 //! its statistics are those of the same CUDA kernel.
 
-use crate::device::Device;
+use crate::device::{Device, ELEMENT_BLOCK};
 use crate::exec::Thread;
 use crate::memory::{DeviceBuffer, DeviceCopy, Readable};
 use crate::stats::LaunchRecord;
 use rayon::prelude::*;
 
-/// Threads per block of an element-wise launch (as [`Device::for_each`]).
-const BLOCK: usize = 256;
+const BLOCK: usize = ELEMENT_BLOCK as usize;
 
 impl Device {
     /// `output[i] = f(thread, i, input[i])` for every element of `output`

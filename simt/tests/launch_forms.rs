@@ -89,3 +89,15 @@ fn shared_u64_atomics_carry_and_count_once_per_warp() {
         }
     }
 }
+
+/// `into_vec` hands the contents over and the bytes leave the device's accounting.
+#[test]
+fn into_vec_moves_the_contents_out_of_the_accounting() {
+    let dev = Device::default();
+    let before = dev.memory().current;
+    let mut b = dev.alloc_from(&[1u32, 2, 3, 4]);
+    b.resize(2);
+    assert_eq!(dev.memory().current, before + 16);
+    assert_eq!(b.into_vec(), vec![1, 2]);
+    assert_eq!(dev.memory().current, before);
+}

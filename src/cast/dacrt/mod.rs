@@ -447,7 +447,7 @@ impl Dacrt {
             drop(keys);
             let mut ids = dev.alloc_vec(std::mem::take(&mut ray_ids));
             simt::sort_by_key(&dev, &mut coarse, &mut ids);
-            ray_ids = ids.to_vec();
+            ray_ids = ids.into_vec();
             let size = ray_ids.len().div_ceil(groups);
             ray_ids.par_chunks_mut(size).for_each_init(Vec::new, |scratch, group| {
                 self.trace_top(&tr, &top, &top.root, group, scratch, 0);

@@ -496,7 +496,8 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
     let stage = blk.shared::<[f32; 9]>(STAGE);
     let stage_ids = blk.shared::<u32>(STAGE);
     // The block's tests, summed in shared memory: one global atomic per block instead
-    // of one per thread (16 threads on one counter had cost PDACRT a fifth of its time).
+    // of one per thread (with one per thread, 16 threads queued on one cache line; the
+    // change cut a 64x64 light-tracing render's cast time by about 30 % on 16 cores).
     let block_tests = blk.shared::<u64>(1);
     let best = blk.local::<u64>(NO_HIT);
     let ray_reg = blk.local::<Ray>(Ray::new(Vec3::ZERO, Vec3::ZERO));
