@@ -21,7 +21,7 @@
 //! * **Cores.** The top levels' triangle partitions do not depend on the rays, so each
 //!   call computes them once, down to cells of about
 //!   [`DacrtParams::top_cell_triangles`] triangles: the planes are chosen on a sample
-//!   (every 16th triangle for cells of 4,096, by the same rules as below), then every
+//!   (every 64th triangle for cells of 4,096, by the same rules as below), then every
 //!   triangle is routed down them and gathered by cell (a counting sort: two parallel,
 //!   streaming passes over the triangles' boxes). With more than one thread the
 //!   batch's rays are then ordered by a coherence key (a Morton code over origin and
@@ -309,7 +309,7 @@ impl Dacrt {
         if self.is_leaf(rays.len(), tris.len(), depth) {
             return self.leaf(tr, rays, tris);
         }
-        let Some((axis, pos)) = self.choose_split(tr, &self.boxes, &bounds, rays, tris) else {
+        let Some((axis, pos)) = self.choose_split(tr, (&self.boxes, 1), &bounds, rays, tris) else {
             return self.leaf(tr, rays, tris);
         };
         let (lo, hi) = bounds.split(axis, pos);
@@ -333,11 +333,12 @@ impl Dacrt {
 
     /// The first candidate plane after which neither child keeps every ray and every
     /// triangle of the node; `None` when no candidate separates anything. `tris` index
-    /// `boxes` (the scene's boxes, or the shared top's sample).
+    /// `boxes` (the scene's boxes, or the shared top's sample, where each box stands
+    /// for `stride` triangles: the SAH threshold counts the triangles they stand for).
     fn choose_split(
         &self,
         tr: &Trace,
-        boxes: &[Aabb],
+        (boxes, stride): (&[Aabb], usize),
         bounds: &Aabb,
         rays: &[u32],
         tris: &[u32],
@@ -345,20 +346,21 @@ impl Dacrt {
         let axes = bounds.axes_by_extent();
         let ext = bounds.extent();
         let centre = bounds.center();
-        let mut candidates: [Option<(usize, f32)>; 5] = [None; 5];
-        if tris.len() >= self.params.sah_min_triangles {
-            candidates[0] = sah_plane(boxes, bounds, tris);
-        }
-        for (k, &a) in axes.iter().enumerate() {
-            candidates[1 + k] = (ext[a] > 0.0).then_some((a, centre[a]));
-        }
-        candidates[4] = centroid_median(boxes, tris, axes[0]);
+        // The candidates in order of preference, each computed only when every one
+        // before it separates nothing (the centroid median allocates and selects).
+        let candidate = |k: usize| match k {
+            0 => {
+                (tris.len() * stride >= self.params.sah_min_triangles).then(|| sah_plane(boxes, bounds, tris)).flatten()
+            }
+            1..=3 => (ext[axes[k - 1]] > 0.0).then_some((axes[k - 1], centre[axes[k - 1]])),
+            _ => centroid_median(boxes, tris, axes[0]),
+        };
         // True when every triangle overlaps `child` and every ray enters it (stops at
         // the first element that does not).
         let keeps_all = |child: &Aabb| {
             tris.iter().all(|&t| boxes[t as usize].overlaps(child)) && rays.iter().all(|&r| tr.enters(r, child))
         };
-        candidates.into_iter().flatten().find(|&(axis, pos)| {
+        (0..5).filter_map(candidate).find(|&(axis, pos)| {
             let (lo, hi) = bounds.split(axis, pos);
             !keeps_all(&lo) && !keeps_all(&hi)
         })

@@ -12,7 +12,9 @@ use rayon::prelude::*;
 const ROUTE_CHUNK: usize = 1 << 14;
 /// The shared top's planes are chosen on a sample holding about this many triangles
 /// per cell of [`DacrtParams::top_cell_triangles`](super::DacrtParams::top_cell_triangles).
-const TOP_SAMPLES_PER_CELL: usize = 256;
+/// (64 choose planes as good as 256 do on the dragon, in a quarter of the time:
+/// ray–triangle tests within 1 % on its primary, shadow and mirror batches).
+const TOP_SAMPLES_PER_CELL: usize = 64;
 
 /// The shared top's planes, chosen on a sample before any triangle is routed.
 enum Plan {
@@ -246,7 +248,7 @@ impl Dacrt {
             return Plan::Cell(0);
         }
         // Triangles alone decide the plane (no rays yet).
-        let Some((axis, pos)) = self.choose_split(&Trace::empty(), sample, &bounds, &[], &tris) else {
+        let Some((axis, pos)) = self.choose_split(&Trace::empty(), (sample, stride), &bounds, &[], &tris) else {
             return Plan::Cell(0);
         };
         let side = |child: Aabb| -> (Vec<u32>, Aabb) {
