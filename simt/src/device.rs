@@ -304,13 +304,25 @@ impl Device {
         if serial {
             self.note_serial(name, threads, seconds);
         }
+        Ok(self.record_launch(name, &cfg, seconds, measure, &counters))
+    }
+
+    /// The record of a launch from its counters, added to the statistics.
+    pub(crate) fn record_launch(
+        &self,
+        name: &'static str,
+        cfg: &LaunchConfig,
+        seconds: f64,
+        measured: bool,
+        counters: &Counters,
+    ) -> LaunchRecord {
         let record = LaunchRecord {
             name,
             grid: cfg.grid,
             block: cfg.block,
             shared_bytes: cfg.shared_bytes,
             seconds,
-            measured: measure,
+            measured,
             threads: counters.threads,
             ops: RegionStats { name: "ops", issued: counters.ops_issued, active: counters.ops_active },
             regions: cfg
@@ -325,7 +337,7 @@ impl Device {
             barriers: counters.barriers,
         };
         self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).add(&record);
-        Ok(record)
+        record
     }
 
     /// Whether a launch of `threads` threads of kernel `name` should run on the calling

@@ -421,6 +421,20 @@ fn site() -> usize {
     Location::caller() as *const Location as usize
 }
 
+impl<'a> Thread<'a> {
+    /// A thread of a measured launch that uses no shared memory or registers.
+    #[inline(always)]
+    pub(crate) fn measured(
+        thread_idx: u32,
+        block_idx: u32,
+        block_dim: u32,
+        grid_dim: u32,
+        meter: &'a RefCell<Meter>,
+    ) -> Self {
+        Thread { thread_idx, block_idx, block_dim, grid_dim, shared: &[], regs: &[], meter: Some(meter) }
+    }
+}
+
 impl Thread<'static> {
     /// A thread of an unmeasured launch that uses no shared memory or registers.
     #[inline(always)]

@@ -236,6 +236,48 @@ impl Meter {
         }
     }
 
+    /// What [`Meter::global`] records for `lanes` lanes that each access their own
+    /// element of one array, lane `k` element `k` at `addr + k · size`, in one warp
+    /// phase, counted at once: `size / width` instructions, each one request of every
+    /// lane, and the distinct sectors its lanes touch (ascending with the lane, so a
+    /// sector is new exactly when it lies past the last one counted).
+    pub fn global_lanes(&mut self, kind: Kind, addr: u64, lanes: u32, size: u64, width: u64) {
+        if lanes == 0 {
+            return;
+        }
+        let parts = (size / width).max(1);
+        let sectors = if parts == 1 && width == size {
+            // Whole elements side by side: one contiguous byte range.
+            (addr + lanes as u64 * size - 1) / SECTOR_BYTES - addr / SECTOR_BYTES + 1
+        } else {
+            // Part `p` of every lane's element: `width` bytes every `size` bytes.
+            (0..parts)
+                .map(|p| {
+                    let (mut sectors, mut last) = (0, None);
+                    for lane in 0..lanes as u64 {
+                        let a = addr + lane * size + p * width;
+                        let (lo, hi) = (a / SECTOR_BYTES, (a + width - 1) / SECTOR_BYTES);
+                        let from = last.map_or(lo, |l: u64| lo.max(l + 1));
+                        if hi >= from {
+                            sectors += hi - from + 1;
+                            last = Some(hi);
+                        }
+                    }
+                    sectors
+                })
+                .sum()
+        };
+        self.totals.ops_issued += parts;
+        self.totals.ops_active += parts * lanes as u64;
+        let traffic = match kind {
+            Kind::Load => &mut self.totals.loads,
+            Kind::Store => &mut self.totals.stores,
+            _ => &mut self.totals.atomics,
+        };
+        traffic.requests += parts;
+        traffic.sectors += sectors;
+    }
+
     pub fn work(&mut self, site: usize, region: usize, path: usize, units: u32) {
         if units > 0 {
             // Paths of one site are distinct instructions (arms of a branch).

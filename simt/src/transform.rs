@@ -7,17 +7,22 @@
 //! of its input and writes only element `i` of its output, which the launch hands to it:
 //! unmeasured, a block of 256 threads is a plain loop over a disjoint `&mut` chunk of
 //! the output with one bounds check for the launch, which compiles to what a rayon zip
-//! loop compiles to. Measured, it is an ordinary `for_each` launch whose lanes load
-//! the input (and, in place, the old output) and store the output through `simt`, so
-//! its statistics are those of the same CUDA kernel.
+//! loop compiles to. Measured, its statistics are those of the `for_each` kernel whose
+//! lanes load the input (and, in place, the old output) and store the output through
+//! `simt`; the launch counts those owned accesses a warp at a time, since it knows
+//! their addresses, and records only what `f` itself does lane by lane.
 
-use crate::device::{Device, ELEMENT_BLOCK};
-use crate::exec::Thread;
+use crate::device::{Device, ELEMENT_BLOCK, LaunchConfig};
+use crate::exec::{Thread, WARP_SIZE, access_width};
 use crate::memory::{DeviceBuffer, DeviceCopy, Readable};
+use crate::meter::{Counters, Kind, Meter};
 use crate::stats::LaunchRecord;
 use rayon::prelude::*;
+use std::cell::RefCell;
+use std::time::Instant;
 
 const BLOCK: usize = ELEMENT_BLOCK as usize;
+const WARP: usize = WARP_SIZE as usize;
 
 impl Device {
     /// `output[i] = f(thread, i, input[i])` for every element of `output`
@@ -93,14 +98,8 @@ impl Device {
         let n = output.len();
         assert!(input.len() >= n, "{name}: an input of {} elements for {n} outputs", input.len());
         if self.measuring() {
-            let out = output.view_mut();
-            return self.for_each(name, n, |t, i| {
-                let x = t.load(input, i);
-                // Without `reads` the old value is only a placeholder that `f` overwrites.
-                let mut o = if reads { t.load(&out, i) } else { out.read(i) };
-                f(t, i, x, &mut o);
-                t.store(&out, i, o);
-            });
+            let at = output.view().address(0);
+            return self.owned_measured(name, input, (output.as_mut_slice(), at), reads, &f);
         }
         let grid = n.div_ceil(BLOCK) as u32;
         let run_block = |(b, chunk): (usize, &mut [O])| {
@@ -137,5 +136,71 @@ impl Device {
             self.note_serial(name, threads as u64, record.seconds);
         }
         record
+    }
+
+    /// The measured owned launch: the same blocks and lane order, each lane with a
+    /// measuring thread, so whatever `f` loads, stores or declares through it is
+    /// recorded lane by lane; the owned accesses (the input element, the old output
+    /// element when `reads`, the output store) are counted a warp at a time by
+    /// [`Meter::global_lanes`], which gives the same requests and sectors as recording
+    /// each lane's address and matching them.
+    /// `out` is the output's elements, at device address `out_addr`.
+    fn owned_measured<I: DeviceCopy, O: DeviceCopy>(
+        &self,
+        name: &'static str,
+        input: &impl Readable<I>,
+        (out, out_addr): (&mut [O], u64),
+        reads: bool,
+        f: &(impl Fn(&Thread, usize, I, &mut O) + Sync),
+    ) -> LaunchRecord {
+        let cfg = LaunchConfig::linear(out.len(), ELEMENT_BLOCK);
+        let grid = cfg.grid;
+        let (in_size, in_width) = (std::mem::size_of::<I>() as u64, access_width::<I>());
+        let (out_size, out_width) = (std::mem::size_of::<O>() as u64, access_width::<O>());
+        let start = Instant::now();
+        let run_block = |meter: RefCell<Meter>, (b, chunk): (usize, &mut [O])| {
+            for (w, lanes) in chunk.chunks_mut(WARP).enumerate() {
+                let first = b * BLOCK + w * WARP;
+                {
+                    let mut m = meter.borrow_mut();
+                    m.begin_warp_call();
+                    m.begin_lane_phase();
+                }
+                for (k, o) in lanes.iter_mut().enumerate() {
+                    let thread_idx = (w * WARP + k) as u32;
+                    meter.borrow_mut().begin_lane(thread_idx);
+                    let t = Thread::measured(thread_idx, b as u32, BLOCK as u32, grid, &meter);
+                    // SAFETY: first + k < n <= input.len(), checked by the caller.
+                    f(&t, first + k, unsafe { input.read_unchecked(first + k) }, o);
+                }
+                let mut m = meter.borrow_mut();
+                let count = lanes.len() as u32;
+                m.global_lanes(Kind::Load, input.address(first), count, in_size, in_width);
+                let at = out_addr + first as u64 * out_size;
+                if reads {
+                    m.global_lanes(Kind::Load, at, count, out_size, out_width);
+                }
+                m.global_lanes(Kind::Store, at, count, out_size, out_width);
+                m.end_warp_phase();
+            }
+            meter.borrow_mut().totals.threads += BLOCK as u64;
+            meter
+        };
+        let threads = grid as u64 * BLOCK as u64;
+        let serial = self.runs_serially(name, threads);
+        let counters = if serial {
+            out.chunks_mut(BLOCK).enumerate().fold(RefCell::default(), run_block).into_inner().totals
+        } else {
+            out.par_chunks_mut(BLOCK)
+                .enumerate()
+                .fold(RefCell::default, run_block)
+                .map(|m| m.into_inner().totals)
+                .reduce(Counters::default, Counters::merge)
+        };
+        let seconds = start.elapsed().as_secs_f64();
+        if serial {
+            self.note_serial(name, threads, seconds);
+        }
+        self.record_launch(name, &cfg, seconds, true, &counters)
     }
 }
