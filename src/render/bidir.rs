@@ -409,6 +409,23 @@ pub(crate) fn strategy_connect(
     path: &mut VertexList,
 ) -> Option<(Vec3, Ray)> {
     let (lv, c) = (&light[s - 1], &cam[t - 1]);
+    let l = connect_contribution(ctx, lv, if s >= 2 { light.get(s - 2) } else { None }, cam, t)?;
+    full_path(light, cam, s, t, path);
+    Some((l, shadow_ray(lv, c)))
+}
+
+/// The unweighted contribution of [`strategy_connect`], from the light vertex `lv`, the
+/// one before it on its subpath (`None` for the light's own vertex) and the camera
+/// subpath: what a resampled connection weighs its candidates by, without loading the
+/// rest of their subpaths or building the path.
+pub(crate) fn connect_contribution(
+    ctx: &Context,
+    lv: &Vertex,
+    lv_prev: Option<&Vertex>,
+    cam: &[Vertex],
+    t: usize,
+) -> Option<Vec3> {
+    let c = &cam[t - 1];
     if !connectible(ctx, lv) || !connectible(ctx, c) {
         return None;
     }
@@ -418,15 +435,11 @@ pub(crate) fn strategy_connect(
         return None;
     }
     let wdir = d / d2.sqrt();
-    let fl = vertex_f(ctx, lv, if s >= 2 { light.get(s - 2) } else { None }, c.p, TransportMode::Importance);
+    let fl = vertex_f(ctx, lv, lv_prev, c.p, TransportMode::Importance);
     let fc = vertex_f(ctx, c, cam.get(t - 2), lv.p, TransportMode::Radiance);
     let g = cos_at(lv, wdir) * cos_at(c, wdir) / d2;
     let l = lv.beta * fl * g * fc * c.beta;
-    if l.max_element() <= 0.0 {
-        return None;
-    }
-    full_path(light, cam, s, t, path);
-    Some((l, shadow_ray(lv, c)))
+    (l.max_element() > 0.0).then_some(l)
 }
 
 #[cfg(test)]

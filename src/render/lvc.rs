@@ -11,8 +11,8 @@
 
 use super::Context;
 use super::bidir::{
-    Pending, Vertex, VertexKind, VertexList, camera_vertex, connect_to_camera, connectible, full_path,
-    mis_weight_counts, strategy_connect, strategy_emitter, strategy_light_sample,
+    Pending, Vertex, VertexKind, VertexList, camera_vertex, connect_contribution, connect_to_camera, connectible,
+    full_path, mis_weight_counts, strategy_connect, strategy_emitter, strategy_light_sample,
 };
 use super::walk::WaveBuffers;
 use super::walk::{Passes, Subpaths, extend_together, flush_wave, resolve_wave, start_camera_wave, start_light_wave};
@@ -319,15 +319,17 @@ impl Connections {
 
 /// Every strategy at camera vertex `t - 1` except the camera splats: the emitter it hit
 /// (s = 0), a light sample (s = 1), and connections to cache vertices, each pushed to
-/// `sink` with its MIS weight applied. `subpath(e)` gives cache entry `e`'s light
-/// subpath up to the cached vertex. Allocation-free: kernels call it.
+/// `sink` with its MIS weight applied. `subpath(e, list, tail)` puts cache entry `e`'s
+/// light subpath up to the cached vertex into `list` and returns its length `s`; with
+/// `tail` only its last two vertices (one when `s` is 1), which is all a resampling
+/// candidate's weight reads. Allocation-free: kernels call it.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn vertex_strategies(
     ctx: &Context,
     cam: &[Vertex],
     t: usize,
     cache_len: usize,
-    subpath: &dyn Fn(usize, &mut VertexList) -> usize,
+    subpath: &dyn Fn(usize, &mut VertexList, bool) -> usize,
     counts: StrategyCounts,
     connections: Connections,
     rng: &mut Rng,
@@ -358,7 +360,7 @@ pub(crate) fn vertex_strategies(
     // One light-subpath buffer for every candidate and connection (filled in place).
     let mut light = VertexList::default();
     let mut connect = |e: usize, extra: f32, path: &mut VertexList, sink: &mut dyn FnMut(Pending)| {
-        let s = subpath(e, &mut light);
+        let s = subpath(e, &mut light, false);
         if s + t - 2 > max_depth {
             return;
         }
@@ -379,14 +381,20 @@ pub(crate) fn vertex_strategies(
             let n = (candidates as usize).clamp(1, MAX_CANDIDATES);
             let (mut entry, mut target) = ([0usize; MAX_CANDIDATES], [0f32; MAX_CANDIDATES]);
             let mut total = 0.0f32;
-            let mut light = VertexList::default();
+            let mut tail = VertexList::default();
             for k in 0..n {
                 entry[k] = uniform_entry(cache_len, rng);
-                let s = subpath(entry[k], &mut light);
-                target[k] = if s + t - 2 > max_depth {
-                    0.0
-                } else {
-                    strategy_connect(ctx, &light, s, cam, t, path).map_or(0.0, |(l, _)| luminance(l).max(0.0))
+                let s = subpath(entry[k], &mut tail, true);
+                let (lv, prev) = match &tail[..] {
+                    [prev, lv] => (Some(lv), Some(prev)),
+                    [lv] => (Some(lv), None),
+                    _ => (None, None),
+                };
+                target[k] = match lv {
+                    Some(lv) if s + t - 2 <= max_depth => {
+                        connect_contribution(ctx, lv, prev, cam, t).map_or(0.0, |l| luminance(l).max(0.0))
+                    }
+                    _ => 0.0,
                 };
                 total += target[k];
             }
@@ -419,10 +427,10 @@ pub(crate) fn camera_strategies(
     rng: &mut Rng,
     path: &mut VertexList,
 ) -> Vec<Pending> {
-    let subpath = |e: usize, list: &mut VertexList| {
+    let subpath = |e: usize, list: &mut VertexList, tail: bool| {
         let (light, s) = cache.subpath(e);
         list.clear();
-        list.extend(light);
+        list.extend(if tail { &light[s.saturating_sub(2)..] } else { light });
         s
     };
     let mut pending = Vec::new();

@@ -155,11 +155,13 @@ pub struct CacheRead<'a> {
 }
 
 impl CacheRead<'_> {
-    /// Cache entry `e`'s light subpath up to its vertex, loaded into `light`; returns `s`.
-    pub fn subpath(&self, t: &Thread, e: usize, light: &mut VertexList) -> usize {
+    /// Cache entry `e`'s light subpath up to its vertex, loaded into `light` (with
+    /// `tail`, only its last two vertices); returns `s`.
+    pub fn subpath(&self, t: &Thread, e: usize, light: &mut VertexList, tail: bool) -> usize {
         let [start, s] = t.load(&self.entries, e);
         light.clear();
-        for k in 0..s as usize {
+        let from = if tail { (s as usize).saturating_sub(2) } else { 0 };
+        for k in from..s as usize {
             light.push(t.load(&self.vertices, start as usize + k));
         }
         s as usize
@@ -178,7 +180,7 @@ impl CacheRead<'_> {
         path: &mut VertexList,
         sink: &mut dyn FnMut(Pending),
     ) {
-        let subpath = |e: usize, light: &mut VertexList| self.subpath(t, e, light);
+        let subpath = |e: usize, light: &mut VertexList, tail: bool| self.subpath(t, e, light, tail);
         let n = self.entries.len();
         vertex_strategies(ctx, cam, t_len, n, &subpath, self.counts, self.connections, rng, path, sink);
     }
