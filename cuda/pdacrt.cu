@@ -61,7 +61,7 @@ constexpr uint32_t DROPPED = 0, INNER = 1, TERMINAL = 2;
 constexpr uint32_t MAX_TRIES = 3;
 constexpr uint64_t NO_HIT = ~0ull;
 constexpr uint64_t BLOCKED = 0;
-constexpr int BOUNDS_RUN = 256;
+constexpr int BOUNDS_RUN = 32;
 constexpr int STAGE = 128;
 constexpr int LINEAR_BLOCK = 256;  // `simt::Device::for_each`'s block
 
@@ -212,11 +212,14 @@ __global__ void clear_bounds(uint32_t* tight, size_t n) {
     if (i < n) tight[i] = (i % 6) < 3 ? 0xffffffffu : 0u;
 }
 
+// As the emulated kernel: a word is read first and its atomic made only when it would
+// change the word.
 __device__ inline void flush_bounds(uint32_t* bounds, uint32_t node, const Aabb& b) {
     size_t base = (size_t)node * 6;
     for (int a = 0; a < 3; a++) {
-        atomicMin(&bounds[base + a], ordered(comp(b.lo, a)));
-        atomicMax(&bounds[base + 3 + a], ordered(comp(b.hi, a)));
+        uint32_t lo = ordered(comp(b.lo, a)), hi = ordered(comp(b.hi, a));
+        if (lo < bounds[base + a]) atomicMin(&bounds[base + a], lo);
+        if (hi > bounds[base + 3 + a]) atomicMax(&bounds[base + 3 + a], hi);
     }
 }
 
