@@ -276,7 +276,6 @@ impl Device {
         }
         let measure = self.measuring();
         let shared_words = cfg.shared_bytes.div_ceil(4);
-        let start = Instant::now();
         let run_block = |mut w: Worker, b| {
             let mut block = Block::new(&mut w, b, cfg.block, cfg.grid, shared_words, measure);
             kernel(&mut block);
@@ -287,24 +286,35 @@ impl Device {
             (m.totals, m.race)
         };
         let threads = cfg.grid as u64 * cfg.block as u64;
-        let serial = self.runs_serially(name, threads);
-        let (counters, race) = if serial {
-            finish((0..cfg.grid).fold(Worker::new(shared_words), run_block))
-        } else {
-            (0..cfg.grid)
-                .into_par_iter()
-                .fold(|| Worker::new(shared_words), run_block)
-                .map(finish)
-                .reduce(|| (Counters::default(), None), |(a, ra), (b, rb)| (a.merge(b), first_race(ra, rb)))
-        };
+        let ((counters, race), seconds) = self.run_blocks(name, threads, |serial| {
+            if serial {
+                finish((0..cfg.grid).fold(Worker::new(shared_words), run_block))
+            } else {
+                (0..cfg.grid)
+                    .into_par_iter()
+                    .fold(|| Worker::new(shared_words), run_block)
+                    .map(finish)
+                    .reduce(|| (Counters::default(), None), |(a, ra), (b, rb)| (a.merge(b), first_race(ra, rb)))
+            }
+        });
         if let Some(race) = race {
             return Err(LaunchError::SharedRace { kernel: name, race });
         }
+        Ok(self.record_launch(name, &cfg, seconds, measure, &counters))
+    }
+
+    /// Runs a launch's blocks, `run(serial)`: on the calling thread when
+    /// [`Device::runs_serially`] says so (whose cost it then learns from the time
+    /// taken), else through the pool. Returns `run`'s result and the seconds it took.
+    pub(crate) fn run_blocks<R>(&self, name: &'static str, threads: u64, run: impl FnOnce(bool) -> R) -> (R, f64) {
+        let serial = self.runs_serially(name, threads);
+        let start = Instant::now();
+        let r = run(serial);
         let seconds = start.elapsed().as_secs_f64();
         if serial {
             self.note_serial(name, threads, seconds);
         }
-        Ok(self.record_launch(name, &cfg, seconds, measure, &counters))
+        (r, seconds)
     }
 
     /// The record of a launch from its counters, added to the statistics.

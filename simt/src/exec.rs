@@ -604,16 +604,24 @@ impl Thread<'_> {
         unsafe { self.shared_words(s, i, true).write_unaligned(value) }
     }
 
+    /// The bounds check and the measurement of a shared atomic on element `i` of `len`
+    /// (one instruction at the kernel's call site).
+    #[inline(always)]
+    #[track_caller]
+    fn shared_atomic(&self, len: u32, i: usize) {
+        assert!(i < len as usize, "shared atomic {i} of {len}");
+        if let Some(m) = self.meter {
+            note_op(m, site());
+        }
+    }
+
     /// `atomicAdd` on shared memory; returns the old value. (A block's threads run on
     /// one OS thread, so a load and a store are already atomic here; the race check
     /// does not look at atomics.)
     #[inline(always)]
     #[track_caller]
     pub fn atomic_add_shared(&self, s: Shared<u32>, i: usize, value: u32) -> u32 {
-        assert!(i < s.len as usize, "shared atomic {i} of {}", s.len);
-        if let Some(m) = self.meter {
-            note_op(m, site());
-        }
+        self.shared_atomic(s.len, i);
         let cell = &self.shared[s.offset as usize + i];
         let old = cell.get();
         cell.set(old.wrapping_add(value));
@@ -624,10 +632,7 @@ impl Thread<'_> {
     #[inline(always)]
     #[track_caller]
     pub fn atomic_add_shared_u64(&self, s: Shared<u64>, i: usize, value: u64) -> u64 {
-        assert!(i < s.len as usize, "shared atomic {i} of {}", s.len);
-        if let Some(m) = self.meter {
-            note_op(m, site());
-        }
+        self.shared_atomic(s.len, i);
         // Two words, low first, as `load_shared::<u64>` reads them.
         let at = s.offset as usize + 2 * i;
         let (lo, hi) = (&self.shared[at], &self.shared[at + 1]);

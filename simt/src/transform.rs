@@ -19,7 +19,6 @@ use crate::meter::{Counters, Kind, Meter};
 use crate::stats::LaunchRecord;
 use rayon::prelude::*;
 use std::cell::RefCell;
-use std::time::Instant;
 
 const BLOCK: usize = ELEMENT_BLOCK as usize;
 const WARP: usize = WARP_SIZE as usize;
@@ -121,21 +120,17 @@ impl Device {
             }
         };
         let threads = grid as usize * BLOCK;
-        let serial = self.runs_serially(name, threads as u64);
         let out = output.as_mut_slice();
-        let record = self
-            .unmeasured_launch(name, grid, BLOCK as u32, threads, || {
+        self.unmeasured_launch(name, grid, BLOCK as u32, threads, || {
+            self.run_blocks(name, threads as u64, |serial| {
                 if serial {
                     out.chunks_mut(BLOCK).enumerate().for_each(run_block)
                 } else {
                     out.par_chunks_mut(BLOCK).enumerate().for_each(run_block)
                 }
             })
-            .1;
-        if serial {
-            self.note_serial(name, threads as u64, record.seconds);
-        }
-        record
+        })
+        .1
     }
 
     /// The measured owned launch: the same blocks and lane order, each lane with a
@@ -157,7 +152,6 @@ impl Device {
         let grid = cfg.grid;
         let (in_size, in_width) = (std::mem::size_of::<I>() as u64, access_width::<I>());
         let (out_size, out_width) = (std::mem::size_of::<O>() as u64, access_width::<O>());
-        let start = Instant::now();
         let run_block = |meter: RefCell<Meter>, (b, chunk): (usize, &mut [O])| {
             for (w, lanes) in chunk.chunks_mut(WARP).enumerate() {
                 let first = b * BLOCK + w * WARP;
@@ -187,20 +181,17 @@ impl Device {
             meter
         };
         let threads = grid as u64 * BLOCK as u64;
-        let serial = self.runs_serially(name, threads);
-        let counters = if serial {
-            out.chunks_mut(BLOCK).enumerate().fold(RefCell::default(), run_block).into_inner().totals
-        } else {
-            out.par_chunks_mut(BLOCK)
-                .enumerate()
-                .fold(RefCell::default, run_block)
-                .map(|m| m.into_inner().totals)
-                .reduce(Counters::default, Counters::merge)
-        };
-        let seconds = start.elapsed().as_secs_f64();
-        if serial {
-            self.note_serial(name, threads, seconds);
-        }
+        let (counters, seconds) = self.run_blocks(name, threads, |serial| {
+            if serial {
+                out.chunks_mut(BLOCK).enumerate().fold(RefCell::default(), run_block).into_inner().totals
+            } else {
+                out.par_chunks_mut(BLOCK)
+                    .enumerate()
+                    .fold(RefCell::default, run_block)
+                    .map(|m| m.into_inner().totals)
+                    .reduce(Counters::default, Counters::merge)
+            }
+        });
         self.record_launch(name, &cfg, seconds, true, &counters)
     }
 }
