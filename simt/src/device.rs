@@ -303,9 +303,8 @@ impl Device {
         Ok(self.record_launch(name, &cfg, seconds, measure, &counters))
     }
 
-    /// Runs a launch's blocks, `run(serial)`: on the calling thread when
-    /// [`Device::runs_serially`] says so (whose cost it then learns from the time
-    /// taken), else through the pool. Returns `run`'s result and the seconds it took.
+    /// `run(serial)`, serial when [`Device::runs_serially`] says so (then learning the
+    /// kernel's cost from it); returns `run`'s result and its seconds.
     pub(crate) fn run_blocks<R>(&self, name: &'static str, threads: u64, run: impl FnOnce(bool) -> R) -> (R, f64) {
         let serial = self.runs_serially(name, threads);
         let start = Instant::now();
