@@ -199,8 +199,30 @@ impl<'w> Block<'w> {
     /// active and the sectors of one element.
     #[track_caller]
     pub fn load_uniform<T: DeviceCopy, V: Readable<T>>(&mut self, v: &V, i: usize) -> T {
+        self.note_uniform::<T>(v.address(i));
+        v.read(i)
+    }
+
+    /// One field of element `i`, loaded by every thread of the block from the same
+    /// address: [`Block::load_uniform`] for a kernel that reads only part of an element
+    /// (see [`Thread::load_field`]).
+    #[track_caller]
+    pub fn load_uniform_field<T: DeviceCopy, U: DeviceCopy, V: Readable<T>>(
+        &mut self,
+        v: &V,
+        i: usize,
+        field: impl FnOnce(&T) -> &U,
+    ) -> U {
+        let (value, addr) = read_field(v, i, field);
+        self.note_uniform::<U>(addr);
+        value
+    }
+
+    /// Measures a uniform load of a `T` at `addr` (nothing when unmeasured).
+    #[track_caller]
+    fn note_uniform<T>(&mut self, addr: u64) {
         if self.measure {
-            let (at, addr) = (site(), v.address(i));
+            let at = site();
             let (size, width) = (std::mem::size_of::<T>() as u64, access_width::<T>());
             // A load inside the block's flow, not a phase of threads: lanes are measured
             // but not counted as threads again.
@@ -212,7 +234,6 @@ impl<'w> Block<'w> {
                 })
             });
         }
-        v.read(i)
     }
 
     /// Thread `thread_idx` of this block as a kernel phase sees it (`meter` is `None`
@@ -386,6 +407,20 @@ pub(crate) const fn access_width<T>() -> u64 {
     w as u64
 }
 
+/// The field of element `i` that `field` picks, and its address; panics unless the
+/// projection returns a part of the element itself.
+#[inline(always)]
+fn read_field<T: DeviceCopy, U: DeviceCopy, V: Readable<T>>(v: &V, i: usize, field: impl FnOnce(&T) -> &U) -> (U, u64) {
+    let x = v.read(i);
+    let f = field(&x);
+    let at = (f as *const U as usize).wrapping_sub(&x as *const T as usize);
+    assert!(
+        at.checked_add(std::mem::size_of::<U>()).is_some_and(|end| end <= std::mem::size_of::<T>()),
+        "load_field: the projection must return a field of the element"
+    );
+    (*f, v.address(i) + at as u64)
+}
+
 // Measurement calls are kept out of line (and cold), so that the unmeasured kernel
 // code they sit in stays small enough to inline.
 #[cold]
@@ -496,6 +531,24 @@ impl Thread<'_> {
     pub fn load<T: DeviceCopy, V: Readable<T>>(&self, v: &V, i: usize) -> T {
         self.note::<T>(Kind::Load, v.address(i));
         v.read(i)
+    }
+
+    /// One field of element `i` of a global buffer, `field` picking it (`|n: &Node|
+    /// &n.count`). [`Thread::load`] measures the whole element; compiled GPU code loads
+    /// only the fields a kernel reads, each as its own load at its own address (a
+    /// structure of 4-byte fields is loaded 4 bytes at a time), and this measures that.
+    /// The value is the same as `load(v, i)`'s field.
+    #[inline(always)]
+    #[track_caller]
+    pub fn load_field<T: DeviceCopy, U: DeviceCopy, V: Readable<T>>(
+        &self,
+        v: &V,
+        i: usize,
+        field: impl FnOnce(&T) -> &U,
+    ) -> U {
+        let (value, addr) = read_field(v, i, field);
+        self.note::<U>(Kind::Load, addr);
+        value
     }
 
     /// Stores element `i` of a global buffer.

@@ -1,6 +1,6 @@
 //! Known-answer tests of the emulator itself: launch errors, SIMD efficiency,
 //! coalescing, warp intrinsics, barriers, registers, atomics and memory accounting.
-//! About 560 lines: one known answer per rule of the execution model, which reads best
+//! About 620 lines: one known answer per rule of the execution model, which reads best
 //! beside the others; other launch forms are in `launch_forms.rs`.
 
 use simt::{Device, DeviceConfig, LaunchConfig, LaunchError, WorkQueue};
@@ -272,6 +272,70 @@ fn wide_elements_are_split_into_hardware_accesses() {
     assert_eq!(contiguous::<Vec4>(), (1, 16));
     // 48 bytes, 16-aligned: three 16-byte accesses at stride 48, each touching 32 sectors.
     assert_eq!(contiguous::<Ray48>(), (3, 3 * 32));
+}
+
+/// A node of 4-byte fields (36 bytes, 4-aligned), like PDACRT's.
+#[derive(Clone, Copy, Default)]
+#[repr(C)]
+struct Node {
+    bounds: [f32; 6],
+    start: u32,
+    count: u32,
+    tries: u32,
+}
+unsafe impl simt::DeviceCopy for Node {}
+
+#[test]
+fn a_field_load_is_the_load_of_that_field_alone() {
+    let dev = measured();
+    let nodes: Vec<Node> = (0..64).map(|i| Node { count: i, ..Default::default() }).collect();
+    let buf = dev.alloc_from(&nodes);
+    // The same bytes as words: field `count` of node i is word 9i + 7.
+    let words =
+        dev.alloc_from(&nodes.iter().flat_map(|n| [0; 7].into_iter().chain([n.count, 0])).collect::<Vec<u32>>());
+    let (v, w) = (buf.view(), words.view());
+    let field = dev.for_each("field", 64, |t, i| assert_eq!(t.load_field(&v, i, |n: &Node| &n.count), i as u32));
+    let word = dev.for_each("word", 64, |t, i| assert_eq!(t.load(&w, 9 * i + 7), i as u32));
+    assert_eq!(field.loads.requests, 2);
+    assert_eq!((field.loads.requests, field.loads.sectors), (word.loads.requests, word.loads.sectors));
+    // The whole node is nine 4-byte loads; its six-float box field six.
+    let whole = dev.for_each("whole", 64, |t, i| {
+        std::hint::black_box(t.load(&v, i));
+    });
+    assert_eq!(whole.loads.requests, 2 * 9);
+    let bounds = dev.for_each("bounds", 64, |t, i| {
+        std::hint::black_box(t.load_field(&v, i, |n: &Node| &n.bounds));
+    });
+    assert_eq!(bounds.loads.requests, 2 * 6);
+    // Lane i reads word i % 16 of one 64-byte element: one request over its two sectors.
+    #[derive(Clone, Copy)]
+    #[repr(C)]
+    struct Wide([u32; 16]);
+    unsafe impl simt::DeviceCopy for Wide {}
+    let wide = dev.alloc_from(&[Wide(std::array::from_fn(|k| k as u32))]);
+    let wv = wide.view();
+    let rec = dev.for_each("words_of_one_element", 32, |t, i| {
+        assert_eq!(t.load_field(&wv, 0, |x: &Wide| &x.0[i % 16]), (i % 16) as u32);
+    });
+    assert_eq!((rec.loads.requests, rec.loads.sectors), (1, 2));
+    // A uniform field load: one request and one sector per warp.
+    let cfg = LaunchConfig { grid: 2, block: 64, shared_bytes: 0, regions: &[] };
+    let rec = dev
+        .launch("uniform_field", cfg, |blk| assert_eq!(blk.load_uniform_field(&v, 5, |n: &Node| &n.count), 5))
+        .unwrap();
+    assert_eq!((rec.loads.requests, rec.loads.sectors), (2 * 2, 2 * 2));
+}
+
+#[test]
+#[should_panic(expected = "load_field")]
+fn a_projection_outside_the_element_panics() {
+    static OTHER: u32 = 3;
+    let dev = measured();
+    let buf = dev.alloc_from(&[Node::default()]);
+    let v = buf.view();
+    dev.for_each("outside", 1, |t, i| {
+        t.load_field(&v, i, |_: &Node| &OTHER);
+    });
 }
 
 #[test]
