@@ -270,8 +270,13 @@ pub(crate) fn count_node_codes(
     base: &GlobalMut<Triple>,
     n: usize,
 ) {
-    let node = t.load(nodes, n);
-    let (start, count) = if rays { (node.ray_start, node.ray_count) } else { (node.tri_start, node.tri_count) };
+    // Only the two fields read are loaded, as compiled code does (`Thread::load_field`).
+    let field = |f: fn(&NodeData) -> &u32| t.load_field(nodes, n, f);
+    let (start, count) = if rays {
+        (field(|x| &x.ray_start), field(|x| &x.ray_count))
+    } else {
+        (field(|x| &x.tri_start), field(|x| &x.tri_count))
+    };
     let first = rank_at(t, ranks, codes, start as usize);
     let end = rank_at(t, ranks, codes, (start + count) as usize);
     let mut entering = 0;
@@ -312,12 +317,13 @@ pub(crate) fn classify_child(
 ) {
     let n = c / 2;
     let right = c % 2 == 1;
-    let node = t.load(nodes, n);
+    let field = |f: fn(&NodeData) -> &u32| t.load_field(nodes, n, f);
+    let (ray_count, tri_count, tries) = (field(|x| &x.ray_count), field(|x| &x.tri_count), field(|x| &x.tries));
     let rc = |code: u32| t.load(ray_counts, n * 4 + code as usize);
     let tc = |code: u32| t.load(tri_counts, n * 4 + code as usize);
     let (left_rays, left_tris) = (rc(LEFT) + rc(BOTH), tc(LEFT) + tc(BOTH));
     let (right_rays, right_tris) = (rc(BOTH) + rc(RIGHT), tc(BOTH) + tc(RIGHT));
-    let keeps_all = |r: u32, tr: u32| r == node.ray_count && tr == node.tri_count;
+    let keeps_all = |r: u32, tr: u32| r == ray_count && tr == tri_count;
     let stuck = keeps_all(left_rays, left_tris) || keeps_all(right_rays, right_tris);
     // Few triangles, or few rays *and* few pairs (as DACRT's leaf rule), or the cap.
     let pairs = LEAF_PAIRS_FACTOR * rule.leaf_rays as u64 * rule.leaf_tris as u64;
@@ -328,7 +334,7 @@ pub(crate) fn classify_child(
         let (r, tr) = (left_rays + rc(RIGHT), left_tris + tc(RIGHT));
         let kind = if right || r == 0 || tr == 0 {
             DROPPED
-        } else if small(r, tr) || node.tries + 1 >= MAX_TRIES {
+        } else if small(r, tr) || tries + 1 >= MAX_TRIES {
             TERMINAL
         } else {
             INNER
@@ -365,19 +371,20 @@ pub(crate) fn emit_child(
     terminal_nodes: &GlobalMut<NodeData>,
     c: usize,
 ) {
-    let mut cd = t.load(children, c);
-    let (scan, out) = match cd.kind {
+    // The four fields read, each loaded on its own and all before the branch, as nvcc
+    // compiles it (the destinations are written, not read).
+    let field = |f: fn(&ChildData) -> &u32| t.load_field(children, c, f);
+    let (kind, rays, tris, whole) = (field(|x| &x.kind), field(|x| &x.rays), field(|x| &x.tris), field(|x| &x.whole));
+    let (scan, out) = match kind {
         INNER => (t.load(inner_scan, c), next_nodes),
         TERMINAL => (t.load(terminal_scan, c), terminal_nodes),
         _ => return,
     };
-    cd.dest_node = scan[0];
-    cd.dest_ray = scan[1];
-    cd.dest_tri = scan[2];
+    let cd = ChildData { kind, rays, tris, dest_node: scan[0], dest_ray: scan[1], dest_tri: scan[2], whole };
     t.store(children, c, cd);
     let (bounds, tries) = if cd.whole == 1 {
-        let parent = t.load(nodes, c / 2);
-        (parent.bounds, parent.tries + 1)
+        let parent = c / 2;
+        (t.load_field(nodes, parent, |x| &x.bounds), t.load_field(nodes, parent, |x| &x.tries) + 1)
     } else {
         (t.load(child_boxes, c), 0)
     };
@@ -430,21 +437,26 @@ pub(crate) fn scatter_ref(
         return;
     }
     let node = t.load(&sp.node_of, i) as usize;
-    let rank = t.load(&sp.ranks, i)[code as usize] - t.load(&sp.base, node)[code as usize];
+    // One word of each triple (the code's), as compiled code loads it.
+    let c = code as usize;
+    let rank = t.load_field(&sp.ranks, i, |r| &r[c]) - t.load_field(&sp.base, node, |r| &r[c]);
     let id = t.load(&sp.ids, i);
     for side in 0..2 {
-        let cd = t.load(children, 2 * node + side);
-        let takes = cd.whole == 1 || if side == 0 { code != RIGHT } else { code != LEFT };
-        if !takes || cd.kind == DROPPED {
+        // The child's fields, each loaded where it is first read (as compiled code does).
+        let field = |f: fn(&ChildData) -> &u32| t.load_field(children, 2 * node + side, f);
+        let whole = field(|x| &x.whole) == 1;
+        let takes = whole || if side == 0 { code != RIGHT } else { code != LEFT };
+        let kind = field(|x| &x.kind);
+        if !takes || kind == DROPPED {
             continue;
         }
-        let first_code = if cd.whole == 1 || side == 0 { LEFT } else { BOTH };
+        let first_code = if whole || side == 0 { LEFT } else { BOTH };
         let before: u32 = (first_code..code).map(|c| t.load(&sp.counts, node * 4 + c as usize)).sum();
-        let dst = if rays { cd.dest_ray } else { cd.dest_tri };
+        let dst = if rays { field(|x| &x.dest_ray) } else { field(|x| &x.dest_tri) };
         let pos = (dst + before + rank) as usize;
-        if cd.kind == INNER {
+        if kind == INNER {
             t.store(&dest.next_ids, pos, id);
-            t.store(&dest.next_node, pos, cd.dest_node);
+            t.store(&dest.next_node, pos, field(|x| &x.dest_node));
         } else {
             t.store(&dest.terminal_ids, pos, id);
         }
@@ -491,7 +503,10 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
         let mid = (lo + hi) / 2;
         if blk.load_uniform(&a.chunk_start, mid) <= b { lo = mid } else { hi = mid }
     }
-    let node = blk.load_uniform(&a.terminals, lo);
+    // The node's four ranges, each a uniform load of its own field.
+    let mut field = |f: fn(&NodeData) -> &u32| blk.load_uniform_field(&a.terminals, lo, f) as usize;
+    let (ray_start, ray_count, tri_start, tri_count) =
+        (field(|x| &x.ray_start), field(|x| &x.ray_count), field(|x| &x.tri_start), field(|x| &x.tri_count));
     let chunk = (b - blk.load_uniform(&a.chunk_start, lo)) as usize * blk.block_dim() as usize;
     let stage = blk.shared::<[f32; 9]>(STAGE);
     let stage_ids = blk.shared::<u32>(STAGE);
@@ -505,21 +520,21 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
     let tests = blk.local::<u64>(0);
     blk.for_each_thread(|t| {
         let k = chunk + t.thread_idx() as usize;
-        if k < node.ray_count as usize {
-            let id = t.load(&a.ray_ids, node.ray_start as usize + k);
+        if k < ray_count {
+            let id = t.load(&a.ray_ids, ray_start + k);
             t.set(ray_id, id);
             t.set(ray_reg, t.load(&a.rays, id as usize));
             t.set(best, t.load(&a.keys, id as usize));
         }
     });
     let mut first = 0usize;
-    while first < node.tri_count as usize {
-        let count = STAGE.min(node.tri_count as usize - first);
+    while first < tri_count {
+        let count = STAGE.min(tri_count - first);
         blk.sync_threads();
         blk.for_each_thread(|t| {
             let mut s = t.thread_idx() as usize;
             while s < count {
-                let tri = t.load(&a.tri_ids, node.tri_start as usize + first + s);
+                let tri = t.load(&a.tri_ids, tri_start + first + s);
                 t.store_shared(stage_ids, s, tri);
                 t.store_shared(stage, s, t.load(&a.tris, tri as usize));
                 s += t.block_dim() as usize;

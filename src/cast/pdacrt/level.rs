@@ -209,7 +209,9 @@ impl Pdacrt {
         ws.chunk_start.resize(k);
         {
             let (tv, cv) = (ws.term_nodes.view(), ws.chunks.view_mut());
-            dev.for_each("pdacrt::count_chunks", k, |t, i| t.store(&cv, i, t.load(&tv, i).ray_count.div_ceil(block)));
+            dev.for_each("pdacrt::count_chunks", k, |t, i| {
+                t.store(&cv, i, t.load_field(&tv, i, |x| &x.ray_count).div_ceil(block))
+            });
         }
         simt::exclusive_scan(dev, &ws.chunks, &mut ws.chunk_start, 0, 0, |a, b| a + b);
         let grid = ws.chunk_start.as_slice()[k - 1] + ws.chunks.as_slice()[k - 1];
