@@ -1,7 +1,7 @@
 //! What the emulator costs: each kernel and primitive of `simt` against the best plain
 //! CPU code for the same job, with measurement off (and, for reference, on).
 //!
-//! `cargo run --release -p simt --example overhead -- [--json] [--n 16777216] [--repeat 5]`
+//! `cargo run --release -p simt --example overhead -- [--json] [--n 16777216] [--repeat 5] [--rounds 1]`
 //!
 //! Rows: `saxpy` (16M f32, memory-bound, `Device::transform_in_place`: each thread owns
 //! its element), `saxpy_any_store` (the same through `for_each` and a read-write view,
@@ -10,7 +10,10 @@
 //! shared memory, each thread tests its ray against them), `inclusive_scan`,
 //! `sort_by_key` (u32/u32), `reduce_by_key` and `copy_if`. The reference is a rayon loop
 //! (or, where faster, a sequential loop; for the sort, the `rdst` parallel radix sort).
-//! Each time is the median of `--repeat` runs after one warm-up.
+//! Each time is the median of `--repeat` runs after one warm-up. With `--rounds R` the
+//! whole table is measured R times in turn, and each row reports the median of its R
+//! ratios (each round's simt time over the same round's reference) and their range:
+//! on a shared machine a slow spell then moves both sides of a ratio, or one round.
 
 use rayon::prelude::*;
 use simt::{Device, DeviceConfig, LaunchConfig};
@@ -227,41 +230,51 @@ fn main() {
     let json = args.iter().any(|a| a == "--json");
     let n = value("--n", 1 << 24);
     let repeat = value("--repeat", 5).max(1);
-    let mut rows = Vec::new();
-    kernels(n, repeat, &mut rows);
-    primitives::all(n, repeat, &mut rows);
-    if let Some(only) = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)) {
-        rows.retain(|r| r.name == only);
+    let rounds = value("--rounds", 1).max(1);
+    let mut table: Vec<Vec<Row>> = Vec::new();
+    for _ in 0..rounds {
+        let mut rows = Vec::new();
+        kernels(n, repeat, &mut rows);
+        primitives::all(n, repeat, &mut rows);
+        if let Some(only) = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)) {
+            rows.retain(|r| r.name == only);
+        }
+        table.push(rows);
     }
     let threads = rayon::current_num_threads();
-    if json {
-        for r in &rows {
-            println!(
-                "{{\"name\":\"{}\",\"n\":{n},\"threads\":{threads},\"simt_ms\":{:.3},\"measured_ms\":{:.3},\"reference_ms\":{:.3},\"ratio\":{:.3},\"measured_ratio\":{:.3},\"reference\":\"{}\"}}",
-                r.name,
-                r.simt_ms,
-                r.measured_ms,
-                r.reference_ms,
-                r.simt_ms / r.reference_ms,
-                r.measured_ms / r.simt_ms,
-                r.reference
-            );
-        }
-    } else {
-        println!("n = {n}, {threads} threads, median of {repeat}");
+    if !json {
+        println!("n = {n}, {threads} threads, median of {repeat} per call, {rounds} round(s): median ratio [range]");
         println!(
-            "{:<16} {:>10} {:>12} {:>7} {:>12} {:>9}  reference",
-            "name", "simt ms", "reference ms", "ratio", "measured ms", "meas/off"
+            "{:<16} {:>10} {:>12} {:>7} {:>15} {:>12} {:>9}  reference",
+            "name", "simt ms", "reference ms", "ratio", "ratio range", "measured ms", "meas/off"
         );
-        for r in &rows {
+    }
+    for (k, r) in table[0].iter().enumerate() {
+        let all: Vec<&Row> = table.iter().map(|rows| &rows[k]).collect();
+        let med = |f: &dyn Fn(&Row) -> f64| {
+            let mut v: Vec<f64> = all.iter().map(|r| f(r)).collect();
+            v.sort_by(f64::total_cmp);
+            (v[v.len() / 2], v[0], v[v.len() - 1])
+        };
+        let (simt_ms, reference_ms, measured_ms) =
+            (med(&|r| r.simt_ms).0, med(&|r| r.reference_ms).0, med(&|r| r.measured_ms).0);
+        let (ratio, lo, hi) = med(&|r| r.simt_ms / r.reference_ms);
+        let (measured_ratio, mlo, mhi) = med(&|r| r.measured_ms / r.simt_ms);
+        if json {
             println!(
-                "{:<16} {:>10.2} {:>12.2} {:>7.2} {:>12.1} {:>9.1}  {}",
+                "{{\"name\":\"{}\",\"n\":{n},\"threads\":{threads},\"rounds\":{rounds},\"simt_ms\":{simt_ms:.3},\"measured_ms\":{measured_ms:.3},\"reference_ms\":{reference_ms:.3},\"ratio\":{ratio:.3},\"ratio_range\":[{lo:.3},{hi:.3}],\"measured_ratio\":{measured_ratio:.3},\"measured_ratio_range\":[{mlo:.3},{mhi:.3}],\"reference\":\"{}\"}}",
+                r.name, r.reference
+            );
+        } else {
+            println!(
+                "{:<16} {:>10.2} {:>12.2} {:>7.2} {:>15} {:>12.1} {:>9.1}  {}",
                 r.name,
-                r.simt_ms,
-                r.reference_ms,
-                r.simt_ms / r.reference_ms,
-                r.measured_ms,
-                r.measured_ms / r.simt_ms,
+                simt_ms,
+                reference_ms,
+                ratio,
+                format!("[{lo:.2}, {hi:.2}]"),
+                measured_ms,
+                measured_ratio,
                 r.reference
             );
         }
