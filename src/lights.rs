@@ -94,6 +94,13 @@ impl Lights {
         Lights { lights, cdf, light_of_tri }
     }
 
+    /// The selection's cumulative probabilities and each triangle's light (or
+    /// `u32::MAX`), as the GPU twin of the shading kernel reads them.
+    #[cfg(feature = "cuda")]
+    pub(crate) fn tables(&self) -> (&[f32], &[u32]) {
+        (&self.cdf, &self.light_of_tri)
+    }
+
     /// Whether there is no light.
     pub fn is_empty(&self) -> bool {
         self.lights.is_empty()

@@ -37,6 +37,12 @@ impl Rng {
         Rng { key: mix64(self.key ^ mix64(tag.wrapping_add(0xd1b5_4a32_d192_ed03))), counter: 0 }
     }
 
+    /// Numbers drawn from the stream so far (a GPU twin that took another branch draws
+    /// another count).
+    pub fn counter(&self) -> u64 {
+        self.counter
+    }
+
     #[inline]
     /// The next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {

@@ -403,6 +403,14 @@ impl<'a> Renderer<'a> {
         }
     }
 
+    /// The CIS-LBDPT integrator, mutable (to set an observer: [`cis::CisLbdpt::observe`]).
+    pub fn cis_mut(&mut self) -> Option<&mut cis::CisLbdpt> {
+        match &mut self.integrator {
+            Integrator::Cis(c) => Some(c),
+            _ => None,
+        }
+    }
+
     /// The emulated device of the render, when anything in it runs on one: the
     /// caster's (PDACRT), which a `cis` integrator shares, or the integrator's own.
     /// Its kernel table and memory peak cover the whole render.

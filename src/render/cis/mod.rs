@@ -21,9 +21,12 @@
 //! importance sampling (uniform connections), and compaction/regeneration (dead samples
 //! stay in the pool as idle lanes until the whole pool is done).
 
+mod capture;
 pub(crate) mod kernels;
 pub(crate) mod light;
 mod pool;
+
+pub use capture::{ShadeCapture, ShadeObserver};
 
 use crate::cast::CastStats;
 use crate::film::Film;
@@ -100,6 +103,7 @@ pub struct CisLbdpt {
     /// One record per wavefront iteration of the last pass (the inspector's queue panel).
     pub records: Vec<QueueRecord>,
     cache: Option<light::DeviceCache>,
+    observer: Option<ShadeObserver>,
 }
 
 impl CisLbdpt {
@@ -115,7 +119,14 @@ impl CisLbdpt {
         if params.measure {
             dev.set_measure(true);
         }
-        CisLbdpt { params, dev, records: Vec::new(), cache: None }
+        CisLbdpt { params, dev, records: Vec::new(), cache: None, observer: None }
+    }
+
+    /// Calls `f` after every bounce with what `cis::shade` and the compaction read and
+    /// wrote (the GPU check's inputs). The pool is copied before each shading launch
+    /// while an observer is set.
+    pub fn observe(&mut self, f: ShadeObserver) {
+        self.observer = Some(f);
     }
 
     /// The emulated device: kernel statistics and memory.
@@ -153,11 +164,37 @@ impl CisLbdpt {
             let hits = extend(dev, ctx, "cis::gather_rays", &cam.active, &cam.slots, |s: Slot| s.ray);
             rays += n;
             let (order, queues) = material_queues(dev, ctx, "cis::material_keys", &hits, p.sort);
+            let before = self.observer.is_some().then(|| (cam.slots.to_vec(), cam.vertices.to_vec()));
             let shade = cam.shade(ctx, &order, &hits, &cache, counts, connections);
-            drop((hits, order));
+            // Kept for the observer only (otherwise freed here, as before it existed).
+            let shaded =
+                before.map(|b| (b, cam.slots.to_vec(), cam.vertices.to_vec(), cam.pending.to_vec(), hits, order));
             rays += cam.connect(ctx);
             cam.retire();
-            let kept = survivors(dev, "cis::alive_flags", &cam.active, &cam.slots, |s: Slot| s.alive != 0, true);
+            let kept = survivors(dev, "cis::alive_flags", &cam.active, &cam.slots, |s: &Slot| &s.alive, true);
+            if let (Some(observe), Some(((slots_before, vertices_before), slots, vertices, pending, hits, order))) =
+                (self.observer.as_mut(), shaded)
+            {
+                observe(&ShadeCapture {
+                    pass,
+                    bounce,
+                    sorted: p.sort,
+                    order: order.as_slice(),
+                    active: cam.active.as_slice(),
+                    hits: hits.as_slice(),
+                    slots_before: &slots_before,
+                    vertices_before: &vertices_before,
+                    slots: &slots,
+                    vertices: &vertices,
+                    pending: &pending,
+                    slots_compacted: cam.slots.as_slice(),
+                    kept: kept.as_slice(),
+                    cache_vertices: cache.vertices.as_slice(),
+                    cache_entries: cache.entries.as_slice(),
+                    counts,
+                    connections,
+                });
+            }
             let survival = kept.len() as f32 / n as f32;
             if p.regenerate || kept.is_empty() {
                 cam.active = kept;
