@@ -1,5 +1,6 @@
 #!/bin/sh
-# Builds target/cuda/libwarpray_cuda.so, PDACRT's GPU twin (cuda/pdacrt.cu), for the
+# Builds target/cuda/libwarpray_cuda.so, the GPU twins of PDACRT (cuda/pdacrt.cu) and of
+# CIS-LBDPT's shading and compaction (cuda/cis.cu), for the
 # cargo feature `cuda`. Needs nvcc (CUDA 12 or 13, with its bundled CUB/Thrust).
 #   NVCC=/path/to/nvcc CUDA_ARCH=sm_90 sh cuda/build.sh
 # -fmad=false keeps every multiply and add rounded separately, as in the Rust code,
@@ -10,5 +11,5 @@ NVCC=${NVCC:-nvcc}
 ARCH=${CUDA_ARCH:-sm_90}
 mkdir -p target/cuda
 "$NVCC" -std=c++17 -O3 -arch="$ARCH" -fmad=false -prec-div=true -prec-sqrt=true -lineinfo \
-    -shared -Xcompiler -fPIC ${NVCC_FLAGS:-} -o target/cuda/libwarpray_cuda.so cuda/pdacrt.cu
+    -shared -Xcompiler -fPIC ${NVCC_FLAGS:-} -o target/cuda/libwarpray_cuda.so cuda/pdacrt.cu cuda/cis.cu
 echo "built target/cuda/libwarpray_cuda.so ($ARCH)"

@@ -21,6 +21,7 @@
 #include <chrono>
 #include <string>
 
+#include "guarded.h"
 #include "pdacrt_api.h"
 
 namespace pdacrt {
@@ -537,9 +538,7 @@ __global__ void brute_force(BruteForceArgs a) {
 
 namespace pdacrt {
 
-struct CudaError {
-    std::string what;
-};
+using wr::CudaError;
 
 static void check(cudaError_t e, const char* what) {
     if (e != cudaSuccess) throw CudaError{std::string(what) + ": " + cudaGetErrorString(e)};
@@ -787,15 +786,7 @@ static thread_local std::string last_error;
 
 template <class F>
 static int guarded(F f) {
-    try {
-        f();
-        return 0;
-    } catch (const CudaError& e) {
-        last_error = e.what;
-    } catch (const std::exception& e) {
-        last_error = e.what();
-    }
-    return 1;
+    return wr::guarded(last_error, f);
 }
 
 }  // namespace pdacrt

@@ -10,7 +10,7 @@ extern "C" {
 #endif
 
 /* Bumped whenever a struct or signature below changes. */
-#define WR_API_VERSION 1
+#define WR_API_VERSION 2
 
 /* PdacrtParams, plus what the kernels need from the Rust side. */
 typedef struct WrParams {

@@ -13,6 +13,12 @@
 //!
 //! `gpu` checks every GPU key against the CPU PDACRT's (bit for bit) and every 256th ray
 //! against brute force, and exits non-zero when any differs.
+//!
+//! `cis` does the same for CIS-LBDPT's shading and compaction: with `--simt FILE` it
+//! renders with measurement on (sorted, then unsorted) and writes the emulator's rows
+//! (`cis::shade_sorted`, `cis::shade_unsorted`, `cis::alive_flags`); without, it renders
+//! unmeasured and runs every bounce's shading and compaction again on the GPU, on the
+//! inputs the render captured, and compares (run this one under ncu).
 
 use clap::{Parser, Subcommand};
 use std::io::Write as _;
@@ -74,6 +80,17 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// CIS-LBDPT's shading and compaction: emulator statistics, or GPU runs and checks.
+    Cis {
+        /// Scenes, as for `warpray render` (`cornell` or a scene file), comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "cornell")]
+        scene: Vec<std::path::PathBuf>,
+        #[arg(long, default_value_t = 128, value_parser = clap::value_parser!(u32).range(8..=2048))]
+        size: u32,
+        /// Write the emulator's measured statistics to this file instead of using the GPU.
+        #[arg(long)]
+        simt: Option<std::path::PathBuf>,
+    },
     /// Join a `simt` TSV and an ncu CSV into the comparison table.
     Report {
         #[arg(long)]
@@ -134,6 +151,7 @@ fn run(a: Args) -> Result<(), String> {
         Cmd::Metrics => println!("{}", ncu::METRICS),
         Cmd::Simt { input, out } => simt_run(&input, &out)?,
         Cmd::Gpu { input, repeat, cpu, brute_every, json } => gpu_run(&input, repeat, &cpu, brute_every, json)?,
+        Cmd::Cis { scene, size, simt } => cis_run(&scene, size, simt.as_deref())?,
         Cmd::Report { simt, ncu: csv } => {
             let read = |p: &std::path::Path| std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()));
             let simt = tsv::read(&read(&simt)?).map_err(|e| format!("{}: {e}", simt.display()))?;
@@ -169,6 +187,89 @@ fn simt_run(input: &Input, out: &std::path::Path) -> Result<(), String> {
         rows.extend(caster.device().kernel_stats());
     }
     std::fs::write(out, tsv::write(&merge(rows))).map_err(|e| format!("{}: {e}", out.display()))
+}
+
+/// One CIS-LBDPT render per scene and order (sorted, unsorted): measured, with the
+/// shading launches renamed by order, or checked bounce by bounce on the GPU.
+fn cis_run(scenes: &[std::path::PathBuf], size: u32, simt: Option<&std::path::Path>) -> Result<(), String> {
+    use std::sync::{Arc, Mutex};
+    use warpray::gpu::GpuCis;
+    let (mut rows, mut failed) = (Vec::new(), 0usize);
+    for path in scenes {
+        let scene = warpray::scene::load_scene(path).map_err(|e| e.to_string())?.scene;
+        let caster = BvhCaster::new(&scene);
+        for sorted in [true, false] {
+            let mut opts = warpray::render::RenderOptions {
+                width: size,
+                height: size,
+                budget: warpray::render::Budget::Samples(1),
+                integrator: warpray::render::IntegratorKind::Cis,
+                max_depth: 8,
+                ..Default::default()
+            };
+            (opts.cis.sort, opts.cis.measure) = (sorted, simt.is_some());
+            let mut r = warpray::render::Renderer::new(&scene, &caster, &opts).map_err(|e| e.to_string())?;
+            let lines = Arc::new(Mutex::new(Vec::<String>::new()));
+            if simt.is_none() {
+                let (scene, opts, lines) = (scene.clone(), opts.clone(), lines.clone());
+                let mut gpu: Option<(u32, GpuCis)> = None;
+                let name = format!("{} {}", path.display(), if sorted { "sorted" } else { "unsorted" });
+                r.cis_mut().ok_or("not a CIS render")?.observe(Box::new(move |cap| {
+                    let mut out = lines.lock().unwrap();
+                    if gpu.as_ref().is_none_or(|(pass, _)| *pass != cap.pass) {
+                        match GpuCis::new(&scene, &opts, cap) {
+                            Ok(g) => gpu = Some((cap.pass, g)),
+                            Err(e) => return out.push(format!("FAIL {name}: {e}")),
+                        }
+                    }
+                    let g = &gpu.as_ref().unwrap().1;
+                    let line = match (g.shade(cap), g.compact(cap)) {
+                        (Ok(s), Ok((same, cms))) => format!(
+                            "{} {name} bounce {}: {} samples, {} differ ({} took another branch), shade {:.3} ms; compaction {} of {} kept, {}, {cms:.3} ms{}",
+                            if s.differ * 100 > s.lanes || !same { "FAIL" } else { "ok" },
+                            cap.bounce,
+                            s.lanes,
+                            s.differ,
+                            s.diverged,
+                            s.gpu_ms,
+                            cap.kept(),
+                            cap.active_samples(),
+                            if same { "same list" } else { "LISTS DIFFER" },
+                            s.first.map_or(String::new(), |f| format!("; first: {f}"))
+                        ),
+                        (Err(e), _) | (_, Err(e)) => format!("FAIL {name}: {e}"),
+                    };
+                    out.push(line);
+                }));
+            }
+            let mut film = r.film().map_err(|e| e.to_string())?;
+            r.passes(0, 1, &mut film);
+            for l in lines.lock().unwrap().iter() {
+                println!("{l}");
+                failed += l.starts_with("FAIL") as usize;
+            }
+            if simt.is_some() {
+                let order = if sorted { "cis::shade_sorted" } else { "cis::shade_unsorted" };
+                for mut k in r.device().map(|d| d.kernel_stats()).unwrap_or_default() {
+                    match k.name {
+                        "cis::shade" => k.name = order,
+                        "cis::alive_flags" => {}
+                        _ => continue,
+                    }
+                    rows.push(k);
+                }
+            }
+        }
+    }
+    if let Some(out) = simt {
+        std::fs::write(out, tsv::write(&merge(rows))).map_err(|e| format!("{}: {e}", out.display()))?;
+    }
+    if failed > 0 {
+        return Err(format!(
+            "{failed} bounces differ between the GPU and the emulator (more than 1 % of samples, or the compacted list)"
+        ));
+    }
+    Ok(())
 }
 
 /// Summaries of several runs, added up by kernel name.

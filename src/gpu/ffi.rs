@@ -1,4 +1,5 @@
-//! The C interface of `libwarpray_cuda` (`cuda/pdacrt_api.h`), opened with libloading.
+//! The C interface of `libwarpray_cuda` (`cuda/pdacrt_api.h`, and `cuda/cis_api.h` for
+//! CIS-LBDPT's twins), opened with libloading.
 
 use crate::error::{Error, Result};
 use crate::geometry::{Aabb, Ray};
@@ -6,7 +7,7 @@ use std::ffi::{CStr, c_char, c_int, c_void};
 use std::path::PathBuf;
 
 /// `WR_API_VERSION` of the header this file mirrors.
-const API_VERSION: c_int = 1;
+const API_VERSION: c_int = 2;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default)]
@@ -39,6 +40,31 @@ type TraceFn =
     unsafe extern "C" fn(*mut c_void, *const c_void, u64, c_int, *const WrParams, *mut u64, *mut WrStats) -> c_int;
 type DestroyFn = unsafe extern "C" fn(*mut c_void);
 type ErrorFn = unsafe extern "C" fn() -> *const c_char;
+type CisCreateFn = unsafe extern "C" fn(*const c_void, *mut *mut c_void) -> c_int;
+type CisShadeFn = unsafe extern "C" fn(
+    *mut c_void,
+    c_int,
+    u64,
+    *const u32,
+    *const u32,
+    *const c_void,
+    u64,
+    *mut c_void,
+    *mut c_void,
+    *mut c_void,
+    *mut f64,
+) -> c_int;
+type CisCompactFn =
+    unsafe extern "C" fn(*mut c_void, u64, *const u32, u64, *const c_void, *mut u32, *mut u64, *mut f64) -> c_int;
+
+/// CIS-LBDPT's entry points (`cuda/cis_api.h`).
+pub(crate) struct CisFns {
+    pub create: CisCreateFn,
+    pub shade: CisShadeFn,
+    pub compact: CisCompactFn,
+    pub destroy: DestroyFn,
+    pub last_error: ErrorFn,
+}
 
 /// The opened library and its entry points.
 pub(crate) struct Library {
@@ -48,6 +74,7 @@ pub(crate) struct Library {
     trace: TraceFn,
     destroy: DestroyFn,
     last_error: ErrorFn,
+    pub(crate) cis: CisFns,
     // Last: the entry points above must not outlive it.
     _lib: libloading::Library,
 }
@@ -100,14 +127,26 @@ impl Library {
             trace: sym!(b"wr_pdacrt_trace\0", TraceFn),
             destroy: sym!(b"wr_pdacrt_destroy\0", DestroyFn),
             last_error: sym!(b"wr_last_error\0", ErrorFn),
+            cis: CisFns {
+                create: sym!(b"wr_cis_create\0", CisCreateFn),
+                shade: sym!(b"wr_cis_shade\0", CisShadeFn),
+                compact: sym!(b"wr_cis_compact\0", CisCompactFn),
+                destroy: sym!(b"wr_cis_destroy\0", DestroyFn),
+                last_error: sym!(b"wr_cis_last_error\0", ErrorFn),
+            },
             path,
             _lib: lib,
         })
     }
 
     fn error(&self, what: &str) -> Error {
+        self.error_from(self.last_error, what)
+    }
+
+    /// The error `last_error` reports (PDACRT's or CIS's), for the failed step `what`.
+    pub(crate) fn error_from(&self, last_error: ErrorFn, what: &str) -> Error {
         // SAFETY: returns a NUL-terminated string owned by the library (thread-local).
-        let msg = unsafe { CStr::from_ptr((self.last_error)()) }.to_string_lossy().into_owned();
+        let msg = unsafe { CStr::from_ptr(last_error()) }.to_string_lossy().into_owned();
         Error::Gpu { library: self.path.clone(), msg: format!("{what}: {msg}") }
     }
 

@@ -16,8 +16,11 @@
 //! # Ok::<(), warpray::error::Error>(())
 //! ```
 
+mod cis;
 mod ffi;
 pub mod ncu;
+
+pub use cis::{GpuCis, ShadeCheck};
 
 use crate::cast::pdacrt::PdacrtParams;
 use crate::cast::pdacrt::kernels::{BLOCKED, NO_HIT, hit_of_key};

@@ -55,7 +55,8 @@ impl GpuKernel {
 
 /// The kernel's name without parameters, template arguments or return type, under the
 /// namespace `pdacrt::` when it is one of ours (`void pdacrt::filter_rays(...)`,
-/// `filter_rays`) and `cub::` for CUB's.
+/// `filter_rays`), `cis::` for CIS-LBDPT's (`cis::shade_sorted(cis::ShadeArgs)`) and
+/// `cub::` for CUB's.
 pub fn short_name(full: &str) -> String {
     // Drop the parameter list and template arguments (outermost first).
     let mut depth = 0i32;
@@ -69,7 +70,14 @@ pub fn short_name(full: &str) -> String {
         }
     }
     let base = out.trim().rsplit([' ', ':']).next().unwrap_or("").to_string();
-    let namespace = if full.contains("cub::") || base.starts_with("Device") { "cub" } else { "pdacrt" };
+    let qualified = out.trim().rsplit(' ').next().unwrap_or("");
+    let namespace = if full.contains("cub::") || base.starts_with("Device") {
+        "cub"
+    } else if qualified.starts_with("cis::") {
+        "cis"
+    } else {
+        "pdacrt"
+    };
     format!("{namespace}::{base}")
 }
 
@@ -282,6 +290,8 @@ mod tests {
         assert_eq!(short_name("brute_force"), "pdacrt::brute_force");
         assert_eq!(short_name("void pdacrt::brute_force(pdacrt::BruteForceArgs)"), "pdacrt::brute_force");
         assert_eq!(short_name("DeviceSelectSweepKernel"), "cub::DeviceSelectSweepKernel");
+        assert_eq!(short_name("cis::shade_sorted(cis::ShadeArgs)"), "cis::shade_sorted");
+        assert_eq!(short_name("void cis::alive_flags(const unsigned int *, const cis::Slot *)"), "cis::alive_flags");
     }
 
     #[test]

@@ -1,0 +1,26 @@
+#!/bin/sh
+# The CIS-LBDPT half of the GPU check (docs/gpu-check.md), on a machine with an NVIDIA
+# GPU, nvcc and ncu: the twin tests, the emulator's measured shading and compaction, the
+# same bounces run again on the GPU under ncu, and the joined table.
+#
+#   BIN=target/release/examples OUT=gpu-out sh cuda/check_cis.sh [scenes] [size]
+#
+# BIN holds gpu_check (cargo build --release --features cuda --example gpu_check) and,
+# optionally, cis_tests (the test binary of tests/cis_twin.rs). Results go to $OUT.
+set -eu
+cd "$(dirname "$0")/.."
+BIN=${BIN:-target/release/examples}
+OUT=${OUT:-gpu-out}
+SCENES=${1:-cornell,assets/scenes/materials.toml,assets/scenes/bedroom.toml}
+SIZE=${2:-128}
+mkdir -p "$OUT"
+[ -f target/cuda/libwarpray_cuda.so ] || sh cuda/build.sh
+if [ -x "$BIN/cis_tests" ]; then
+    "$BIN/cis_tests" --include-ignored >"$OUT/cis_tests.txt" 2>&1 || true
+    tail -5 "$OUT/cis_tests.txt"
+fi
+"$BIN/gpu_check" cis --scene "$SCENES" --size "$SIZE" --simt "$OUT/simt_cis.tsv"
+ncu --csv --page raw --print-units base --metrics "$("$BIN/gpu_check" metrics)" \
+    --log-file "$OUT/ncu_cis.csv" "$BIN/gpu_check" cis --scene "$SCENES" --size "$SIZE" >"$OUT/cis_gpu.txt" || true
+tail -3 "$OUT/cis_gpu.txt"
+"$BIN/gpu_check" report --simt "$OUT/simt_cis.tsv" --ncu "$OUT/ncu_cis.csv" | tee "$OUT/report_cis.md"

@@ -1,0 +1,343 @@
+//! CIS-LBDPT's shading kernel and compaction on the GPU: `cuda/cis.cu`, the twins of
+//! `cis::shade` (sorted and unsorted) and of `cis::alive_flags` with its selection. They
+//! run on the inputs a CPU render captured ([`ShadeCapture`]), and what they write is
+//! compared with what the emulator wrote (`docs/gpu-check.md`).
+
+use super::ffi::{CisFns, Library};
+use crate::bsdf::layered::LayerBase;
+use crate::error::{Error, Result};
+use crate::lights::{Light, Lights};
+use crate::render::RenderOptions;
+use crate::render::bidir::Vertex;
+use crate::render::cis::ShadeCapture;
+use crate::render::cis::kernels::{MAX_CAMERA_VERTICES, PENDING_PER_SLOT, PendingData, Slot};
+use crate::render::lvc::Connections;
+use crate::scene::{Material, Scene};
+use glam::Vec3;
+use std::ffi::c_void;
+use std::path::PathBuf;
+
+/// `WrMaterial` of `cuda/cis_api.h`.
+#[repr(C)]
+#[derive(Clone, Copy, Default)]
+struct WrMaterial {
+    kind: u32,
+    coat_count: u32,
+    base_kind: u32,
+    roughness: f32,
+    ior: f32,
+    a: [f32; 3],
+    b: [f32; 3],
+    coat_ior: [f32; 2],
+    coat_roughness: [f32; 2],
+    coat_absorption: [[f32; 3]; 2],
+}
+
+/// `WrLight` of `cuda/cis_api.h`.
+#[repr(C)]
+#[derive(Clone, Copy, Default)]
+struct WrLight {
+    kind: u32,
+    tri: u32,
+    area: f32,
+    normal: [f32; 3],
+    value: [f32; 3],
+    position: [f32; 3],
+}
+
+/// `WrCisScene` of `cuda/cis_api.h`.
+#[repr(C)]
+struct WrCisScene {
+    tris: *const f32,
+    material_of: *const u32,
+    n_tris: u64,
+    materials: *const WrMaterial,
+    two_sided: *const u32,
+    emission: *const f32,
+    n_materials: u64,
+    lights: *const WrLight,
+    light_cdf: *const f32,
+    light_of_tri: *const u32,
+    n_lights: u64,
+    cam: [[f32; 3]; 4],
+    tan_half: f32,
+    margin: f32,
+    width: u32,
+    height: u32,
+    max_depth: u32,
+    resampled: u32,
+    candidates: u32,
+    draws: u32,
+    cache_vertices: *const c_void,
+    n_cache_vertices: u64,
+    cache_entries: *const u32,
+    n_entries: u64,
+    count_splat: f64,
+    count_connection: f64,
+}
+
+const _: () = assert!(std::mem::size_of::<WrMaterial>() == 84);
+const _: () = assert!(std::mem::size_of::<WrLight>() == 48);
+const _: () = assert!(std::mem::size_of::<Vertex>() == 60);
+const _: () = assert!(std::mem::size_of::<Slot>() == 88);
+const _: () = assert!(std::mem::size_of::<PendingData>() == 48);
+
+fn material(m: &Material) -> WrMaterial {
+    let mut w = WrMaterial::default();
+    let set = |v: Vec3| v.to_array();
+    match *m {
+        Material::Diffuse { albedo } => w.a = set(albedo),
+        Material::Glossy { diffuse, specular, roughness } => {
+            (w.kind, w.a, w.b, w.roughness) = (1, set(diffuse), set(specular), roughness)
+        }
+        Material::Mirror { reflectance } => (w.kind, w.a) = (2, set(reflectance)),
+        Material::Glass { ior, tint } => (w.kind, w.ior, w.a) = (3, ior, set(tint)),
+        Material::Conductor { eta, k, roughness } => (w.kind, w.a, w.b, w.roughness) = (4, set(eta), set(k), roughness),
+        Material::RoughGlass { ior, roughness, tint } => {
+            (w.kind, w.ior, w.roughness, w.a) = (5, ior, roughness, set(tint))
+        }
+        Material::Layered(l) => {
+            (w.kind, w.coat_count) = (6, l.coat_count.min(2));
+            for (c, coat) in l.coats().iter().enumerate() {
+                (w.coat_ior[c], w.coat_roughness[c], w.coat_absorption[c]) =
+                    (coat.ior, coat.roughness, set(coat.absorption));
+            }
+            match l.base {
+                LayerBase::Diffuse { albedo } => w.a = set(albedo),
+                LayerBase::Conductor { eta, k, roughness } => {
+                    (w.base_kind, w.a, w.b, w.roughness) = (1, set(eta), set(k), roughness)
+                }
+            }
+        }
+    }
+    w
+}
+
+fn light(l: &Light) -> WrLight {
+    match *l {
+        Light::Area { tri, area, normal, radiance } => {
+            WrLight { kind: 0, tri, area, normal: normal.to_array(), value: radiance.to_array(), position: [0.0; 3] }
+        }
+        Light::Point { position, intensity } => WrLight {
+            kind: 1,
+            tri: u32::MAX,
+            area: 0.0,
+            normal: [0.0; 3],
+            value: intensity.to_array(),
+            position: position.to_array(),
+        },
+    }
+}
+
+/// What the GPU's shading launch wrote, against what the emulator's wrote.
+#[derive(Clone, Debug, Default)]
+pub struct ShadeCheck {
+    /// Samples shaded.
+    pub lanes: usize,
+    /// Samples whose slot, new vertex or pending contributions differ beyond rounding
+    /// (1e-3 relative): a different random choice, or a porting error.
+    pub differ: usize,
+    /// Of those, the samples whose random stream advanced differently (a different
+    /// branch taken).
+    pub diverged: usize,
+    /// The first difference, described.
+    pub first: Option<String>,
+    /// GPU time of the launch, milliseconds (CUDA events).
+    pub gpu_ms: f64,
+}
+
+/// CIS-LBDPT's twins on the GPU for one scene and one pass's light vertex cache.
+pub struct GpuCis {
+    handle: *mut c_void,
+    lib: Library,
+}
+
+// SAFETY: the handle is used by one `&self` call at a time of its owner (the calls take
+// no lock inside the library and it keeps no thread state besides its error string),
+// and the CUDA runtime allows a context to be used from any host thread.
+unsafe impl Send for GpuCis {}
+
+impl Drop for GpuCis {
+    fn drop(&mut self) {
+        // SAFETY: `handle` came from `wr_cis_create` and is dropped once, before `lib`.
+        unsafe { (self.lib.cis.destroy)(self.handle) }
+    }
+}
+
+impl GpuCis {
+    /// Uploads `scene`, its lights, the camera and options of `opts`, and the light vertex
+    /// cache of `cap`'s pass, to the GPU of the library at [`super::library_path`].
+    pub fn new(scene: &Scene, opts: &RenderOptions, cap: &ShadeCapture) -> Result<GpuCis> {
+        Self::with_library(super::library_path(), scene, opts, cap)
+    }
+
+    /// As [`GpuCis::new`], with the library at `path`.
+    pub fn with_library(
+        path: impl Into<PathBuf>,
+        scene: &Scene,
+        opts: &RenderOptions,
+        cap: &ShadeCapture,
+    ) -> Result<GpuCis> {
+        if opts.strategy.is_some() {
+            return Err(Error::BadSetting(
+                "the GPU shading twin renders every strategy; strategy images are not ported".into(),
+            ));
+        }
+        let lib = Library::open(path.into())?;
+        let tris: Vec<[f32; 9]> =
+            scene.triangle_vertices().iter().map(|[a, b, c]| [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]).collect();
+        let materials: Vec<WrMaterial> = scene.materials.iter().map(material).collect();
+        let two_sided: Vec<u32> = scene.two_sided.iter().map(|&b| b as u32).collect();
+        let emission: Vec<f32> = scene.emission.iter().flat_map(|e| e.to_array()).collect();
+        let lights = Lights::new(scene);
+        let wl: Vec<WrLight> = lights.lights.iter().map(light).collect();
+        let (cdf, light_of_tri) = lights.tables();
+        let cam = &scene.camera;
+        let (resampled, candidates, draws) = match cap.connections {
+            Connections::Resampled { candidates, draws } => (1, candidates, draws),
+            Connections::Uniform { n } => (0, 0, n),
+        };
+        let s = WrCisScene {
+            tris: tris.as_ptr().cast(),
+            material_of: scene.material_of.as_ptr(),
+            n_tris: tris.len() as u64,
+            materials: materials.as_ptr(),
+            two_sided: two_sided.as_ptr(),
+            emission: emission.as_ptr(),
+            n_materials: materials.len() as u64,
+            lights: wl.as_ptr(),
+            light_cdf: cdf.as_ptr(),
+            light_of_tri: light_of_tri.as_ptr(),
+            n_lights: wl.len() as u64,
+            cam: [cam.position, cam.forward, cam.right, cam.up].map(|v| v.to_array()),
+            tan_half: (cam.vfov_deg.to_radians() * 0.5).tan(),
+            margin: opts.filter.margin(),
+            width: opts.width,
+            height: opts.height,
+            max_depth: opts.max_depth,
+            resampled,
+            candidates,
+            draws,
+            cache_vertices: cap.cache_vertices.as_ptr().cast(),
+            n_cache_vertices: cap.cache_vertices.len() as u64,
+            cache_entries: cap.cache_entries.as_ptr().cast(),
+            n_entries: cap.cache_entries.len() as u64,
+            count_splat: cap.counts.splat,
+            count_connection: cap.counts.connection,
+        };
+        let mut handle = std::ptr::null_mut();
+        // SAFETY: every pointer in `s` points into a vector alive for the call, with the
+        // counts given; the library copies what it keeps.
+        if unsafe { (lib.cis.create)((&s as *const WrCisScene).cast(), &mut handle) } != 0 {
+            return Err(lib.error_from(lib.cis.last_error, "uploading the scene for CIS"));
+        }
+        Ok(GpuCis { handle, lib })
+    }
+
+    fn fns(&self) -> &CisFns {
+        &self.lib.cis
+    }
+
+    /// Runs the GPU's `cis::shade` on `cap`'s inputs and compares what it writes with
+    /// what the emulator wrote.
+    pub fn shade(&self, cap: &ShadeCapture) -> Result<ShadeCheck> {
+        let (mut slots, mut vertices) = (cap.slots_before.to_vec(), cap.vertices_before.to_vec());
+        let pool = slots.len();
+        assert_eq!(vertices.len(), pool * MAX_CAMERA_VERTICES);
+        let mut pending = vec![PendingData::default(); pool * PENDING_PER_SLOT];
+        let mut ms = 0.0;
+        let n = cap.order.len();
+        // SAFETY: the arrays have the lengths the header asks for (n, n, n; pool slots,
+        // pool × MAX_CAMERA_VERTICES vertices, pool × PENDING_PER_SLOT pending) and the
+        // layouts asserted above.
+        let rc = unsafe {
+            (self.fns().shade)(
+                self.handle,
+                cap.sorted as i32,
+                n as u64,
+                cap.order.as_ptr(),
+                cap.active.as_ptr(),
+                cap.hits.as_ptr().cast(),
+                pool as u64,
+                slots.as_mut_ptr().cast(),
+                vertices.as_mut_ptr().cast(),
+                pending.as_mut_ptr().cast(),
+                &mut ms,
+            )
+        };
+        if rc != 0 {
+            return Err(self.lib.error_from(self.fns().last_error, "cis::shade"));
+        }
+        let mut check = ShadeCheck { lanes: n, gpu_ms: ms, ..Default::default() };
+        for j in 0..n {
+            let slot = cap.active[cap.order[j] as usize] as usize;
+            let depth = cap.slots_before[slot].depth as usize;
+            let v = slot * MAX_CAMERA_VERTICES + depth.min(MAX_CAMERA_VERTICES - 1);
+            let p = slot * PENDING_PER_SLOT..(slot + 1) * PENDING_PER_SLOT;
+            let diff = slot_diff(&slots[slot], &cap.slots[slot])
+                .or_else(|| vertex_diff(&vertices[v], &cap.vertices[v]))
+                .or_else(|| pending[p.clone()].iter().zip(&cap.pending[p]).find_map(|(a, b)| pending_diff(a, b)));
+            if let Some(d) = diff {
+                check.differ += 1;
+                check.diverged += (slots[slot].rng.counter() != cap.slots[slot].rng.counter()) as usize;
+                check.first.get_or_insert_with(|| format!("sample at sorted position {j} (slot {slot}): {d}"));
+            }
+        }
+        Ok(check)
+    }
+
+    /// Runs the GPU's compaction (`cis::alive_flags` and CUB's flagged selection) on
+    /// `cap`'s pool; returns whether its list equals the emulator's, and the GPU time.
+    pub fn compact(&self, cap: &ShadeCapture) -> Result<(bool, f64)> {
+        let n = cap.active.len();
+        let mut kept = vec![0u32; n];
+        let (mut m, mut ms) = (0u64, 0.0);
+        // SAFETY: `active` has n entries, `slots` the pool's, `kept` room for n.
+        let rc = unsafe {
+            (self.fns().compact)(
+                self.handle,
+                n as u64,
+                cap.active.as_ptr(),
+                cap.slots_compacted.len() as u64,
+                cap.slots_compacted.as_ptr().cast(),
+                kept.as_mut_ptr(),
+                &mut m,
+                &mut ms,
+            )
+        };
+        if rc != 0 {
+            return Err(self.lib.error_from(self.fns().last_error, "cis::alive_flags"));
+        }
+        kept.truncate(m as usize);
+        Ok((kept == cap.kept, ms))
+    }
+}
+
+fn close(a: f32, b: f32) -> bool {
+    a == b || (a - b).abs() <= 1e-3 * a.abs().max(b.abs()).max(1e-6) || (a.is_nan() && b.is_nan())
+}
+
+fn close3(a: Vec3, b: Vec3) -> bool {
+    close(a.x, b.x) && close(a.y, b.y) && close(a.z, b.z)
+}
+
+fn slot_diff(gpu: &Slot, cpu: &Slot) -> Option<String> {
+    let same = gpu.alive == cpu.alive
+        && gpu.depth == cpu.depth
+        && gpu.rng.counter() == cpu.rng.counter()
+        && close3(gpu.beta, cpu.beta)
+        && (cpu.alive == 0 || (close3(gpu.ray.origin, cpu.ray.origin) && close3(gpu.ray.dir, cpu.ray.dir)));
+    (!same).then(|| format!("slot: GPU {gpu:?}, emulator {cpu:?}"))
+}
+
+fn vertex_diff(gpu: &Vertex, cpu: &Vertex) -> Option<String> {
+    let same = gpu.kind == cpu.kind && gpu.delta == cpu.delta && close3(gpu.p, cpu.p) && close3(gpu.n, cpu.n);
+    (!same).then(|| format!("new vertex: GPU {gpu:?}, emulator {cpu:?}"))
+}
+
+fn pending_diff(gpu: &PendingData, cpu: &PendingData) -> Option<String> {
+    let same = gpu.state == cpu.state
+        && close3(gpu.value, cpu.value)
+        && (cpu.state != 1 || (close3(gpu.ray.origin, cpu.ray.origin) && close3(gpu.ray.dir, cpu.ray.dir)));
+    (!same).then(|| format!("pending: GPU {gpu:?}, emulator {cpu:?}"))
+}
