@@ -89,21 +89,24 @@ pub(crate) fn material_queues(
     (order, queues)
 }
 
-/// The active slots that `alive` accepts, in active order (flags by `name`, then
-/// `copy_if`).
+/// The active slots whose flag (the field `alive` picks) is non-zero when `keep`, zero
+/// otherwise, in active order (flags by `name`, then `copy_if`).
 pub(crate) fn survivors<S: DeviceCopy>(
     dev: &Device,
     name: &'static str,
     active: &DeviceBuffer<u32>,
     slots: &DeviceBuffer<S>,
-    alive: impl Fn(S) -> bool + Sync,
+    alive: fn(&S) -> &u32,
     keep: bool,
 ) -> DeviceBuffer<u32> {
     let n = active.len();
     let mut flags = dev.alloc_pooled::<u32>(n);
     {
         let (av, sv, lv) = (active.view(), slots.view(), flags.view_mut());
-        dev.for_each(name, n, |t, i| t.store(&lv, i, (alive(t.load(&sv, t.load(&av, i) as usize)) == keep) as u32));
+        // Only the flag is loaded, as compiled code does (`Thread::load_field`).
+        dev.for_each(name, n, |t, i| {
+            t.store(&lv, i, ((t.load_field(&sv, t.load(&av, i) as usize, alive) != 0) == keep) as u32)
+        });
     }
     let mut kept = dev.alloc_pooled::<u32>(n);
     let m = simt::copy_if_stencil(dev, active, &flags, &mut kept, |a: u32| a != 0);

@@ -160,14 +160,14 @@ pub(crate) fn light_pass(
         .expect("light shade launch shape is valid");
         drop((hits, order));
         // Store the ended subpaths, then compact them out.
-        let ended = survivors(dev, "cis::light_ended_flags", &active, &slots, |s: LightSlot| s.alive != 0, false);
+        let ended = survivors(dev, "cis::light_ended_flags", &active, &slots, |s: &LightSlot| &s.alive, false);
         let mut done = dev.alloc_pooled::<[u32; 3]>(ended.len());
         {
             let (ev, sv, dv) = (ended.view(), slots.view(), done.view_mut());
             dev.for_each("cis::finished", ended.len(), |t, i| finished(t, i, &ev, &sv, &dv));
         }
         append_paths(dev, ctx, &done, &staging, stride, &mut cache);
-        active = survivors(dev, "cis::light_alive_flags", &active, &slots, |s: LightSlot| s.alive != 0, true);
+        active = survivors(dev, "cis::light_alive_flags", &active, &slots, |s: &LightSlot| &s.alive, true);
     }
     drop((slots, staging));
     let counts = cache.counts(ctx, n_c);
