@@ -888,7 +888,7 @@ __device__ void vertex_strategies(const Scene& sc, const Vertex* cam, int t, Rng
                                   VertexList& light, Sink& sink) {
     int max_depth = (int)sc.max_depth;
     V3 l;
-    Ray ray;
+    Ray ray = {};
     if (t - 2 <= max_depth && strategy_emitter(cam, t, path, l)) sink(false, ray, l * mis_weight(sc, path, 0));
     if (t - 1 <= max_depth && strategy_light_sample(sc, cam, t, rng, path, l, ray))
         sink(true, ray, l * mis_weight(sc, path, 1));
