@@ -139,10 +139,13 @@ fn crate_references(text: &str) -> Vec<(usize, String)> {
 #[test]
 fn modules_import_only_downwards() {
     // Layers, lowest first: what a module may not name is every module of a higher layer.
-    let layers: [&[&str]; 4] = [
+    // `gpu` holds the GPU twins of a caster (PDACRT) and of an integrator's kernels
+    // (CIS-LBDPT), so it sits above `render`; nothing below it names it.
+    let layers: [&[&str]; 5] = [
         &["error", "geometry", "sampling", "limits", "filter", "film", "scene", "bsdf", "lights"],
-        &["cast", "gpu"],
+        &["cast"],
         &["render", "aov"],
+        &["gpu"],
         &["converge", "diff", "inspector", "main", "bin"],
     ];
     let layer_of = |m: &str| layers.iter().position(|l| l.contains(&m));
