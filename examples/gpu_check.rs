@@ -192,8 +192,6 @@ fn simt_run(input: &Input, out: &std::path::Path) -> Result<(), String> {
 /// One CIS-LBDPT render per scene and order (sorted, unsorted): measured, with the
 /// shading launches renamed by order, or checked bounce by bounce on the GPU.
 fn cis_run(scenes: &[std::path::PathBuf], size: u32, simt: Option<&std::path::Path>) -> Result<(), String> {
-    use std::sync::{Arc, Mutex};
-    use warpray::gpu::GpuCis;
     let (mut rows, mut failed) = (Vec::new(), 0usize);
     for path in scenes {
         let scene = warpray::scene::load_scene(path).map_err(|e| e.to_string())?.scene;
@@ -208,56 +206,43 @@ fn cis_run(scenes: &[std::path::PathBuf], size: u32, simt: Option<&std::path::Pa
                 ..Default::default()
             };
             (opts.cis.sort, opts.cis.measure) = (sorted, simt.is_some());
-            let mut r = warpray::render::Renderer::new(&scene, &caster, &opts).map_err(|e| e.to_string())?;
-            let lines = Arc::new(Mutex::new(Vec::<String>::new()));
+            let name = format!("{} {}", path.display(), if sorted { "sorted" } else { "unsorted" });
             if simt.is_none() {
-                let (scene, opts, lines) = (scene.clone(), opts.clone(), lines.clone());
-                let mut gpu: Option<(u32, GpuCis)> = None;
-                let name = format!("{} {}", path.display(), if sorted { "sorted" } else { "unsorted" });
-                r.cis_mut().ok_or("not a CIS render")?.observe(Box::new(move |cap| {
-                    let mut out = lines.lock().unwrap();
-                    if gpu.as_ref().is_none_or(|(pass, _)| *pass != cap.pass) {
-                        match GpuCis::new(&scene, &opts, cap) {
-                            Ok(g) => gpu = Some((cap.pass, g)),
-                            Err(e) => return out.push(format!("FAIL {name}: {e}")),
-                        }
-                    }
-                    let g = &gpu.as_ref().unwrap().1;
-                    let line = match (g.shade(cap), g.compact(cap)) {
-                        (Ok(s), Ok((same, cms))) => format!(
-                            "{} {name} bounce {}: {} samples, {} differ ({} took another branch), shade {:.3} ms; compaction {} of {} kept, {}, {cms:.3} ms{}",
-                            if s.differ * 100 > s.lanes || !same { "FAIL" } else { "ok" },
-                            cap.bounce,
-                            s.lanes,
-                            s.differ,
-                            s.diverged,
-                            s.gpu_ms,
-                            cap.kept(),
-                            cap.active_samples(),
-                            if same { "same list" } else { "LISTS DIFFER" },
-                            s.first.map_or(String::new(), |f| format!("; first: {f}"))
-                        ),
-                        (Err(e), _) | (_, Err(e)) => format!("FAIL {name}: {e}"),
-                    };
-                    out.push(line);
-                }));
+                let lib = warpray::gpu::library_path();
+                let checks =
+                    warpray::gpu::check_render(&lib, &scene, &caster, &opts).map_err(|e| format!("{name}: {e}"))?;
+                for c in checks {
+                    let s = &c.shade;
+                    let bad = s.differ * 100 > s.lanes || !c.compaction_same;
+                    failed += bad as usize;
+                    println!(
+                        "{} {name} bounce {}: {} samples, {} differ ({} took another branch), shade {:.3} ms; compaction {} of {} kept, {}, {:.3} ms{}",
+                        if bad { "FAIL" } else { "ok" },
+                        c.bounce,
+                        s.lanes,
+                        s.differ,
+                        s.diverged,
+                        s.gpu_ms,
+                        c.kept,
+                        c.active,
+                        if c.compaction_same { "same list" } else { "LISTS DIFFER" },
+                        c.compaction_ms,
+                        s.first.as_ref().map_or(String::new(), |f| format!("; first: {f}"))
+                    );
+                }
+                continue;
             }
+            let mut r = warpray::render::Renderer::new(&scene, &caster, &opts).map_err(|e| e.to_string())?;
             let mut film = r.film().map_err(|e| e.to_string())?;
             r.passes(0, 1, &mut film);
-            for l in lines.lock().unwrap().iter() {
-                println!("{l}");
-                failed += l.starts_with("FAIL") as usize;
-            }
-            if simt.is_some() {
-                let order = if sorted { "cis::shade_sorted" } else { "cis::shade_unsorted" };
-                for mut k in r.device().map(|d| d.kernel_stats()).unwrap_or_default() {
-                    match k.name {
-                        "cis::shade" => k.name = order,
-                        "cis::alive_flags" => {}
-                        _ => continue,
-                    }
-                    rows.push(k);
+            let order = if sorted { "cis::shade_sorted" } else { "cis::shade_unsorted" };
+            for mut k in r.device().map(|d| d.kernel_stats()).unwrap_or_default() {
+                match k.name {
+                    "cis::shade" => k.name = order,
+                    "cis::alive_flags" => {}
+                    _ => continue,
                 }
+                rows.push(k);
             }
         }
     }

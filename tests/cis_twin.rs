@@ -11,9 +11,7 @@
 #![cfg(feature = "cuda")]
 
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
-use warpray::gpu::GpuCis;
-use warpray::render::{Budget, IntegratorKind, RenderOptions, Renderer};
+use warpray::render::{Budget, IntegratorKind, RenderOptions};
 use warpray::scene::load_scene;
 
 /// Per bounce: (samples, samples that differ, compacted list equal).
@@ -30,27 +28,18 @@ fn twin_bounces(library: &Path, scene: &str, sorted: bool) -> Vec<(usize, usize,
         ..Default::default()
     };
     opts.cis.sort = sorted;
-    let mut r = Renderer::new(&scene, &caster, &opts).unwrap();
-    let out = Arc::new(Mutex::new(Vec::new()));
-    let (lib, s, o, sink) = (library.to_path_buf(), scene.clone(), opts.clone(), out.clone());
-    let mut gpu: Option<GpuCis> = None;
-    r.cis_mut().unwrap().observe(Box::new(move |cap| {
-        let g = gpu.get_or_insert_with(|| {
-            GpuCis::with_library(&lib, &s, &o, cap)
-                .unwrap_or_else(|e| panic!("\n\nTHIS TEST NEEDS the twin library {}: {e}\n\n", lib.display()))
-        });
-        let shade = g.shade(cap).unwrap();
-        let (same, _) = g.compact(cap).unwrap();
-        if let Some(f) = &shade.first {
-            eprintln!("bounce {}: {} of {} differ; first: {f}", cap.bounce, shade.differ, shade.lanes);
-        }
-        sink.lock().unwrap().push((shade.lanes, shade.differ, same));
-    }));
-    let mut film = r.film().unwrap();
-    r.passes(0, 1, &mut film);
-    let v = out.lock().unwrap().clone();
-    assert!(v.len() >= 3, "the render made {} bounces", v.len());
-    v
+    let checks = warpray::gpu::check_render(library, &scene, &caster, &opts)
+        .unwrap_or_else(|e| panic!("\n\nTHIS TEST NEEDS the twin library {}: {e}\n\n", library.display()));
+    assert!(checks.len() >= 3, "the render made {} bounces", checks.len());
+    checks
+        .into_iter()
+        .map(|c| {
+            if let Some(f) = &c.shade.first {
+                eprintln!("bounce {}: {} of {} differ; first: {f}", c.bounce, c.shade.differ, c.shade.lanes);
+            }
+            (c.shade.lanes, c.shade.differ, c.compaction_same)
+        })
+        .collect()
 }
 
 /// Builds the CPU twin with g++ into a fresh directory.

@@ -5,17 +5,19 @@
 
 use super::ffi::{CisFns, Library};
 use crate::bsdf::layered::LayerBase;
+use crate::cast::RayCaster;
 use crate::error::{Error, Result};
 use crate::lights::{Light, Lights};
-use crate::render::RenderOptions;
 use crate::render::bidir::Vertex;
 use crate::render::cis::ShadeCapture;
 use crate::render::cis::kernels::{MAX_CAMERA_VERTICES, PENDING_PER_SLOT, PendingData, Slot};
 use crate::render::lvc::Connections;
+use crate::render::{Budget, RenderOptions, Renderer};
 use crate::scene::{Material, Scene};
 use glam::Vec3;
 use std::ffi::c_void;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
 /// `WrMaterial` of `cuda/cis_api.h`.
 #[repr(C)]
@@ -144,6 +146,68 @@ pub struct ShadeCheck {
     pub first: Option<String>,
     /// GPU time of the launch, milliseconds (CUDA events).
     pub gpu_ms: f64,
+}
+
+/// One bounce of a CIS-LBDPT render run again on the twins ([`check_render`]).
+#[derive(Clone, Debug)]
+pub struct BounceCheck {
+    /// The pass and the bounce within it.
+    pub pass: u32,
+    /// The wavefront iteration within the pass.
+    pub bounce: u32,
+    /// The shading launch against the emulator's.
+    pub shade: ShadeCheck,
+    /// Samples the emulator's compaction kept, of those active.
+    pub kept: usize,
+    /// Samples active in the bounce.
+    pub active: usize,
+    /// Whether the twin's compacted list equals the emulator's.
+    pub compaction_same: bool,
+    /// GPU time of the compaction, milliseconds.
+    pub compaction_ms: f64,
+}
+
+/// Renders `scene` with CIS-LBDPT as `opts` says (`opts.integrator` must be `cis`, the
+/// budget a sample count) and runs every bounce's shading and compaction again on the
+/// twins of the library at `library`, on the inputs the render captured: one check per
+/// bounce, in order. The GPU-check program and the twin tests both use it.
+pub fn check_render(
+    library: &Path,
+    scene: &Scene,
+    caster: &dyn RayCaster,
+    opts: &RenderOptions,
+) -> Result<Vec<BounceCheck>> {
+    let Budget::Samples(passes) = opts.budget else {
+        return Err(Error::BadSetting("the CIS twin check renders a number of samples, not a time".into()));
+    };
+    let mut r = Renderer::new(scene, caster, opts)?;
+    let cis = r.cis_mut().ok_or_else(|| Error::BadSetting("the CIS twin check needs the cis integrator".into()))?;
+    let out: Arc<Mutex<Result<Vec<BounceCheck>>>> = Arc::new(Mutex::new(Ok(Vec::new())));
+    let (lib, s, o, sink) = (library.to_path_buf(), scene.clone(), opts.clone(), out.clone());
+    let mut gpu: Option<(u32, GpuCis)> = None;
+    cis.observe(Box::new(move |cap| {
+        let mut out = sink.lock().unwrap_or_else(|e| e.into_inner());
+        let Ok(checks) = out.as_mut() else { return };
+        let check = (|| {
+            if gpu.as_ref().is_none_or(|(pass, _)| *pass != cap.pass) {
+                gpu = Some((cap.pass, GpuCis::with_library(&lib, &s, &o, cap)?));
+            }
+            let g = gpu.as_ref().map(|(_, g)| g).expect("made above");
+            let shade = g.shade(cap)?;
+            let (compaction_same, compaction_ms) = g.compact(cap)?;
+            let (pass, bounce, kept, active) = (cap.pass, cap.bounce, cap.kept(), cap.active_samples());
+            Ok(BounceCheck { pass, bounce, shade, kept, active, compaction_same, compaction_ms })
+        })();
+        match check {
+            Ok(c) => checks.push(c),
+            Err(e) => *out = Err(e),
+        }
+    }));
+    let mut film = r.film()?;
+    r.passes(0, passes, &mut film);
+    drop(r);
+    let mut out = out.lock().unwrap_or_else(|e| e.into_inner());
+    std::mem::replace(&mut *out, Ok(Vec::new()))
 }
 
 /// CIS-LBDPT's twins on the GPU for one scene and one pass's light vertex cache.

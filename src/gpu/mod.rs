@@ -20,7 +20,7 @@ mod cis;
 mod ffi;
 pub mod ncu;
 
-pub use cis::{GpuCis, ShadeCheck};
+pub use cis::{BounceCheck, GpuCis, ShadeCheck, check_render};
 
 use crate::cast::pdacrt::PdacrtParams;
 use crate::cast::pdacrt::kernels::{BLOCKED, NO_HIT, hit_of_key};
