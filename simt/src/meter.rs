@@ -26,6 +26,9 @@ pub struct Traffic {
     pub requests: u64,
     /// Distinct 32-byte sectors per request, summed.
     pub sectors: u64,
+    /// Thread-level memory instructions: the lanes that executed each request, summed
+    /// (Nsight's `smsp__sass_thread_inst_executed_op_global_{ld,st}`).
+    pub lanes: u64,
 }
 
 impl Traffic {
@@ -34,10 +37,16 @@ impl Traffic {
         (self.requests > 0).then(|| self.sectors as f64 / self.requests as f64)
     }
 
-    /// Adds another record's requests and sectors to this one.
+    /// SIMD efficiency of these instructions alone: lanes over 32 × requests.
+    pub fn simd_efficiency(&self) -> Option<f64> {
+        (self.requests > 0).then(|| self.lanes as f64 / (32.0 * self.requests as f64))
+    }
+
+    /// Adds another record's requests, sectors and lanes to this one.
     pub fn add(&mut self, o: &Traffic) {
         self.requests += o.requests;
         self.sectors += o.sectors;
+        self.lanes += o.lanes;
     }
 }
 
@@ -276,6 +285,7 @@ impl Meter {
         };
         traffic.requests += parts;
         traffic.sectors += sectors;
+        traffic.lanes += parts * lanes as u64;
     }
 
     pub fn work(&mut self, site: usize, region: usize, path: usize, units: u32) {
@@ -362,12 +372,14 @@ impl Meter {
                 k => {
                     self.totals.ops_issued += s.max_units as u64;
                     self.totals.ops_active += s.sum_units;
-                    match k {
-                        Kind::Load => self.totals.loads.requests += 1,
-                        Kind::Store => self.totals.stores.requests += 1,
-                        Kind::Atomic => self.totals.atomics.requests += 1,
-                        _ => {}
-                    }
+                    let traffic = match k {
+                        Kind::Load => &mut self.totals.loads,
+                        Kind::Store => &mut self.totals.stores,
+                        Kind::Atomic => &mut self.totals.atomics,
+                        _ => continue,
+                    };
+                    traffic.requests += 1;
+                    traffic.lanes += s.sum_units;
                 }
             }
         }

@@ -175,6 +175,15 @@ impl KernelSummary {
     }
 }
 
+impl From<&LaunchRecord> for KernelSummary {
+    /// The summary of one launch (to compare launches one by one).
+    fn from(r: &LaunchRecord) -> Self {
+        let mut s = KernelSummary::default();
+        s.add(r);
+        s
+    }
+}
+
 #[derive(Default)]
 pub(crate) struct Stats {
     /// Launches recorded since the last reset.

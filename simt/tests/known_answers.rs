@@ -1,6 +1,6 @@
 //! Known-answer tests of the emulator itself: launch errors, SIMD efficiency,
 //! coalescing, warp intrinsics, barriers, registers, atomics and memory accounting.
-//! About 620 lines: one known answer per rule of the execution model, which reads best
+//! About 650 lines: one known answer per rule of the execution model, which reads best
 //! beside the others; other launch forms are in `launch_forms.rs`.
 
 use simt::{Device, DeviceConfig, LaunchConfig, LaunchError, WorkQueue};
@@ -355,6 +355,37 @@ fn loads_stores_and_atomics_are_counted_apart() {
     assert_eq!((rec.stores.requests, rec.stores.sectors), (2, 2 * 8));
     // Every lane on one word: one request, one sector per warp.
     assert_eq!((rec.atomics.requests, rec.atomics.sectors), (2, 2));
+}
+
+#[test]
+fn memory_instructions_count_the_lanes_that_execute_them() {
+    let dev = measured();
+    let x = dev.alloc::<u32>(64);
+    let mut y = dev.alloc::<[u32; 4]>(64);
+    let mut c = dev.alloc::<u32>(1);
+    let (xv, yv, cv) = (x.view(), y.view_mut(), c.view_mut());
+    // 40 threads: a full warp and 8 lanes of a second. Even threads load; every thread
+    // stores a 16-byte element; threads below 5 of each warp add atomically.
+    let rec = dev.for_each("lanes", 40, |t, i| {
+        if i % 2 == 0 {
+            std::hint::black_box(t.load(&xv, i));
+        }
+        t.store(&yv, i, [1; 4]);
+        if t.lane_id() < 5 {
+            t.atomic_add(&cv, 0, 1);
+        }
+    });
+    assert_eq!((rec.loads.requests, rec.loads.lanes), (2, 16 + 4));
+    assert_eq!(rec.loads.simd_efficiency(), Some(20.0 / 64.0));
+    // A 4-aligned 16-byte element is four 4-byte stores, each by all 40 threads.
+    assert_eq!((rec.stores.requests, rec.stores.lanes), (2 * 4, 40 * 4));
+    assert_eq!(rec.stores.simd_efficiency(), Some(40.0 / 64.0));
+    assert_eq!((rec.atomics.requests, rec.atomics.lanes), (2, 10));
+    // An owned-element launch counts the same lanes: 40 elements of 4 bytes, each
+    // thread loading its input and its old value and storing the new one.
+    let mut z = dev.alloc::<u32>(40);
+    let rec = dev.transform_in_place("owned", &x.view(), &mut z, |_, _, a, b| a + b);
+    assert_eq!((rec.loads.requests, rec.loads.lanes, rec.stores.lanes), (4, 80, 40));
 }
 
 #[test]

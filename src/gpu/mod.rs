@@ -19,6 +19,7 @@
 mod cis;
 mod ffi;
 pub mod ncu;
+pub mod source;
 
 pub use cis::{BounceCheck, GpuCis, ShadeCheck, check_render};
 

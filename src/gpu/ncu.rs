@@ -86,7 +86,7 @@ fn field(s: &str) -> String {
 }
 
 /// Splits one CSV line (quoted fields, commas inside quotes kept).
-fn split_csv(line: &str) -> Vec<String> {
+pub(crate) fn split_csv(line: &str) -> Vec<String> {
     let mut out = Vec::new();
     let (mut cur, mut quoted) = (String::new(), false);
     for c in line.chars() {
@@ -151,6 +151,9 @@ pub fn parse_csv(text: &str) -> Result<Vec<GpuKernel>, String> {
             Ok(Traffic {
                 requests: get(&format!("l1tex__t_requests_pipe_lsu_mem_global_op_{op}.sum"))? as u64,
                 sectors: get(&format!("l1tex__t_sectors_pipe_lsu_mem_global_op_{op}.sum"))? as u64,
+                // Nsight Compute has no per-kernel counter of the lanes executing global
+                // accesses; its source view has them per instruction (`super::source`).
+                lanes: 0,
             })
         };
         let name = short_name(&row[name_col]);
@@ -162,7 +165,7 @@ pub fn parse_csv(text: &str) -> Result<Vec<GpuKernel>, String> {
             thread_inst: get("smsp__thread_inst_executed.sum")?,
             loads: traffic("ld")?,
             stores: traffic("st")?,
-            atomics: Traffic { requests: atom.requests + red.requests, sectors: atom.sectors + red.sectors },
+            atomics: Traffic { requests: atom.requests + red.requests, sectors: atom.sectors + red.sectors, lanes: 0 },
             shared_bytes: (get("launch__shared_mem_per_block_static")? + get("launch__shared_mem_per_block_dynamic")?)
                 as u64,
             seconds: get("gpu__time_duration.sum")?,

@@ -1,5 +1,5 @@
 //! What one bounce of the stream read and wrote in `cis::shade` and in the compaction
-//! after it, handed to an observer: the GPU check (`examples/gpu_check.rs`) runs the same
+//! after it, handed to an observer: the GPU check (`examples/gpu_check/`) runs the same
 //! inputs through the CUDA twins and compares. Copies are made only while an observer
 //! is set.
 

@@ -20,6 +20,9 @@
 //! unmeasured and runs every bounce's shading and compaction again on the GPU, on the
 //! inputs the render captured, and compares (run this one under ncu).
 
+mod source;
+mod tsv;
+
 use clap::{Parser, Subcommand};
 use std::io::Write as _;
 use std::time::Instant;
@@ -63,6 +66,10 @@ enum Cmd {
         input: Input,
         #[arg(long)]
         out: std::path::PathBuf,
+        /// Also write each launch's statistics, in launch order, to this file (for
+        /// `source --simt-launches`).
+        #[arg(long)]
+        launches: Option<std::path::PathBuf>,
     },
     /// PDACRT on the GPU: checks, timings, and optionally CPU casters on the same rays.
     Gpu {
@@ -90,6 +97,29 @@ enum Cmd {
         /// Write the emulator's measured statistics to this file instead of using the GPU.
         #[arg(long)]
         simt: Option<std::path::PathBuf>,
+        /// With `--simt`: also write each launch's statistics, in launch order, to this
+        /// file (for `source --simt-launches`).
+        #[arg(long, requires = "simt")]
+        simt_launches: Option<std::path::PathBuf>,
+    },
+    /// Split a kernel's memory instructions by the array they access, from an
+    /// `ncu --page source --csv --print-source cuda,sass` export (plain or .gz), and set
+    /// the accesses the emulator sees beside its statistics for the same launches.
+    Source {
+        #[arg(long)]
+        csv: std::path::PathBuf,
+        /// The emulator's statistics of the same launches: per launch (`cis
+        /// --simt-launches`), or summed (`simt --out`) when every launch was profiled.
+        #[arg(long)]
+        simt_launches: Option<std::path::PathBuf>,
+        /// How accesses are told apart: `cis` (pool, cache and scene arrays of the
+        /// shading kernel; the emulator sees pool and cache) or `all` (one class).
+        #[arg(long, default_value = "cis")]
+        classes: String,
+        /// Only the first N launches of each kernel in the export (a launch cut short
+        /// by a time limit can be left out).
+        #[arg(long)]
+        first: Option<usize>,
     },
     /// Join a `simt` TSV and an ncu CSV into the comparison table.
     Report {
@@ -149,14 +179,20 @@ fn inputs(input: &Input) -> Result<Vec<(String, Scene, String, Vec<Ray>, bool)>,
 fn run(a: Args) -> Result<(), String> {
     match a.cmd {
         Cmd::Metrics => println!("{}", ncu::METRICS),
-        Cmd::Simt { input, out } => simt_run(&input, &out)?,
+        Cmd::Simt { input, out, launches } => simt_run(&input, &out, launches.as_deref())?,
         Cmd::Gpu { input, repeat, cpu, brute_every, json } => gpu_run(&input, repeat, &cpu, brute_every, json)?,
-        Cmd::Cis { scene, size, simt } => cis_run(&scene, size, simt.as_deref())?,
+        Cmd::Cis { scene, size, simt, simt_launches } => {
+            cis_run(&scene, size, simt.as_deref(), simt_launches.as_deref())?
+        }
+        Cmd::Source { csv, simt_launches, classes, first } => {
+            source::source_run(&csv, simt_launches.as_deref(), &classes, first.unwrap_or(usize::MAX))?
+        }
         Cmd::Report { simt, ncu: csv } => {
             let read = |p: &std::path::Path| std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()));
             let simt = tsv::read(&read(&simt)?).map_err(|e| format!("{}: {e}", simt.display()))?;
             let gpu = ncu::parse_csv(&read(&csv)?).map_err(|e| format!("{}: {e}", csv.display()))?;
-            println!("{}", ncu::table(&ncu::compare(&simt, &gpu)));
+            let rows = ncu::compare(&simt, &gpu);
+            println!("{}", ncu::table(&rows));
             println!("\nOther GPU kernels (CUB's scans and selection; the emulator's primitives have other names):\n");
             println!("| kernel | launches | SIMD eff. | ld sect/req | GPU ms |\n|---|---:|---:|---:|---:|");
             for g in gpu.iter().filter(|g| !simt.iter().any(|s| s.name == g.name)) {
@@ -175,24 +211,33 @@ fn run(a: Args) -> Result<(), String> {
     Ok(())
 }
 
-fn simt_run(input: &Input, out: &std::path::Path) -> Result<(), String> {
+fn simt_run(input: &Input, out: &std::path::Path, launches: Option<&std::path::Path>) -> Result<(), String> {
     let mut p = params(input);
     p.measure = true;
-    let mut rows = Vec::new();
+    let (mut rows, mut each) = (Vec::new(), Vec::new());
     for (model, scene, name, rays, shadow) in inputs(input)? {
         let caster = Pdacrt::from_triangles(&scene.triangle_vertices(), p);
         let start = Instant::now();
         cast(&caster, &rays, shadow);
         eprintln!("simt {model} {name}: {} rays, {:.1} s measured", rays.len(), start.elapsed().as_secs_f64());
         rows.extend(caster.device().kernel_stats());
+        each.extend(caster.device().launch_log().iter().map(simt::KernelSummary::from));
+    }
+    if let Some(path) = launches {
+        std::fs::write(path, tsv::write(&each)).map_err(|e| format!("{}: {e}", path.display()))?;
     }
     std::fs::write(out, tsv::write(&merge(rows))).map_err(|e| format!("{}: {e}", out.display()))
 }
 
 /// One CIS-LBDPT render per scene and order (sorted, unsorted): measured, with the
 /// shading launches renamed by order, or checked bounce by bounce on the GPU.
-fn cis_run(scenes: &[std::path::PathBuf], size: u32, simt: Option<&std::path::Path>) -> Result<(), String> {
-    let (mut rows, mut failed) = (Vec::new(), 0usize);
+fn cis_run(
+    scenes: &[std::path::PathBuf],
+    size: u32,
+    simt: Option<&std::path::Path>,
+    simt_launches: Option<&std::path::Path>,
+) -> Result<(), String> {
+    let (mut rows, mut launches, mut failed) = (Vec::new(), Vec::new(), 0usize);
     for path in scenes {
         let scene = warpray::scene::load_scene(path).map_err(|e| e.to_string())?.scene;
         let caster = BvhCaster::new(&scene);
@@ -236,18 +281,31 @@ fn cis_run(scenes: &[std::path::PathBuf], size: u32, simt: Option<&std::path::Pa
             let mut film = r.film().map_err(|e| e.to_string())?;
             r.passes(0, 1, &mut film);
             let order = if sorted { "cis::shade_sorted" } else { "cis::shade_unsorted" };
-            for mut k in r.device().map(|d| d.kernel_stats()).unwrap_or_default() {
-                match k.name {
-                    "cis::shade" => k.name = order,
-                    "cis::alive_flags" => {}
-                    _ => continue,
+            let rename = |k: &mut simt::KernelSummary| match k.name {
+                "cis::shade" => {
+                    k.name = order;
+                    true
                 }
-                rows.push(k);
+                name => name == "cis::alive_flags",
+            };
+            for mut k in r.device().map(|d| d.kernel_stats()).unwrap_or_default() {
+                if rename(&mut k) {
+                    rows.push(k);
+                }
+            }
+            for l in r.device().map(|d| d.launch_log()).unwrap_or_default() {
+                let mut k = simt::KernelSummary::from(&l);
+                if rename(&mut k) {
+                    launches.push(k);
+                }
             }
         }
     }
     if let Some(out) = simt {
         std::fs::write(out, tsv::write(&merge(rows))).map_err(|e| format!("{}: {e}", out.display()))?;
+    }
+    if let Some(out) = simt_launches {
+        std::fs::write(out, tsv::write(&launches)).map_err(|e| format!("{}: {e}", out.display()))?;
     }
     if failed > 0 {
         return Err(format!(
@@ -258,7 +316,7 @@ fn cis_run(scenes: &[std::path::PathBuf], size: u32, simt: Option<&std::path::Pa
 }
 
 /// Summaries of several runs, added up by kernel name.
-fn merge(rows: Vec<simt::KernelSummary>) -> Vec<simt::KernelSummary> {
+pub(crate) fn merge(rows: Vec<simt::KernelSummary>) -> Vec<simt::KernelSummary> {
     let mut out: Vec<simt::KernelSummary> = Vec::new();
     for r in rows {
         match out.iter_mut().find(|o| o.name == r.name) {
@@ -390,69 +448,4 @@ fn brute_check(gpu: &GpuPdacrt, brute: &BruteForce, rays: &[Ray], shadow: bool, 
             .count()
     };
     (sample.len(), differ)
-}
-
-/// `simt::KernelSummary` to and from tab-separated lines (the measured run and the
-/// report may run as separate commands).
-mod tsv {
-    use simt::{KernelSummary, RegionStats, Traffic};
-
-    const HEADER: &str =
-        "name\tlaunches\tthreads\tissued\tactive\tld_req\tld_sec\tst_req\tst_sec\tat_req\tat_sec\tshared\tseconds";
-
-    pub fn write(rows: &[KernelSummary]) -> String {
-        let mut s = format!("{HEADER}\n");
-        for r in rows {
-            let mut all = r.ops.clone();
-            r.regions.iter().for_each(|x| all.add(x));
-            s += &format!(
-                "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\n",
-                r.name,
-                r.launches,
-                r.threads,
-                all.issued,
-                all.active,
-                r.loads.requests,
-                r.loads.sectors,
-                r.stores.requests,
-                r.stores.sectors,
-                r.atomics.requests,
-                r.atomics.sectors,
-                r.shared_bytes,
-                r.seconds
-            );
-        }
-        s
-    }
-
-    pub fn read(text: &str) -> Result<Vec<KernelSummary>, String> {
-        let mut lines = text.lines().enumerate();
-        match lines.next() {
-            Some((_, h)) if h == HEADER => {}
-            _ => return Err("not a gpu_check simt file (header differs)".into()),
-        }
-        let mut out = Vec::new();
-        for (i, line) in lines {
-            let f: Vec<&str> = line.split('\t').collect();
-            if f.len() != 13 {
-                return Err(format!("line {}: {} fields, expected 13", i + 1, f.len()));
-            }
-            let n = |k: usize| f[k].parse::<u64>().map_err(|_| format!("line {}: field {k}: '{}'", i + 1, f[k]));
-            let name: &'static str = Box::leak(f[0].to_string().into_boxed_str());
-            out.push(KernelSummary {
-                name,
-                launches: n(1)?,
-                threads: n(2)?,
-                measured_launches: n(1)?,
-                ops: RegionStats { name: "all", issued: n(3)?, active: n(4)? },
-                loads: Traffic { requests: n(5)?, sectors: n(6)? },
-                stores: Traffic { requests: n(7)?, sectors: n(8)? },
-                atomics: Traffic { requests: n(9)?, sectors: n(10)? },
-                shared_bytes: n(11)? as usize,
-                seconds: f[12].parse().map_err(|_| format!("line {}: seconds '{}'", i + 1, f[12]))?,
-                ..Default::default()
-            });
-        }
-        Ok(out)
-    }
 }

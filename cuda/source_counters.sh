@@ -1,0 +1,51 @@
+#!/bin/sh
+# Per-instruction counters (Nsight Compute's source view) of CIS-LBDPT's shading kernel
+# and PDACRT's brute force, split by the array each global access reads or writes and set
+# beside the emulator's statistics of the same launches (docs/gpu-check.md, "Which
+# instructions the model sees"). Needs a GPU, nvcc and ncu.
+#
+#   WARPRAY_MODELS=... BIN=target/release/examples OUT=gpu-out sh cuda/source_counters.sh [scenes] [launches]
+#
+# For each scene and order, the first LAUNCHES (default 2) shading launches are profiled;
+# exporting takes about 25 s per launch, so the exports run side by side. Results go to
+# $OUT/source_*.md; the raw exports are kept gzipped.
+set -eu
+cd "$(dirname "$0")/.."
+BIN=${BIN:-target/release/examples}
+OUT=${OUT:-gpu-out}
+SCENES=${1:-cornell assets/scenes/materials.toml assets/scenes/bedroom.toml}
+N=${2:-2}
+mkdir -p "$OUT"
+[ -f target/cuda/libwarpray_cuda.so ] || sh cuda/build.sh
+profile() { # name kernel-regex command...
+    name=$1 kernel=$2
+    shift 2
+    ncu --section SourceCounters --import-source yes -k "regex:$kernel" -c "$N" -f -o "$OUT/$name" "$@" \
+        >"$OUT/$name.log" 2>&1
+}
+names=""
+for s in $SCENES; do
+    base=$(basename "$s" .toml)
+    "$BIN/gpu_check" cis --scene "$s" --size 128 --simt "$OUT/simt_$base.tsv" --simt-launches "$OUT/launches_$base.tsv"
+    profile "${base}_sorted" shade_sorted "$BIN/gpu_check" cis --scene "$s" --size 128
+    profile "${base}_unsorted" shade_unsorted "$BIN/gpu_check" cis --scene "$s" --size 128
+    names="$names ${base}_sorted ${base}_unsorted"
+done
+if [ -n "${WARPRAY_MODELS:-}" ]; then
+    "$BIN/gpu_check" simt --model bunny --batch primary --size 512 --out "$OUT/simt_bunny.tsv" --launches "$OUT/launches_bunny.tsv"
+    profile bunny_brute_force brute_force "$BIN/gpu_check" gpu --model bunny --batch primary --size 512 --repeat 1 --brute-every 0
+    names="$names bunny_brute_force"
+fi
+for n in $names; do
+    ncu -i "$OUT/$n.ncu-rep" --page source --csv --print-source cuda,sass >"$OUT/$n.csv" 2>&1 &
+done
+wait
+for n in $names; do
+    case "$n" in
+    bunny_*) "$BIN/gpu_check" source --classes all --csv "$OUT/$n.csv" --simt-launches "$OUT/launches_bunny.tsv" ;;
+    *) "$BIN/gpu_check" source --csv "$OUT/$n.csv" --simt-launches "$OUT/launches_${n%_*}.tsv" ;;
+    esac >"$OUT/source_$n.md"
+    rm -f "$OUT/$n.ncu-rep"
+    gzip -f "$OUT/$n.csv"
+done
+tail -n 8 "$OUT"/source_*.md
