@@ -7,6 +7,8 @@
 #   WARPRAY_MODELS=... BIN=target/release/examples OUT=gpu-out sh cuda/source_counters.sh [scenes] [launches]
 #
 # For each scene and order, the first LAUNCHES (default 2) shading launches are profiled;
+# on the bunny's primary rays, the first PDACRT_LAUNCHES (default 14) launches of
+# PDACRT's kernels named in PDACRT_KERNELS (two or three of each);
 # exporting takes about 25 s per launch, so the exports run side by side. Results go to
 # $OUT/source_*.md; the raw exports are kept gzipped.
 set -eu
@@ -17,24 +19,27 @@ SCENES=${1:-cornell assets/scenes/materials.toml assets/scenes/bedroom.toml}
 N=${2:-2}
 mkdir -p "$OUT"
 [ -f target/cuda/libwarpray_cuda.so ] || sh cuda/build.sh
-profile() { # name kernel-regex command...
-    name=$1 kernel=$2
-    shift 2
-    ncu --section SourceCounters --import-source yes -k "regex:$kernel" -c "$N" -f -o "$OUT/$name" "$@" \
+PDACRT_KERNELS=${PDACRT_KERNELS:-brute_force|node_bounds|classify_children|emit_children|scatter_rays|scatter_triangles}
+PDACRT_LAUNCHES=${PDACRT_LAUNCHES:-14}
+profile() { # name kernel-regex count command...
+    name=$1 kernel=$2 count=$3
+    shift 3
+    ncu --section SourceCounters --import-source yes -k "regex:$kernel" -c "$count" -f -o "$OUT/$name" "$@" \
         >"$OUT/$name.log" 2>&1
 }
 names=""
 for s in $SCENES; do
     base=$(basename "$s" .toml)
     "$BIN/gpu_check" cis --scene "$s" --size 128 --simt "$OUT/simt_$base.tsv" --simt-launches "$OUT/launches_$base.tsv"
-    profile "${base}_sorted" shade_sorted "$BIN/gpu_check" cis --scene "$s" --size 128
-    profile "${base}_unsorted" shade_unsorted "$BIN/gpu_check" cis --scene "$s" --size 128
+    profile "${base}_sorted" shade_sorted "$N" "$BIN/gpu_check" cis --scene "$s" --size 128
+    profile "${base}_unsorted" shade_unsorted "$N" "$BIN/gpu_check" cis --scene "$s" --size 128
     names="$names ${base}_sorted ${base}_unsorted"
 done
 if [ -n "${WARPRAY_MODELS:-}" ]; then
     "$BIN/gpu_check" simt --model bunny --batch primary --size 512 --out "$OUT/simt_bunny.tsv" --launches "$OUT/launches_bunny.tsv"
-    profile bunny_brute_force brute_force "$BIN/gpu_check" gpu --model bunny --batch primary --size 512 --repeat 1 --brute-every 0
-    names="$names bunny_brute_force"
+    profile bunny_pdacrt "$PDACRT_KERNELS" "$PDACRT_LAUNCHES" \
+        "$BIN/gpu_check" gpu --model bunny --batch primary --size 512 --repeat 1 --brute-every 0
+    names="$names bunny_pdacrt"
 fi
 for n in $names; do
     ncu -i "$OUT/$n.ncu-rep" --page source --csv --print-source cuda,sass >"$OUT/$n.csv" 2>&1 &

@@ -58,13 +58,15 @@ pub fn source_run(
             ));
         }
         let simt = merge(mine).remove(0);
-        let (ld, st) = (s.of("Load", seen), s.of("Store", seen));
+        let (ld, st, at) = (s.of("Load", seen), s.of("Store", seen), s.of("Atomic", seen));
         let rows = [
             ("SIMD efficiency, loads", simt.loads.simd_efficiency(), ld.simd_efficiency()),
             ("sectors / request, loads", simt.loads.sectors_per_request(), ld.sectors_per_request()),
             ("load requests", Some(simt.loads.requests as f64), Some(ld.warp)),
             ("SIMD efficiency, stores", simt.stores.simd_efficiency(), st.simd_efficiency()),
             ("sectors / request, stores", simt.stores.sectors_per_request(), st.sectors_per_request()),
+            ("atomic requests", Some(simt.atomics.requests as f64), Some(at.warp)),
+            ("SIMD efficiency, atomics", simt.atomics.simd_efficiency(), at.simd_efficiency()),
             ("SIMD efficiency, every instruction", simt.simd_efficiency(), s.all.simd_efficiency()),
         ];
         for (what, p, m) in rows {

@@ -34,8 +34,10 @@ pub struct Instruction {
     pub text: String,
     /// `Global`, `Local`, `Shared`, or empty.
     pub space: String,
-    /// `Load`, `Store`, `Atomic`…, or empty.
+    /// `Load`, `Store`, `Atomic`…, or empty (as for a global reduction, `REDG`).
     pub op: String,
+    /// The SASS instruction (`LDG.E.128 R4, desc[UR4][R2.64]`).
+    pub sass: String,
     /// Warp instructions executed (for a global access: its requests).
     pub warp: f64,
     /// Thread instructions executed.
@@ -125,6 +127,7 @@ pub fn parse(text: &str) -> Result<Vec<Instruction>, String> {
             text: source.clone(),
             space: col("Address Space")?.trim_matches('-').to_string(),
             op: col("Access Operation")?.trim_matches('-').to_string(),
+            sass: row.get(3).map(|x| x.trim().to_string()).unwrap_or_default(),
             warp: number(col("Instructions Executed")?),
             thread: number(col("Thread Instructions Executed")?),
             sectors: number(col("L2 Theoretical Sectors Global")?),
@@ -226,7 +229,7 @@ pub struct Split {
     pub launches: usize,
     /// Every instruction.
     pub all: Sums,
-    /// (operation, class, sums), operations `Load` and `Store`.
+    /// (operation, class, sums), operations `Load`, `Store` and `Atomic`.
     pub rows: Vec<(String, String, Sums)>,
 }
 
@@ -271,16 +274,24 @@ pub fn split(insts: &[Instruction], classes: &[(&str, &[&str])], keep: impl Fn(&
         };
         s.launches = s.launches.max(k + 1);
         s.all.add(i);
-        if i.space != "Global" || !(i.op == "Load" || i.op == "Store") {
+        // Atomics with and without a result are one operation; the export labels a
+        // global reduction (`REDG`) with no operation.
+        let op = match i.op.as_str() {
+            "Load" | "Store" => i.op.as_str(),
+            "" if i.sass.starts_with("RED") || i.sass.starts_with("ATOM") => "Atomic",
+            "" => continue,
+            _ => "Atomic",
+        };
+        if i.space != "Global" {
             continue;
         }
         let class = classify(&i.text, classes);
-        match s.rows.iter_mut().find(|(o, c, _)| *o == i.op && c == class) {
+        match s.rows.iter_mut().find(|(o, c, _)| *o == op && c == class) {
             Some((_, _, r)) => r.add(i),
             None => {
                 let mut r = Sums::default();
                 r.add(i);
-                s.rows.push((i.op.clone(), class.to_string(), r));
+                s.rows.push((op.to_string(), class.to_string(), r));
             }
         }
     }
@@ -341,6 +352,7 @@ mod tests {
         "\"\",\"\",\"0x20\",\"LDG.E.128 R4\",\"4\",\"128\",\"Global\",\"Load\",\"128\"\n",
         "\"\",\"\",\"0x30\",\"LDL R8\",\"6\",\"96\",\"Local\",\"Load\",\"0\"\n",
         "\"\",\"\",\"0x40\",\"FADD R1\",\"1,000\",\"16,000\",\"-\",\"-\",\"0\"\n",
+        "\"\",\"\",\"0x50\",\"REDG.E.MIN.64.STRONG.GPU desc[UR4][R2.64], R4\",\"3\",\"3\",\"Global\",\"-\",\"3\"\n",
         "\"Kernel Name\",\"cis::shade_sorted(cis::ShadeArgs)\",\n",
         "\"File Path\",\"/w/cuda/cis_device.cuh\"\n",
         "\"Line No\",\"Source\",\"Address\",\"Source\",\"Instructions Executed\",\"Thread Instructions Executed\",\"Address Space\",\"Access Operation\",\"L2 Theoretical Sectors Global\"\n",
@@ -356,15 +368,17 @@ mod tests {
     #[test]
     fn instructions_are_counted_once_under_our_line() {
         let insts = parse(SAMPLE).unwrap();
-        // Launch 0: 0x10 (once), 0x20, 0x30, 0x40; launch 1: 0x20; launch 2: 0x20.
-        assert_eq!(insts.len(), 6);
+        // Launch 0: 0x10 (once), 0x20, 0x30, 0x40, 0x50; launch 1: 0x20; launch 2: 0x20.
+        assert_eq!(insts.len(), 7);
         assert_eq!((insts[0].file.as_str(), insts[0].line), ("cis_device.cuh", 309));
-        assert_eq!((insts[4].launch, insts[5].launch), (1, 2));
+        assert_eq!((insts[5].launch, insts[6].launch), (1, 2));
         let s = split(&insts, CIS_CLASSES, |_, _| true);
         assert_eq!(s.len(), 1);
         let s = &s[0];
         assert_eq!((s.kernel.as_str(), s.launches), ("cis::shade_sorted", 3));
-        assert_eq!(s.all.warp, 10.0 + 4.0 + 6.0 + 1000.0 + 2.0 + 1.0);
+        assert_eq!(s.all.warp, 10.0 + 4.0 + 6.0 + 1000.0 + 3.0 + 2.0 + 1.0);
+        // The reduction is an atomic, one lane each.
+        assert_eq!(s.of("Atomic", &["pool"]).simd_efficiency(), Some(1.0 / 32.0));
         let slots = s.of("Load", &["pool"]);
         assert_eq!((slots.warp, slots.thread, slots.sectors), (7.0, 224.0, 224.0));
         assert_eq!(slots.simd_efficiency(), Some(1.0));
