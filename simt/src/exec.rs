@@ -716,6 +716,22 @@ impl Thread<'_> {
         unsafe { self.register(l).write_unaligned(value) }
     }
 
+    /// Runs `f` as copy `copy` of an unrolled loop body: the instructions it executes are
+    /// other instructions than those of the other copies, as when a compiler unrolls a
+    /// short loop (nvcc does `for (side = 0; side < 2; side++)`) and issues each trip's
+    /// accesses apart, each with only the lanes that take that trip's branch. Without it,
+    /// a lane's first execution of a call site is matched with the other lanes' first,
+    /// whichever trip each is in. Copies nest; unmeasured launches just run `f`.
+    #[inline(always)]
+    pub fn unrolled<R>(&self, copy: usize, f: impl FnOnce() -> R) -> R {
+        let Some(m) = self.meter else { return f() };
+        let outer = m.borrow().copy;
+        m.borrow_mut().copy = outer.wrapping_mul(31).wrapping_add(copy + 1);
+        let r = f();
+        m.borrow_mut().copy = outer;
+        r
+    }
+
     /// Declares `units` instructions of arithmetic on branch arm `path` of region
     /// `region` (indices below [`MAX_REGIONS`] and [`MAX_PATHS`]; names come from the
     /// launch). Counted like any other instruction: lanes at the same call site, path

@@ -169,6 +169,9 @@ pub(crate) struct Meter {
     now: Stamp,
     block: u32,
     pub race: Option<Race>,
+    /// Which copy of unrolled code the current lane is in (0: none), mixed into every
+    /// call site so that copies are different instructions.
+    pub copy: usize,
 }
 
 impl Meter {
@@ -192,6 +195,7 @@ impl Meter {
     /// Records one operation of `parts` instructions by the current lane; returns the
     /// first of its slots.
     pub fn op(&mut self, site: usize, kind: Kind, parts: u32, units: u32) -> u32 {
+        let site = self.salted(site);
         self.op_keyed(site.wrapping_mul(16), kind, parts, units)
     }
 
@@ -288,7 +292,13 @@ impl Meter {
         traffic.lanes += parts * lanes as u64;
     }
 
+    /// A call site inside copy `self.copy` of unrolled code.
+    fn salted(&self, site: usize) -> usize {
+        site ^ self.copy.wrapping_mul(0x9e37_79b9_7f4a_7c15u64 as usize)
+    }
+
     pub fn work(&mut self, site: usize, region: usize, path: usize, units: u32) {
+        let site = self.salted(site);
         if units > 0 {
             // Paths of one site are distinct instructions (arms of a branch).
             self.op_keyed(site.wrapping_mul(16) + 8 + path % MAX_PATHS, Kind::Work(region as u8), 1, units);

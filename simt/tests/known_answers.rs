@@ -358,6 +358,36 @@ fn loads_stores_and_atomics_are_counted_apart() {
 }
 
 #[test]
+fn an_unrolled_loop_issues_each_trip_apart() {
+    let dev = measured();
+    let mut y = dev.alloc::<u32>(64);
+    let yv = y.view_mut();
+    // Even lanes store on trip 0 only, odd lanes on trip 1 only.
+    let kernel = |unroll: bool| {
+        dev.for_each("two_trips", 32, |t, i| {
+            for side in 0..2 {
+                let body = || {
+                    if i % 2 == side {
+                        t.store(&yv, 2 * i + side, 1);
+                    }
+                };
+                if unroll { t.unrolled(side, body) } else { body() }
+            }
+        })
+    };
+    // Matched by occurrence: every lane's first store is one instruction of 32 lanes.
+    let rolled = kernel(false);
+    assert_eq!((rolled.stores.requests, rolled.stores.lanes), (1, 32));
+    // Unrolled: the trips are two instructions of 16 lanes each.
+    let unrolled = kernel(true);
+    assert_eq!((unrolled.stores.requests, unrolled.stores.lanes), (2, 32));
+    assert_eq!(unrolled.stores.simd_efficiency(), Some(0.5));
+    // Nothing else changes: a copy ends with its closure.
+    let after = dev.for_each("after", 32, |t, i| t.unrolled(0, || t.store(&yv, i, 2)));
+    assert_eq!((after.stores.requests, after.stores.lanes), (1, 32));
+}
+
+#[test]
 fn memory_instructions_count_the_lanes_that_execute_them() {
     let dev = measured();
     let x = dev.alloc::<u32>(64);

@@ -441,25 +441,29 @@ pub(crate) fn scatter_ref(
     let c = code as usize;
     let rank = t.load_field(&sp.ranks, i, |r| &r[c]) - t.load_field(&sp.base, node, |r| &r[c]);
     let id = t.load(&sp.ids, i);
+    // Two trips, which compiled code unrolls: each side's accesses are its own
+    // instructions, executed by the lanes whose reference goes to that side.
     for side in 0..2 {
-        // The child's fields, each loaded where it is first read (as compiled code does).
-        let field = |f: fn(&ChildData) -> &u32| t.load_field(children, 2 * node + side, f);
-        let whole = field(|x| &x.whole) == 1;
-        let takes = whole || if side == 0 { code != RIGHT } else { code != LEFT };
-        let kind = field(|x| &x.kind);
-        if !takes || kind == DROPPED {
-            continue;
-        }
-        let first_code = if whole || side == 0 { LEFT } else { BOTH };
-        let before: u32 = (first_code..code).map(|c| t.load(&sp.counts, node * 4 + c as usize)).sum();
-        let dst = if rays { field(|x| &x.dest_ray) } else { field(|x| &x.dest_tri) };
-        let pos = (dst + before + rank) as usize;
-        if kind == INNER {
-            t.store(&dest.next_ids, pos, id);
-            t.store(&dest.next_node, pos, field(|x| &x.dest_node));
-        } else {
-            t.store(&dest.terminal_ids, pos, id);
-        }
+        t.unrolled(side, || {
+            // The child's fields, each loaded where it is first read (as compiled code does).
+            let field = |f: fn(&ChildData) -> &u32| t.load_field(children, 2 * node + side, f);
+            let whole = field(|x| &x.whole) == 1;
+            let takes = whole || if side == 0 { code != RIGHT } else { code != LEFT };
+            let kind = field(|x| &x.kind);
+            if !takes || kind == DROPPED {
+                return;
+            }
+            let first_code = if whole || side == 0 { LEFT } else { BOTH };
+            let before: u32 = (first_code..code).map(|c| t.load(&sp.counts, node * 4 + c as usize)).sum();
+            let dst = if rays { field(|x| &x.dest_ray) } else { field(|x| &x.dest_tri) };
+            let pos = (dst + before + rank) as usize;
+            if kind == INNER {
+                t.store(&dest.next_ids, pos, id);
+                t.store(&dest.next_node, pos, field(|x| &x.dest_node));
+            } else {
+                t.store(&dest.terminal_ids, pos, id);
+            }
+        })
     }
 }
 
