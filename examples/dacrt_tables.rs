@@ -8,6 +8,7 @@
 //!     [--size 1024] [--scenes bunny,conference,dragon] [--casters bvh,dacrt,pdacrt] \
 //!     [--threads N] [--scaling 1,2,4,8,16] [--ao 8] [--repeat 1] [--sweep] [--json] \
 //!     [--pdacrt-chunk RAYS] [--dacrt-top-cell TRIANGLES] [--dacrt-groups-per-thread N]
+//!     [--dacrt-packet RAYS]
 //! ```
 //!
 //! `--json` prints one object per measured row (keys `scene, batch, caster, threads,
@@ -58,6 +59,9 @@ struct Args {
     /// DACRT's `groups_per_thread` (default: DACRT's own).
     #[arg(long)]
     dacrt_groups_per_thread: Option<usize>,
+    /// DACRT's `packet_rays` (0: no packet filtering; default: DACRT's own).
+    #[arg(long)]
+    dacrt_packet: Option<usize>,
 }
 
 /// Tunables given on the command line, over the casters' defaults.
@@ -66,6 +70,7 @@ struct Tunables {
     pdacrt_chunk: Option<usize>,
     dacrt_top_cell: Option<usize>,
     dacrt_groups_per_thread: Option<usize>,
+    dacrt_packet: Option<usize>,
 }
 
 /// One measured (scene, batch, caster, threads) cell.
@@ -130,6 +135,7 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
             let t = TUNABLES.get().copied().unwrap_or_default();
             d.params.top_cell_triangles = t.dacrt_top_cell.unwrap_or(d.params.top_cell_triangles);
             d.params.groups_per_thread = t.dacrt_groups_per_thread.unwrap_or(d.params.groups_per_thread);
+            d.params.packet_rays = t.dacrt_packet.unwrap_or(d.params.packet_rays);
             Box::new(d)
         }
         "pdacrt" => {
@@ -280,6 +286,7 @@ fn run(a: Args) -> Result<(), String> {
         pdacrt_chunk: a.pdacrt_chunk,
         dacrt_top_cell: a.dacrt_top_cell,
         dacrt_groups_per_thread: a.dacrt_groups_per_thread,
+        dacrt_packet: a.dacrt_packet,
     };
     TUNABLES.set(tunables).map_err(|_| "tunables set twice".to_string())?;
     let mut pool = rayon::ThreadPoolBuilder::new();

@@ -15,11 +15,15 @@ use warpray::scene::{ObjOptions, Scene, cornell_box, load_obj};
 fn casters_under_test(scene: &Scene) -> Vec<Box<dyn RayCaster>> {
     vec![
         Box::new(Dacrt::new(scene)),
-        Box::new(Dacrt::from_triangles(scene.triangle_vertices(), DacrtParams::serial())),
-        // Tiny leaves force deep recursion.
+        // One recursion, with packet filtering.
         Box::new(Dacrt::from_triangles(
             scene.triangle_vertices(),
-            DacrtParams { leaf_rays: 1, leaf_triangles: 1, ..DacrtParams::default() },
+            DacrtParams { packet_rays: 32, ..DacrtParams::serial() },
+        )),
+        // Tiny leaves force deep recursion; small packets are tested at every level.
+        Box::new(Dacrt::from_triangles(
+            scene.triangle_vertices(),
+            DacrtParams { leaf_rays: 1, leaf_triangles: 1, packet_rays: 8, ..DacrtParams::default() },
         )),
         Box::new(Pdacrt::new(scene)),
         Box::new(Pdacrt::from_triangles(

@@ -24,11 +24,18 @@
 //!   (every 64th triangle for cells of 4,096, by the same rules as below), then every
 //!   triangle is routed down them and gathered by cell (a counting sort: two parallel,
 //!   streaming passes over the triangles' boxes). With more than one thread the
-//!   batch's rays are then ordered by a coherence key (a Morton code over origin and
-//!   direction) and cut into groups; each group walks the shared top levels near child
-//!   first and runs its own DACRT inside the cells it reaches, serially, so early
-//!   termination is kept. With one thread there is one group. Nothing is kept between
-//!   calls.
+//!   batch's rays are cut into groups (in coherence order, below); each group walks
+//!   the shared top levels near child first and runs its own DACRT inside the cells it
+//!   reaches, serially, so early termination is kept. With one thread there is one
+//!   group. Nothing is kept between calls.
+//! * **Ray order and packets.** The batch's valid rays are sorted by a coherence key (a
+//!   Morton code over origin and direction) and copied in that order, so nearby rays
+//!   sit together in memory, at any thread count (the conference room's AO rays at
+//!   1024² on 16 threads: 3.7 s when the sorted ids indexed the batch where it lay,
+//!   1.0-1.1 s copied); the ray partitions are stable, so every list stays in that
+//!   order. With
+//!   [`DacrtParams::packet_rays`] set, runs of one packet's rays are rejected with one
+//!   interval test when the packet misses the child's box (`packets.rs`).
 //!
 //! Every call counts its ray–triangle tests ([`CastStats::tests`]).
 
@@ -36,11 +43,14 @@ use super::{CastStats, RayCaster, Triangles, triangles_bytes};
 use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir};
 use crate::scene::Scene;
 use glam::Vec3;
+use packets::Packets;
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering::Relaxed};
+use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::time::Instant;
 
+mod packets;
 mod top;
+use top::Scratch;
 
 /// Tunables of [`Dacrt`]. The defaults were chosen by measurement (see
 /// `docs/dacrt.md`).
@@ -64,6 +74,10 @@ pub struct DacrtParams {
     pub top_cell_triangles: usize,
     /// Ray groups per thread (load balance); 0 traces the batch as one group.
     pub groups_per_thread: usize,
+    /// Rays per packet for packet filtering (rounded up to a power of two; 0: every
+    /// ray is tested on its own). Off by default: on the 16-core machine it lost on the
+    /// dragon and gained on the bunny (`docs/dacrt.md`, run K).
+    pub packet_rays: usize,
 }
 
 impl Default for DacrtParams {
@@ -76,6 +90,7 @@ impl Default for DacrtParams {
             min_group_rays: 128,
             top_cell_triangles: 4096,
             groups_per_thread: 8,
+            packet_rays: 0,
         }
     }
 }
@@ -117,29 +132,41 @@ fn unpack_t(key: u64) -> f32 {
     f32::from_bits((key >> 32) as u32)
 }
 
-/// What one trace call shares between its recursive steps.
-struct Trace<'a> {
-    rays: &'a [Ray],
+/// What one trace call shares between its recursive steps. Its rays are the batch's
+/// valid rays renumbered (in coherence order when sorted): a ray's id indexes `rays`,
+/// `inv` and `keys`.
+struct Trace {
+    rays: Vec<Ray>,
     inv: Vec<Vec3>,
     keys: Vec<AtomicU64>,
+    packets: Option<Packets>,
     any_hit: bool,
     bytes: AtomicUsize,
     peak: AtomicUsize,
     tests: AtomicU64,
 }
 
-impl Trace<'_> {
-    /// A trace with no rays (the shared top levels choose planes from triangles alone).
-    fn empty() -> Trace<'static> {
+impl Trace {
+    /// A trace of `rays` (already renumbered) with no hits yet.
+    fn new(rays: Vec<Ray>, any_hit: bool, packet_rays: usize) -> Trace {
+        let inv: Vec<Vec3> = rays.par_iter().map(|r| inv_dir(r.dir)).collect();
+        let keys: Vec<AtomicU64> = (0..rays.len()).into_par_iter().map(|_| AtomicU64::new(NONE)).collect();
+        let packets = Packets::new(&rays, &inv, packet_rays);
         Trace {
-            rays: &[],
-            inv: Vec::new(),
-            keys: Vec::new(),
-            any_hit: false,
+            rays,
+            inv,
+            keys,
+            packets,
+            any_hit,
             bytes: AtomicUsize::new(0),
             peak: AtomicUsize::new(0),
             tests: AtomicU64::new(0),
         }
+    }
+
+    /// A trace with no rays (the shared top levels choose planes from triangles alone).
+    fn empty() -> Trace {
+        Trace::new(Vec::new(), false, 0)
     }
 
     fn alloc(&self, bytes: usize) {
@@ -178,23 +205,6 @@ fn partition(ids: &mut [u32], mut keep: impl FnMut(u32) -> bool) -> usize {
         }
     }
     n
-}
-
-/// A Morton-style key that puts rays with nearby origins and directions next to each
-/// other: 10 bits per component of the origin (in `bounds`) and the unit direction,
-/// interleaved (direction bits first at every level).
-fn coherence_key(ray: &Ray, bounds: &Aabb) -> u64 {
-    let q = |x: f32| (x.clamp(0.0, 1.0) * 1023.0) as u64;
-    let o = (ray.origin - bounds.min) / bounds.extent().max(Vec3::splat(1e-30));
-    let d = ray.dir.normalize_or_zero() * 0.5 + 0.5;
-    let comps = [q(d.x), q(d.y), q(d.z), q(o.x), q(o.y), q(o.z)];
-    let mut key = 0u64;
-    for bit in (0..10).rev() {
-        for c in comps {
-            key = key << 1 | (c >> bit & 1);
-        }
-    }
-    key
 }
 
 /// Binned SAH over a subsample of the triangles (their boxes clipped to the node):
@@ -302,7 +312,7 @@ impl Dacrt {
         tr.tests.fetch_add(tests, Relaxed);
     }
 
-    fn recurse(&self, tr: &Trace, bounds: Aabb, rays: &mut [u32], tris: &mut [u32], depth: u32) {
+    fn recurse(&self, tr: &Trace, bounds: Aabb, rays: &mut [u32], tris: &mut [u32], spare: &mut Vec<u32>, depth: u32) {
         if rays.is_empty() || tris.is_empty() {
             return;
         }
@@ -316,8 +326,8 @@ impl Dacrt {
         // Near child first, judged by the rays' mean direction along the split axis.
         let toward_hi: f32 = rays.iter().map(|&r| tr.rays[r as usize].dir[axis].signum()).sum();
         let (near, far) = if toward_hi >= 0.0 { (lo, hi) } else { (hi, lo) };
-        self.child(tr, near, rays, tris, depth);
-        self.child(tr, far, rays, tris, depth);
+        self.child(tr, near, rays, tris, spare, depth);
+        self.child(tr, far, rays, tris, spare, depth);
     }
 
     /// The leaf rule: few triangles, or few rays *and* few ray–triangle pairs (a node
@@ -368,7 +378,7 @@ impl Dacrt {
 
     /// Partitions the parent's lists for `child`, shrinks its box to its triangles,
     /// and recurses.
-    fn child(&self, tr: &Trace, child: Aabb, rays: &mut [u32], tris: &mut [u32], depth: u32) {
+    fn child(&self, tr: &Trace, child: Aabb, rays: &mut [u32], tris: &mut [u32], spare: &mut Vec<u32>, depth: u32) {
         let mut union = Aabb::EMPTY;
         let nt = partition(tris, |t| {
             let b = &self.boxes[t as usize];
@@ -382,8 +392,8 @@ impl Dacrt {
             return;
         }
         let tight = child.intersection(union);
-        let nr = partition(rays, |r| tr.enters(r, &tight));
-        self.recurse(tr, tight, &mut rays[..nr], &mut tris[..nt], depth + 1)
+        let nr = tr.partition_rays(rays, &tight, spare);
+        self.recurse(tr, tight, &mut rays[..nr], &mut tris[..nt], spare, depth + 1)
     }
 
     /// How many independent ray groups a batch of `n` rays is traced in.
@@ -400,63 +410,52 @@ impl Dacrt {
         (threads * p.groups_per_thread).min(n / min_rays).max(1)
     }
 
-    /// Runs the recursion for one batch; returns the per-ray keys, the peak bytes and
-    /// the ray–triangle tests made.
-    fn trace(&self, rays: &[Ray], any_hit: bool) -> (Vec<AtomicU64>, usize, u64) {
+    /// Runs the recursion for one batch; returns the per-ray keys (in the batch's
+    /// order), the peak bytes and the ray–triangle tests made.
+    fn trace(&self, rays: &[Ray], any_hit: bool) -> (Vec<u64>, usize, u64) {
         let n = rays.len();
-        let inv: Vec<Vec3> = rays.par_iter().map(|r| inv_dir(r.dir)).collect();
-        let keys: Vec<AtomicU64> = (0..n).into_par_iter().map(|_| AtomicU64::new(NONE)).collect();
-        let tr = Trace {
-            rays,
-            inv,
-            keys,
-            any_hit,
-            bytes: AtomicUsize::new(0),
-            peak: AtomicUsize::new(0),
-            tests: AtomicU64::new(0),
-        };
-        // ids, keys and reciprocal directions
-        tr.alloc(n * (4 + 8 + 12));
         let scene_box = self.scene_box;
-        let mut ray_ids: Vec<u32> = (0..n as u32)
+        let order: Vec<u32> = (0..n as u32)
             .into_par_iter()
-            .filter(|&i| rays[i as usize].is_valid() && tr.enters(i, &scene_box))
+            .filter(|&i| {
+                let r = &rays[i as usize];
+                r.is_valid() && scene_box.intersect(r.origin, inv_dir(r.dir), r.t_min, r.t_max).is_some()
+            })
             .collect();
-        if ray_ids.is_empty() || self.tris.is_empty() {
-            let (peak, tests) = (tr.peak.load(Relaxed), tr.tests.load(Relaxed));
-            return (tr.keys, peak, tests);
+        if order.is_empty() || self.tris.is_empty() {
+            return (vec![NONE; n], 0, 0);
         }
+        let groups = self.group_count(order.len());
+        let order = self.coherence_order(rays, order);
+        // The valid rays renumbered in that order: ids, keys, reciprocal directions, the
+        // copies of the rays, the map back, and the packets.
+        let m = order.len();
+        let tr = Trace::new(order.par_iter().map(|&i| rays[i as usize]).collect(), any_hit, self.params.packet_rays);
+        tr.alloc(m * (4 + 8 + 12 + std::mem::size_of::<Ray>() + 4) + tr.packets.as_ref().map_or(0, Packets::bytes));
+        let mut ray_ids: Vec<u32> = (0..m as u32).collect();
         let top = self.build_top();
         tr.alloc(top.ids.len() * 4);
-        let groups = self.group_count(ray_ids.len());
         if groups <= 1 {
-            self.trace_top(&tr, &top, &top.root, &mut ray_ids, &mut Vec::new(), 0);
+            self.trace_top(&tr, &top, &top.root, &mut ray_ids, &mut Scratch::default(), 0);
         } else {
-            // Coherent groups: sort by key, ties by id (so the order is deterministic).
-            // Key and id share one word: the key's 32 bits from its highest bit that
-            // differs between rays (primary rays share their origin bits).
-            tr.alloc(ray_ids.len() * 16);
-            let keys: Vec<u64> = ray_ids.par_iter().map(|&i| coherence_key(&rays[i as usize], &scene_box)).collect();
-            let (or, and) = keys
-                .par_iter()
-                .fold(|| (0, u64::MAX), |(o, a), &k| (o | k, a & k))
-                .reduce(|| (0, u64::MAX), |x, y| (x.0 | y.0, x.1 & y.1));
-            let shift = (64 - (or ^ and).leading_zeros()).saturating_sub(32);
-            // A stable radix sort (simt's, on its CPU backend) of the 32 bits: the ids
-            // are in ascending order, so ties stay ordered by id.
-            let dev = simt::Device::default();
-            let mut coarse = dev.alloc_vec(keys.par_iter().map(|&k| (k >> shift) as u32).collect::<Vec<u32>>());
-            drop(keys);
-            let mut ids = dev.alloc_vec(std::mem::take(&mut ray_ids));
-            simt::sort_by_key(&dev, &mut coarse, &mut ids);
-            ray_ids = ids.into_vec();
-            let size = ray_ids.len().div_ceil(groups);
-            ray_ids.par_chunks_mut(size).for_each_init(Vec::new, |scratch, group| {
+            let size = m.div_ceil(groups);
+            ray_ids.par_chunks_mut(size).for_each_init(Scratch::default, |scratch, group| {
                 self.trace_top(&tr, &top, &top.root, group, scratch, 0);
             });
         }
-        let (peak, tests) = (tr.peak.load(Relaxed), tr.tests.load(Relaxed));
-        (tr.keys, peak, tests)
+        drop(ray_ids);
+        // Back to the batch's order.
+        tr.alloc(n * 4);
+        let at: Vec<AtomicU32> = (0..n).into_par_iter().map(|_| AtomicU32::new(u32::MAX)).collect();
+        order.par_iter().enumerate().for_each(|(k, &i)| at[i as usize].store(k as u32, Relaxed));
+        let keys: Vec<u64> = at
+            .into_par_iter()
+            .map(|k| match k.into_inner() {
+                u32::MAX => NONE,
+                k => tr.keys[k as usize].load(Relaxed),
+            })
+            .collect();
+        (keys, tr.peak.load(Relaxed), tr.tests.load(Relaxed))
     }
 }
 
@@ -470,7 +469,6 @@ impl RayCaster for Dacrt {
         let start = Instant::now();
         let (keys, peak, tests) = self.trace(rays, false);
         hits.par_iter_mut().zip(keys).zip(rays).for_each(|((h, k), ray)| {
-            let k = k.into_inner();
             *h = if k == NONE {
                 Hit::MISS
             } else {
@@ -489,7 +487,7 @@ impl RayCaster for Dacrt {
         assert_eq!(rays.len(), out.len(), "one result slot per ray");
         let start = Instant::now();
         let (keys, peak, tests) = self.trace(rays, true);
-        out.par_iter_mut().zip(keys).for_each(|(o, k)| *o = k.into_inner() == BLOCKED);
+        out.par_iter_mut().zip(keys).for_each(|(o, k)| *o = k == BLOCKED);
         CastStats { rays: rays.len(), seconds: start.elapsed().as_secs_f64(), peak_working_bytes: peak, tests }
     }
 

@@ -3,7 +3,7 @@
 //! The planes are chosen on a sample of the triangles' boxes; every triangle is then
 //! routed down them and gathered by cell in two parallel passes (a counting sort).
 
-use super::{Dacrt, Trace, partition};
+use super::{Dacrt, Trace};
 use crate::geometry::Aabb;
 use rayon::prelude::*;
 
@@ -15,6 +15,14 @@ const ROUTE_CHUNK: usize = 1 << 14;
 /// (64 choose planes as good as 256 do on the dragon, in a quarter of the time:
 /// ray–triangle tests within 1 % on its primary, shadow and mirror batches).
 const TOP_SAMPLES_PER_CELL: usize = 64;
+
+/// A ray group's reusable buffers: the copy of a cell's triangle ids, and the rays a
+/// partition sets aside.
+#[derive(Default)]
+pub(super) struct Scratch {
+    pub(super) tris: Vec<u32>,
+    pub(super) rays: Vec<u32>,
+}
 
 /// The shared top's planes, chosen on a sample before any triangle is routed.
 enum Plan {
@@ -279,7 +287,7 @@ impl Dacrt {
         top: &SharedTop,
         node: &Top,
         rays: &mut [u32],
-        scratch: &mut Vec<u32>,
+        scratch: &mut Scratch,
         depth: u32,
     ) {
         if rays.is_empty() {
@@ -290,10 +298,10 @@ impl Dacrt {
                 if range.is_empty() {
                     return;
                 }
-                scratch.clear();
-                scratch.extend_from_slice(&top.ids[range.clone()]);
+                scratch.tris.clear();
+                scratch.tris.extend_from_slice(&top.ids[range.clone()]);
                 tr.alloc(range.len() * 4);
-                self.recurse(tr, *bounds, rays, scratch, depth);
+                self.recurse(tr, *bounds, rays, &mut scratch.tris, &mut scratch.rays, depth);
                 tr.free(range.len() * 4);
             }
             Top::Split { axis, kids, .. } => {
@@ -302,7 +310,7 @@ impl Dacrt {
                 for k in order {
                     let child = &kids[k];
                     let b = *child.bounds();
-                    let nr = partition(rays, |r| tr.enters(r, &b));
+                    let nr = tr.partition_rays(rays, &b, &mut scratch.rays);
                     self.trace_top(tr, top, child, &mut rays[..nr], scratch, depth + 1);
                 }
             }
