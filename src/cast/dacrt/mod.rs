@@ -33,9 +33,9 @@
 //!   sit together in memory, at any thread count (the conference room's AO rays at
 //!   1024² on 16 threads: 3.7 s when the sorted ids indexed the batch where it lay,
 //!   1.0-1.1 s copied); the ray partitions are stable, so every list stays in that
-//!   order. With
-//!   [`DacrtParams::packet_rays`] set, runs of one packet's rays are rejected with one
-//!   interval test when the packet misses the child's box (`packets.rs`).
+//!   order. With [`DacrtParams::packet_rays`] set, runs of one packet's rays are
+//!   rejected with one interval test when the packet misses the child's box
+//!   (`packets.rs`).
 //!
 //! Every call counts its ray–triangle tests ([`CastStats::tests`]).
 
@@ -133,8 +133,8 @@ fn unpack_t(key: u64) -> f32 {
 }
 
 /// What one trace call shares between its recursive steps. Its rays are the batch's
-/// valid rays renumbered (in coherence order when sorted): a ray's id indexes `rays`,
-/// `inv` and `keys`.
+/// valid rays renumbered in coherence order: a ray's id indexes `rays`, `inv` and
+/// `keys`.
 struct Trace {
     rays: Vec<Ray>,
     inv: Vec<Vec3>,
@@ -428,7 +428,8 @@ impl Dacrt {
         let groups = self.group_count(order.len());
         let order = self.coherence_order(rays, order);
         // The valid rays renumbered in that order: ids, keys, reciprocal directions, the
-        // copies of the rays, the map back, and the packets.
+        // copies of the rays, the map back, and the packets. (The sort's own 16 bytes
+        // per ray are freed before these are made.)
         let m = order.len();
         let tr = Trace::new(order.par_iter().map(|&i| rays[i as usize]).collect(), any_hit, self.params.packet_rays);
         tr.alloc(m * (4 + 8 + 12 + std::mem::size_of::<Ray>() + 4) + tr.packets.as_ref().map_or(0, Packets::bytes));
