@@ -261,6 +261,11 @@ impl<'w> Block<'w> {
             let mut w = Warp { warp_idx, lanes, block: self };
             f(&mut w);
         }
+        if self.measure {
+            // The warps ran one after another here and together on a GPU: loops in
+            // which they contend are counted now that all have run.
+            self.worker.meter.get_mut().end_spins();
+        }
     }
 }
 
@@ -441,6 +446,12 @@ fn note_shared(m: &RefCell<Meter>, site: usize, word: usize, words: usize, write
 #[inline(never)]
 fn note_op(m: &RefCell<Meter>, site: usize) {
     m.borrow_mut().op(site, Kind::Other, 1, 1);
+}
+
+#[cold]
+#[inline(never)]
+fn note_spin(m: &RefCell<Meter>, site: usize, word: usize) {
+    m.borrow_mut().spin(site, word);
 }
 
 #[cold]
@@ -682,12 +693,18 @@ impl Thread<'_> {
     }
 
     /// `atomicAdd` on a 64-bit shared word (`unsigned long long`); returns the old value.
+    /// Measured as the GPU runs it: sm_90 has no 64-bit shared add, and nvcc makes a
+    /// load and compare-and-swap retry loop, in which the block's lanes that hit one
+    /// word succeed one per round (`ATOMS.CAST.SPIN.64`; see `Meter::end_spins`).
     #[inline(always)]
     #[track_caller]
     pub fn atomic_add_shared_u64(&self, s: Shared<u64>, i: usize, value: u64) -> u64 {
-        self.shared_atomic(s.len, i);
+        assert!(i < s.len as usize, "shared atomic {i} of {}", s.len);
         // Two words, low first, as `load_shared::<u64>` reads them.
         let at = s.offset as usize + 2 * i;
+        if let Some(m) = self.meter {
+            note_spin(m, site(), at);
+        }
         let (lo, hi) = (&self.shared[at], &self.shared[at + 1]);
         let old = lo.get() as u64 | (hi.get() as u64) << 32;
         let new = old.wrapping_add(value);

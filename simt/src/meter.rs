@@ -17,6 +17,7 @@
 //! Each warp-level memory instruction is one *request*; the distinct 32-byte sectors its
 //! lanes touch are its *sectors*. Loads, stores and atomics are kept apart.
 
+use crate::WARP_SIZE;
 use crate::exec::{MAX_PATHS, MAX_REGIONS, SECTOR_BYTES};
 
 /// Requests and sectors of one kind of memory instruction.
@@ -172,6 +173,9 @@ pub(crate) struct Meter {
     /// Which copy of unrolled code the current lane is in (0: none), mixed into every
     /// call site so that copies are different instructions.
     pub copy: usize,
+    /// Lanes of the current block phase at each (call site, shared word, warp) retry
+    /// loop.
+    spins: Vec<((usize, usize, u32), u32)>,
 }
 
 impl Meter {
@@ -295,6 +299,54 @@ impl Meter {
     /// A call site inside copy `self.copy` of unrolled code.
     fn salted(&self, site: usize) -> usize {
         site ^ self.copy.wrapping_mul(0x9e37_79b9_7f4a_7c15u64 as usize)
+    }
+
+    /// A lane enters a compare-and-swap retry loop on shared word `word`, as nvcc
+    /// compiles a 64-bit shared `atomicAdd` for sm_90: each trip loads the word and
+    /// tries to swap in the sum (two shared-memory instructions). Counted when the
+    /// block's warps have all run ([`Meter::end_spins`]).
+    pub fn spin(&mut self, site: usize, word: usize) {
+        let key = (self.salted(site), word, self.now.thread / WARP_SIZE);
+        match self.spins.iter_mut().find(|(k, _)| *k == key) {
+            Some((_, n)) => *n += 1,
+            None => self.spins.push((key, 1)),
+        }
+    }
+
+    /// Counts the retry loops of [`Meter::spin`] once every warp of the block has run
+    /// them. One lane of the whole block succeeds per round on a word, and the warps
+    /// take turns (the order the H100 showed: 124.8 trips per warp for 128-thread blocks
+    /// of 32 lanes on one word, `docs/gpu-check.md`): with `w` warps at one (call site,
+    /// word), the `k`-th of a warp's lanes there succeeds after `k·w + p + 1` trips, `p`
+    /// being the warp's position among the `w`. A warp issues each trip once for all its
+    /// lanes still trying, whatever their words: as many trips as its slowest lane.
+    pub fn end_spins(&mut self) {
+        if self.spins.is_empty() {
+            return;
+        }
+        self.spins.sort_unstable();
+        // (site, warp) → (trips of its slowest lane, trips of all its lanes).
+        let mut per_warp: Vec<((usize, u32), u64, u64)> = Vec::new();
+        let mut i = 0;
+        while i < self.spins.len() {
+            let (site, word, _) = self.spins[i].0;
+            let j = i + self.spins[i..].iter().take_while(|((s, w, _), _)| (*s, *w) == (site, word)).count();
+            let w = (j - i) as u64;
+            for (p, &((_, _, warp), n)) in self.spins[i..j].iter().enumerate() {
+                let (n, p) = (n as u64, p as u64);
+                per_warp.push(((site, warp), (n - 1) * w + p + 1, w * n * (n - 1) / 2 + n * (p + 1)));
+            }
+            i = j;
+        }
+        per_warp.sort_unstable();
+        for chunk in per_warp.chunk_by(|a, b| a.0 == b.0) {
+            let trips = chunk.iter().map(|c| c.1).max().unwrap_or(0);
+            let lanes: u64 = chunk.iter().map(|c| c.2).sum();
+            // A load and a compare-and-swap per trip.
+            self.totals.ops_issued += 2 * trips;
+            self.totals.ops_active += 2 * lanes;
+        }
+        self.spins.clear();
     }
 
     pub fn work(&mut self, site: usize, region: usize, path: usize, units: u32) {

@@ -132,8 +132,8 @@ fn an_owned_launch_with_a_short_input_panics_clearly() {
     assert!(msg.contains("short") && msg.contains("10") && msg.contains("11"), "{msg}");
 }
 
-/// A 64-bit shared `atomicAdd` carries into its high word, is one instruction per warp,
-/// and reads back through `load_shared::<u64>`.
+/// A 64-bit shared `atomicAdd` carries into its high word, is measured as the GPU's
+/// compare-and-swap retry loop, and reads back through `load_shared::<u64>`.
 #[test]
 fn shared_u64_atomics_carry_and_count_once_per_warp() {
     for dev in [Device::default(), measured()] {
@@ -156,11 +156,47 @@ fn shared_u64_atomics_carry_and_count_once_per_warp() {
             .unwrap();
         assert_eq!(out.as_slice()[0], 64 * (1 << 31) + (0..64).sum::<u64>());
         if dev.measuring() {
-            // One atomic per warp (two warps); then only warp 0 issues the shared load
-            // and the store (one lane active each).
-            assert_eq!((rec.ops.issued, rec.ops.active), (2 + 1 + 1, 64 + 1 + 1));
+            // Two warps of 32 lanes on one word take turns, one success per round:
+            // lane k of warp p is done after 2k + p + 1 trips of a load and a swap, so
+            // warp 0 runs 63 trips and warp 1 64, and the lanes 32·31 + 32 and
+            // 32·31 + 64 lane-trips. Then only warp 0 issues the shared load and the
+            // store (one lane each).
+            assert_eq!((rec.ops.issued, rec.ops.active), (2 * (63 + 64) + 1 + 1, 2 * (1024 + 1056) + 1 + 1));
         }
     }
+}
+
+/// Lanes on different shared words retry side by side: two words of 16 lanes each take
+/// 16 trips, and a second call site is a loop of its own.
+#[test]
+fn shared_u64_atomics_retry_per_word_and_per_call_site() {
+    let dev = measured();
+    let cfg = || LaunchConfig { grid: 1, block: 32, shared_bytes: 16, regions: &[] };
+    let rec = dev
+        .launch("two_words", cfg(), |blk| {
+            let sum = blk.shared::<u64>(2);
+            blk.for_each_thread(|t| {
+                t.atomic_add_shared_u64(sum, t.thread_idx() as usize % 2, 1);
+            });
+        })
+        .unwrap();
+    // One warp: the 16 lanes of each word succeed one per trip, both words at once:
+    // 16 trips, trip j run by 2 · (16 − j) lanes, two instructions each.
+    assert_eq!((rec.ops.issued, rec.ops.active), (2 * 16, 2 * 2 * 136));
+    let rec = dev
+        .launch("two_sites", cfg(), |blk| {
+            let sum = blk.shared::<u64>(2);
+            blk.for_each_thread(|t| {
+                if t.thread_idx() < 4 {
+                    t.atomic_add_shared_u64(sum, 0, 1);
+                } else {
+                    t.atomic_add_shared_u64(sum, 0, 2);
+                }
+            });
+        })
+        .unwrap();
+    // Four lanes (4 trips: 4 + 3 + 2 + 1) and 28 lanes (28 trips: 406 lane-trips).
+    assert_eq!((rec.ops.issued, rec.ops.active), (2 * (4 + 28), 2 * (10 + 406)));
 }
 
 /// `into_vec` hands the contents over and the bytes leave the device's accounting.
