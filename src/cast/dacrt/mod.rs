@@ -396,20 +396,6 @@ impl Dacrt {
         self.recurse(tr, tight, &mut rays[..nr], &mut tris[..nt], spare, depth + 1)
     }
 
-    /// How many independent ray groups a batch of `n` rays is traced in.
-    fn group_count(&self, n: usize) -> usize {
-        let p = &self.params;
-        let threads = rayon::current_num_threads();
-        if threads <= 1 || p.groups_per_thread == 0 {
-            return 1;
-        }
-        // A group re-partitions the triangles of every cell it reaches: it should carry
-        // at least a quarter as many rays as a cell has triangles.
-        let cell = if p.top_cell_triangles == 0 { self.tris.len() } else { self.tris.len().min(p.top_cell_triangles) };
-        let min_rays = p.min_group_rays.max(cell / 4).max(1);
-        (threads * p.groups_per_thread).min(n / min_rays).max(1)
-    }
-
     /// Runs the recursion for one batch; returns the per-ray keys (in the batch's
     /// order), the peak bytes and the ray–triangle tests made.
     fn trace(&self, rays: &[Ray], any_hit: bool) -> (Vec<u64>, usize, u64) {
@@ -426,16 +412,24 @@ impl Dacrt {
             return (vec![NONE; n], 0, 0);
         }
         let groups = self.group_count(order.len());
-        let order = self.coherence_order(rays, order);
-        // The valid rays renumbered in that order: ids, keys, reciprocal directions, the
-        // copies of the rays, the map back, and the packets. (The sort's own 16 bytes
-        // per ray are freed before these are made.)
+        // The shared top does not depend on the rays: it is built beside their sort and
+        // copy, so that threads idle in one of the two help the other.
+        let (top, (order, tr)) = rayon::join(
+            || self.build_top(),
+            || {
+                let order = self.coherence_order(rays, order);
+                // The valid rays renumbered in that order: ids, keys, reciprocal
+                // directions, the copies of the rays, the map back, and the packets.
+                // (The sort's own 16 bytes per ray are freed before these are made.)
+                let tr =
+                    Trace::new(order.par_iter().map(|&i| rays[i as usize]).collect(), any_hit, self.params.packet_rays);
+                (order, tr)
+            },
+        );
         let m = order.len();
-        let tr = Trace::new(order.par_iter().map(|&i| rays[i as usize]).collect(), any_hit, self.params.packet_rays);
         tr.alloc(m * (4 + 8 + 12 + std::mem::size_of::<Ray>() + 4) + tr.packets.as_ref().map_or(0, Packets::bytes));
-        let mut ray_ids: Vec<u32> = (0..m as u32).collect();
-        let top = self.build_top();
         tr.alloc(top.ids.len() * 4);
+        let mut ray_ids: Vec<u32> = (0..m as u32).collect();
         if groups <= 1 {
             self.trace_top(&tr, &top, &top.root, &mut ray_ids, &mut Scratch::default(), 0);
         } else {

@@ -167,6 +167,20 @@ pub(super) struct SharedTop {
 }
 
 impl Dacrt {
+    /// How many independent ray groups a batch of `n` rays is traced in.
+    pub(super) fn group_count(&self, n: usize) -> usize {
+        let p = &self.params;
+        let threads = rayon::current_num_threads();
+        if threads <= 1 || p.groups_per_thread == 0 {
+            return 1;
+        }
+        // A group re-partitions the triangles of every cell it reaches: it should carry
+        // at least a quarter as many rays as a cell has triangles.
+        let cell = if p.top_cell_triangles == 0 { self.tris.len() } else { self.tris.len().min(p.top_cell_triangles) };
+        let min_rays = p.min_group_rays.max(cell / 4).max(1);
+        (threads * p.groups_per_thread).min(n / min_rays).max(1)
+    }
+
     /// The shared top levels: planes chosen on a sample of the triangles
     /// ([`Dacrt::plan_top`]), then every triangle routed down them and gathered by cell,
     /// a counting sort in two parallel passes over the boxes in order (the first
