@@ -279,6 +279,20 @@ pub fn intersect_triangle(
     t_min: f32,
     t_max: f32,
 ) -> Option<(f32, f32, f32)> {
+    triangle_test(origin, shear, [p0, p1, p2], t_min, t_max).1
+}
+
+/// [`intersect_triangle`], also telling whether the ray's line passed the edge test.
+/// Past it, a GPU's lanes run the determinant and distance code, few lanes at a time
+/// (PDACRT's brute-force kernel counts that path apart).
+#[inline(always)]
+pub(crate) fn triangle_test(
+    origin: Vec3,
+    shear: &RayShear,
+    [p0, p1, p2]: [Vec3; 3],
+    t_min: f32,
+    t_max: f32,
+) -> (bool, Option<(f32, f32, f32)>) {
     let o = Vec3A::from(origin);
     let (ax, ay, az) = shear.apply(Vec3A::from(p0) - o);
     let (bx, by, bz) = shear.apply(Vec3A::from(p1) - o);
@@ -298,19 +312,19 @@ pub fn intersect_triangle(
         e2 = (bx * ay - by * ax) as f32;
     }
     if ((e0 < 0.0) | (e1 < 0.0) | (e2 < 0.0)) & ((e0 > 0.0) | (e1 > 0.0) | (e2 > 0.0)) {
-        return None;
+        return (false, None);
     }
     let det = e0 + e1 + e2;
     if det == 0.0 || !det.is_finite() {
-        return None;
+        return (true, None);
     }
     let t_scaled = e0 * az + e1 * bz + e2 * cz;
     let inv_det = 1.0 / det;
     let t = t_scaled * inv_det;
     if !(t > t_min && t < t_max) {
-        return None;
+        return (true, None);
     }
-    Some((t, e1 * inv_det, e2 * inv_det))
+    (true, Some((t, e1 * inv_det, e2 * inv_det)))
 }
 
 /// Geometric normal (not normalised) of a triangle, following its winding.

@@ -120,6 +120,10 @@ enum Cmd {
         /// by a time limit can be left out).
         #[arg(long)]
         first: Option<usize>,
+        /// Also print each kernel's N busiest source lines (warp instructions, share,
+        /// SIMD efficiency, static SASS instructions).
+        #[arg(long)]
+        lines: Option<usize>,
     },
     /// Join a `simt` TSV and an ncu CSV into the comparison table.
     Report {
@@ -184,8 +188,8 @@ fn run(a: Args) -> Result<(), String> {
         Cmd::Cis { scene, size, simt, simt_launches } => {
             cis_run(&scene, size, simt.as_deref(), simt_launches.as_deref())?
         }
-        Cmd::Source { csv, simt_launches, classes, first } => {
-            source::source_run(&csv, simt_launches.as_deref(), &classes, first.unwrap_or(usize::MAX))?
+        Cmd::Source { csv, simt_launches, classes, first, lines } => {
+            source::source_run(&csv, simt_launches.as_deref(), &classes, first.unwrap_or(usize::MAX), lines)?
         }
         Cmd::Report { simt, ncu: csv } => {
             let read = |p: &std::path::Path| std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()));

@@ -12,6 +12,7 @@ pub fn source_run(
     simt_launches: Option<&std::path::Path>,
     classes: &str,
     first: usize,
+    lines: Option<usize>,
 ) -> Result<(), String> {
     use warpray::gpu::source;
     let (classes, seen): (_, &[&str]) = match classes {
@@ -32,6 +33,9 @@ pub fn source_run(
     let splits = source::split(&insts, classes, |_, k| k < first);
     for s in &splits {
         println!("{}", source::table(s));
+    }
+    if let Some(top) = lines {
+        println!("{}", warpray::gpu::lines::lines_table(&warpray::gpu::lines::lines(&insts, |_, k| k < first), top));
     }
     let Some(path) = simt_launches else { return Ok(()) };
     let launches = tsv::read(&std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?)

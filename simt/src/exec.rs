@@ -37,6 +37,11 @@ pub const MAX_PATHS: usize = 8;
 pub const REGISTER_WORDS_PER_THREAD: usize = 64;
 /// Bytes in one memory sector.
 pub const SECTOR_BYTES: u64 = 32;
+/// Instructions in one trip of the retry loop that a 64-bit shared `atomicAdd` compiles
+/// to on sm_90, which has no 64-bit shared add (nvcc 13.0, `cuobjdump -sass`): the load
+/// (`LDS.64`), the 64-bit add (`IADD3`, `IMAD.X`), the swap (`ATOMS.CAST.SPIN.64`), the
+/// 64-bit test of its result (two `ISETP`) and the branch back.
+pub const RETRY_TRIP_INSTRUCTIONS: u64 = 7;
 
 /// A typed array in a block's shared memory (from [`Block::shared`]).
 #[derive(Debug)]
@@ -216,6 +221,23 @@ impl<'w> Block<'w> {
         let (value, addr) = read_field(v, i, field);
         self.note_uniform::<U>(addr);
         value
+    }
+
+    /// Declares `units` instructions of arithmetic that every thread of the block runs
+    /// together, in the block's own flow between thread phases (the index arithmetic
+    /// around [`Block::load_uniform`], say): [`Thread::work`] with every lane active.
+    #[track_caller]
+    pub fn work_uniform(&mut self, region: usize, path: usize, units: u32) {
+        if self.measure {
+            let at = site();
+            self.for_each_warp(|w| {
+                w.run_lanes(false, &mut |t: &Thread| {
+                    if let Some(m) = t.meter {
+                        note_work(m, at, region, path, units);
+                    }
+                })
+            });
+        }
     }
 
     /// Measures a uniform load of a `T` at `addr` (nothing when unmeasured).

@@ -18,7 +18,7 @@
 //! lanes touch are its *sectors*. Loads, stores and atomics are kept apart.
 
 use crate::WARP_SIZE;
-use crate::exec::{MAX_PATHS, MAX_REGIONS, SECTOR_BYTES};
+use crate::exec::{MAX_PATHS, MAX_REGIONS, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES};
 
 /// Requests and sectors of one kind of memory instruction.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -319,7 +319,8 @@ impl Meter {
     /// of 32 lanes on one word, `docs/gpu-check.md`): with `w` warps at one (call site,
     /// word), the `k`-th of a warp's lanes there succeeds after `k·w + p + 1` trips, `p`
     /// being the warp's position among the `w`. A warp issues each trip once for all its
-    /// lanes still trying, whatever their words: as many trips as its slowest lane.
+    /// lanes still trying, whatever their words: as many trips as its slowest lane, each
+    /// [`RETRY_TRIP_INSTRUCTIONS`] instructions.
     pub fn end_spins(&mut self) {
         if self.spins.is_empty() {
             return;
@@ -342,9 +343,9 @@ impl Meter {
         for chunk in per_warp.chunk_by(|a, b| a.0 == b.0) {
             let trips = chunk.iter().map(|c| c.1).max().unwrap_or(0);
             let lanes: u64 = chunk.iter().map(|c| c.2).sum();
-            // A load and a compare-and-swap per trip.
-            self.totals.ops_issued += 2 * trips;
-            self.totals.ops_active += 2 * lanes;
+            // The loop's instructions, each trip.
+            self.totals.ops_issued += RETRY_TRIP_INSTRUCTIONS * trips;
+            self.totals.ops_active += RETRY_TRIP_INSTRUCTIONS * lanes;
         }
         self.spins.clear();
     }

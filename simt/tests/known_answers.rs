@@ -237,6 +237,28 @@ fn a_uniform_load_is_one_request_per_warp_on_one_element() {
     assert_eq!(rec.loads.requests, 0);
 }
 
+#[test]
+fn uniform_work_counts_every_lane_of_every_warp() {
+    let dev = measured();
+    // Two blocks of 80 threads (warps of 32, 32 and 16 lanes); region 0 named.
+    let cfg = || LaunchConfig { grid: 2, block: 80, shared_bytes: 0, regions: &["search"] };
+    let rec = dev
+        .launch("uniform_work", cfg(), |blk| {
+            for _ in 0..3 {
+                blk.work_uniform(0, 0, 5);
+            }
+        })
+        .unwrap();
+    // Each warp issues 5 instructions three times (one call site, three occurrences),
+    // with all its lanes.
+    let r = &rec.regions[0];
+    assert_eq!((r.name, r.issued, r.active), ("search", 2 * 3 * 3 * 5, 2 * 3 * 5 * 80));
+    assert_eq!((rec.ops.issued, rec.threads), (0, 0));
+    dev.set_measure(false);
+    let rec = dev.launch("uniform_work_off", cfg(), |blk| blk.work_uniform(0, 0, 5)).unwrap();
+    assert_eq!(rec.regions[0].issued, 0);
+}
+
 #[derive(Clone, Copy, Default)]
 #[repr(C, align(16))]
 struct Vec4([f32; 4]);

@@ -2,7 +2,7 @@
 //! (`Device::transform`, `transform_in_place`) and the 64-bit shared atomic. (Split from
 //! `known_answers.rs`, which keeps the emulator's core rules.)
 
-use simt::{Device, DeviceConfig, DeviceCopy, LaunchConfig, Readable};
+use simt::{Device, DeviceConfig, DeviceCopy, LaunchConfig, RETRY_TRIP_INSTRUCTIONS, Readable};
 
 fn measured() -> Device {
     Device::new(DeviceConfig { measure: true, ..Default::default() })
@@ -157,11 +157,12 @@ fn shared_u64_atomics_carry_and_count_once_per_warp() {
         assert_eq!(out.as_slice()[0], 64 * (1 << 31) + (0..64).sum::<u64>());
         if dev.measuring() {
             // Two warps of 32 lanes on one word take turns, one success per round:
-            // lane k of warp p is done after 2k + p + 1 trips of a load and a swap, so
-            // warp 0 runs 63 trips and warp 1 64, and the lanes 32·31 + 32 and
-            // 32·31 + 64 lane-trips. Then only warp 0 issues the shared load and the
+            // lane k of warp p is done after 2k + p + 1 trips of the loop (7 instructions
+            // on sm_90), so warp 0 runs 63 trips and warp 1 64, and the lanes 32·31 + 32
+            // and 32·31 + 64 lane-trips. Then only warp 0 issues the shared load and the
             // store (one lane each).
-            assert_eq!((rec.ops.issued, rec.ops.active), (2 * (63 + 64) + 1 + 1, 2 * (1024 + 1056) + 1 + 1));
+            assert_eq!(RETRY_TRIP_INSTRUCTIONS, 7);
+            assert_eq!((rec.ops.issued, rec.ops.active), (7 * (63 + 64) + 1 + 1, 7 * (1024 + 1056) + 1 + 1));
         }
     }
 }
@@ -181,8 +182,8 @@ fn shared_u64_atomics_retry_per_word_and_per_call_site() {
         })
         .unwrap();
     // One warp: the 16 lanes of each word succeed one per trip, both words at once:
-    // 16 trips, trip j run by 2 · (16 − j) lanes, two instructions each.
-    assert_eq!((rec.ops.issued, rec.ops.active), (2 * 16, 2 * 2 * 136));
+    // 16 trips, trip j run by 2 · (16 − j) lanes, seven instructions each.
+    assert_eq!((rec.ops.issued, rec.ops.active), (7 * 16, 7 * 2 * 136));
     let rec = dev
         .launch("two_sites", cfg(), |blk| {
             let sum = blk.shared::<u64>(2);
@@ -196,7 +197,7 @@ fn shared_u64_atomics_retry_per_word_and_per_call_site() {
         })
         .unwrap();
     // Four lanes (4 trips: 4 + 3 + 2 + 1) and 28 lanes (28 trips: 406 lane-trips).
-    assert_eq!((rec.ops.issued, rec.ops.active), (2 * (4 + 28), 2 * (10 + 406)));
+    assert_eq!((rec.ops.issued, rec.ops.active), (7 * (4 + 28), 7 * (10 + 406)));
 }
 
 /// `into_vec` hands the contents over and the bytes leave the device's accounting.

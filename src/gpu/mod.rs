@@ -18,6 +18,7 @@
 
 mod cis;
 mod ffi;
+pub mod lines;
 pub mod ncu;
 pub mod source;
 

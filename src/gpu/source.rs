@@ -38,6 +38,8 @@ pub struct Instruction {
     pub op: String,
     /// The SASS instruction (`LDG.E.128 R4, desc[UR4][R2.64]`).
     pub sass: String,
+    /// Its address in the kernel's code.
+    pub address: String,
     /// Warp instructions executed (for a global access: its requests).
     pub warp: f64,
     /// Thread instructions executed.
@@ -128,6 +130,7 @@ pub fn parse(text: &str) -> Result<Vec<Instruction>, String> {
             space: col("Address Space")?.trim_matches('-').to_string(),
             op: col("Access Operation")?.trim_matches('-').to_string(),
             sass: row.get(3).map(|x| x.trim().to_string()).unwrap_or_default(),
+            address: address.clone(),
             warp: number(col("Instructions Executed")?),
             thread: number(col("Thread Instructions Executed")?),
             sectors: number(col("L2 Theoretical Sectors Global")?),
@@ -204,7 +207,7 @@ pub struct Sums {
 }
 
 impl Sums {
-    fn add(&mut self, i: &Instruction) {
+    pub(crate) fn add(&mut self, i: &Instruction) {
         self.warp += i.warp;
         self.thread += i.thread;
         self.sectors += i.sectors;
@@ -248,20 +251,28 @@ impl Split {
     }
 }
 
-/// Per kernel (by short name), over the launches `keep` accepts (launch number within
-/// that kernel, from 0).
-pub fn split(insts: &[Instruction], classes: &[(&str, &[&str])], keep: impl Fn(&str, usize) -> bool) -> Vec<Split> {
-    let mut out: Vec<Split> = Vec::new();
+/// Each instruction with its kernel's short name and its launch's number within that
+/// kernel (from 0).
+pub(crate) fn numbered(insts: &[Instruction]) -> impl Iterator<Item = (String, usize, &Instruction)> {
     // (kernel, export launch) -> launch number within the kernel.
     let mut nth: HashMap<(String, usize), usize> = HashMap::new();
     let mut counts: HashMap<String, usize> = HashMap::new();
-    for i in insts {
+    insts.iter().map(move |i| {
         let name = super::ncu::short_name(&i.kernel);
         let k = *nth.entry((name.clone(), i.launch)).or_insert_with(|| {
             let c = counts.entry(name.clone()).or_default();
             *c += 1;
             *c - 1
         });
+        (name, k, i)
+    })
+}
+
+/// Per kernel (by short name), over the launches `keep` accepts (launch number within
+/// that kernel, from 0).
+pub fn split(insts: &[Instruction], classes: &[(&str, &[&str])], keep: impl Fn(&str, usize) -> bool) -> Vec<Split> {
+    let mut out: Vec<Split> = Vec::new();
+    for (name, k, i) in numbered(insts) {
         if !keep(&name, k) {
             continue;
         }
@@ -302,7 +313,7 @@ pub fn split(insts: &[Instruction], classes: &[(&str, &[&str])], keep: impl Fn(&
     out
 }
 
-fn opt(v: Option<f64>, digits: usize) -> String {
+pub(crate) fn opt(v: Option<f64>, digits: usize) -> String {
     v.map_or("–".into(), |x| format!("{x:.digits$}"))
 }
 
@@ -333,12 +344,12 @@ pub fn table(s: &Split) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// Two launches of one kernel; an instruction listed under a system header and again
     /// under our line; a local load that is not global.
-    const SAMPLE: &str = concat!(
+    pub(crate) const SAMPLE: &str = concat!(
         "\"Kernel Name\",\"cis::shade_sorted(cis::ShadeArgs)\",\n",
         "\"File Path\",\"/usr/include/c++/13/cmath\"\n",
         "\"Function Name\",\"cis::shade_sorted(cis::ShadeArgs)\"\n",

@@ -7,7 +7,7 @@
 //! follow.
 
 use crate::cast::LEAF_PAIRS_FACTOR;
-use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir};
+use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir, triangle_test};
 use glam::Vec3;
 use simt::{Block, DeviceCopy, Global, GlobalMut, Readable, Thread};
 
@@ -470,6 +470,26 @@ pub(crate) fn scatter_ref(
 /// Triangles staged in shared memory per round of the brute-force kernel.
 pub(crate) const STAGE: usize = 128;
 
+// Instruction weights of the brute-force kernel's arithmetic: what the GPU twin
+// executes, as nvcc 13.0 compiles it for sm_90 (`cuobjdump -sass`, and Nsight Compute's
+// per-instruction counts on the H100: `docs/gpu-check.md`, "Instruction weights"),
+// less the memory instructions that `simt` counts itself. Declared as work, region 0.
+
+/// One ray–triangle test up to its edge test: 100 instructions per trip of the twin's
+/// test loop (the shared loads of the triangle, the shear, the edge functions, the
+/// loop's own), less the shared load counted by `simt`. Path 0.
+const TEST_INSTRUCTIONS: u32 = 99;
+/// The path past the edge test (determinant, distance, the candidate key and its
+/// comparison), run only by the lanes whose ray's line meets the triangle: 27 per warp
+/// that takes it. Path 1.
+const PAST_EDGES_INSTRUCTIONS: u32 = 27;
+/// One step of the binary search for the block's terminal node: a 10-instruction loop
+/// body, less its load. Path 2.
+const SEARCH_STEP_INSTRUCTIONS: u32 = 9;
+/// One trip of the staging loop: a 31-instruction body, less its two global loads and
+/// two shared stores. Path 3.
+const STAGE_STEP_INSTRUCTIONS: u32 = 27;
+
 /// Shared memory of one brute-force block: `STAGE` (128) triangles (36 bytes) and their
 /// ids (4 bytes), and the block's test count (8 bytes).
 pub const BRUTE_FORCE_SHARED_BYTES: usize = STAGE * 40 + 8;
@@ -505,6 +525,7 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
     let (mut lo, mut hi) = (0usize, a.terminal_count);
     while hi - lo > 1 {
         let mid = (lo + hi) / 2;
+        blk.work_uniform(0, 2, SEARCH_STEP_INSTRUCTIONS);
         if blk.load_uniform(&a.chunk_start, mid) <= b { lo = mid } else { hi = mid }
     }
     // The node's four ranges, each a uniform load of its own field.
@@ -538,6 +559,7 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
         blk.for_each_thread(|t| {
             let mut s = t.thread_idx() as usize;
             while s < count {
+                t.work(0, 3, STAGE_STEP_INSTRUCTIONS);
                 let tri = t.load(&a.tri_ids, tri_start + first + s);
                 t.store_shared(stage_ids, s, tri);
                 t.store_shared(stage, s, t.load(&a.tris, tri as usize));
@@ -560,23 +582,32 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
             let mut done = 0u32;
             for s in 0..count {
                 done += 1;
-                let [p0, p1, p2] = corners(t.load_shared(stage, s));
-                if a.any_hit {
-                    if intersect_triangle(r.origin, &shear, p0, p1, p2, r.t_min, r.t_max).is_some() {
-                        key = BLOCKED;
-                        break;
+                let tri = corners(t.load_shared(stage, s));
+                let t_max = if a.any_hit { r.t_max } else { far.next_up() };
+                let (past_edges, hit) = triangle_test(r.origin, &shear, tri, r.t_min, t_max);
+                if !past_edges {
+                    continue;
+                }
+                // `count` is the block's, so every lane runs trip `s` at once: the path
+                // past the edges is one warp instruction per trip, for the lanes on it.
+                let blocked = t.unrolled(s, || {
+                    t.work(0, 1, PAST_EDGES_INSTRUCTIONS);
+                    let (th, _, _) = hit?;
+                    if !a.any_hit {
+                        let candidate = pack_hit(th, t.load_shared(stage_ids, s));
+                        if candidate < key {
+                            key = candidate;
+                            far = th;
+                        }
                     }
-                } else if let Some((th, _, _)) =
-                    intersect_triangle(r.origin, &shear, p0, p1, p2, r.t_min, far.next_up())
-                {
-                    let candidate = pack_hit(th, t.load_shared(stage_ids, s));
-                    if candidate < key {
-                        key = candidate;
-                        far = th;
-                    }
+                    a.any_hit.then_some(())
+                });
+                if blocked.is_some() {
+                    key = BLOCKED;
+                    break;
                 }
             }
-            t.work(0, 0, done);
+            t.work(0, 0, done * TEST_INSTRUCTIONS);
             t.set(tests, t.get(tests) + done as u64);
             t.set(best, key);
         });
