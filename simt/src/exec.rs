@@ -458,6 +458,12 @@ fn note_global(m: &RefCell<Meter>, site: usize, kind: Kind, addr: u64, size: u64
 
 #[cold]
 #[inline(never)]
+fn note_global_if(m: &RefCell<Meter>, site: usize, kind: Kind, addr: u64, size: u64, width: u64, on: bool) {
+    m.borrow_mut().global_if(site, kind, addr, size, width, on);
+}
+
+#[cold]
+#[inline(never)]
 fn note_shared(m: &RefCell<Meter>, site: usize, word: usize, words: usize, write: bool) {
     let mut m = m.borrow_mut();
     m.op(site, Kind::Other, 1, 1);
@@ -590,6 +596,22 @@ impl Thread<'_> {
     pub fn store<T: DeviceCopy>(&self, v: &GlobalMut<T>, i: usize, value: T) {
         self.note::<T>(Kind::Store, v.address(i));
         v.write(i, value)
+    }
+
+    /// A predicated store: element `i` is written only when `on`, but the store is one
+    /// instruction of every lane that reaches it, as compiled code makes of
+    /// `x[i] = c ? a : b` with two predicated stores (`@P0 STG`, `@!P0 STG`): the lane is
+    /// active in both, and only the lanes whose predicate holds make memory traffic.
+    #[inline(always)]
+    #[track_caller]
+    pub fn store_if<T: DeviceCopy>(&self, on: bool, v: &GlobalMut<T>, i: usize, value: T) {
+        if let Some(m) = self.meter {
+            let size = std::mem::size_of::<T>() as u64;
+            note_global_if(m, site(), Kind::Store, v.address(i), size, access_width::<T>(), on);
+        }
+        if on {
+            v.write(i, value)
+        }
     }
 
     /// `atomicAdd` on a `u32`; returns the old value.

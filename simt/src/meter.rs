@@ -28,7 +28,9 @@ pub struct Traffic {
     /// Distinct 32-byte sectors per request, summed.
     pub sectors: u64,
     /// Thread-level memory instructions: the lanes that executed each request, summed
-    /// (Nsight's `smsp__sass_thread_inst_executed_op_global_{ld,st}`).
+    /// (Nsight's `smsp__sass_thread_inst_executed_op_global_{ld,st}`); of a predicated
+    /// store, the lanes whose predicate held. A predicated instruction with no lane on
+    /// makes no request.
     pub lanes: u64,
 }
 
@@ -100,6 +102,8 @@ struct Slot {
     kind: Kind,
     max_units: u32,
     sum_units: u64,
+    /// Lanes whose predicate let them access memory (all of them unless predicated).
+    on: u64,
     /// The sector this instruction recorded last: consecutive lanes of a coalesced
     /// access touch the same sector, which is then recorded once.
     last_sector: u64,
@@ -220,7 +224,7 @@ impl Meter {
                 let s = self.slots.len() as u32;
                 per_site.push(s);
                 for _ in 0..parts {
-                    self.slots.push(Slot { kind, max_units: 0, sum_units: 0, last_sector: u64::MAX });
+                    self.slots.push(Slot { kind, max_units: 0, sum_units: 0, on: 0, last_sector: u64::MAX });
                 }
                 s
             }
@@ -236,11 +240,22 @@ impl Meter {
     /// A global access of a `size`-byte element at `addr`, issued as `size / width`
     /// instructions of `width` bytes.
     pub fn global(&mut self, site: usize, kind: Kind, addr: u64, size: u64, width: u64) {
+        self.global_if(site, kind, addr, size, width, true);
+    }
+
+    /// [`Meter::global`] of a predicated instruction: the lane takes part in it (it is
+    /// issued with the lane active) but touches memory only when `on`; a request is
+    /// counted only when some lane is on.
+    pub fn global_if(&mut self, site: usize, kind: Kind, addr: u64, size: u64, width: u64, on: bool) {
         let parts = (size / width).max(1) as u32;
         let first = self.op(site, kind, parts, 1);
+        if !on {
+            return;
+        }
         for p in 0..parts as u64 {
             let a = addr + p * width;
             let slot = first + p as u32;
+            self.slots[slot as usize].on += 1;
             for sector in a / SECTOR_BYTES..=(a + width - 1) / SECTOR_BYTES {
                 // Repeats of the slot's last sector are left out here; the rest are
                 // deduplicated when the phase closes.
@@ -441,8 +456,10 @@ impl Meter {
                         Kind::Atomic => &mut self.totals.atomics,
                         _ => continue,
                     };
-                    traffic.requests += 1;
-                    traffic.lanes += s.sum_units;
+                    if s.on > 0 {
+                        traffic.requests += 1;
+                        traffic.lanes += s.on;
+                    }
                 }
             }
         }

@@ -410,6 +410,31 @@ fn an_unrolled_loop_issues_each_trip_apart() {
 }
 
 #[test]
+fn a_predicated_store_is_issued_for_every_lane_and_stores_for_those_on() {
+    let dev = measured();
+    let mut y = dev.alloc::<[u32; 3]>(32);
+    let yv = y.view_mut();
+    // One warp: `y[i] = i < 8 ? (1, i, i) : (0, 0, 0)` as two predicated stores of three
+    // words each (nvcc's `@P0 STG` / `@!P0 STG`).
+    let rec = dev.for_each("select", 32, |t, i| {
+        let on = i < 8;
+        t.store_if(on, &yv, i, [1, i as u32, i as u32]);
+        t.store_if(!on, &yv, i, [0; 3]);
+    });
+    // Six store instructions, all 32 lanes active in each (SIMD 1.0).
+    assert_eq!((rec.ops.issued, rec.ops.active), (6, 6 * 32));
+    // Memory: three requests of 8 lanes over bytes 0..96 (3 sectors each, the 12-byte
+    // stride spans them) and three of 24 lanes over bytes 96..384 (9 sectors each).
+    assert_eq!((rec.stores.requests, rec.stores.lanes), (6, 3 * 8 + 3 * 24));
+    assert_eq!(rec.stores.sectors, 3 * 3 + 3 * 9);
+    // A predicate that no lane holds issues the instruction and makes no request.
+    let none = dev.for_each("none", 32, |t, i| t.store_if(false, &yv, i, [7; 3]));
+    assert_eq!((none.ops.issued, none.stores.requests, none.stores.lanes), (3, 0, 0));
+    // Only the lanes on wrote.
+    assert_eq!((y.as_slice()[0], y.as_slice()[3], y.as_slice()[20]), ([1, 0, 0], [1, 3, 3], [0; 3]));
+}
+
+#[test]
 fn memory_instructions_count_the_lanes_that_execute_them() {
     let dev = measured();
     let x = dev.alloc::<u32>(64);

@@ -351,9 +351,12 @@ pub(crate) fn classify_child(
         };
         (kind, r, tr, 0)
     };
-    let triple = |k| if kind == k { [1, rays, tris] } else { [0, 0, 0] };
-    t.store(inner, c, triple(INNER));
-    t.store(terminal, c, triple(TERMINAL));
+    // `inner[c] = kind == INNER ? chosen : none`: compiled as two predicated stores of
+    // three words, each touching memory for its lanes only (the twin's SASS).
+    for (buf, k) in [(inner, INNER), (terminal, TERMINAL)] {
+        t.store_if(kind == k, buf, c, [1, rays, tris]);
+        t.store_if(kind != k, buf, c, [0, 0, 0]);
+    }
     t.store(children, c, ChildData { kind, rays, tris, whole, ..Default::default() });
 }
 
