@@ -434,6 +434,27 @@ pub(crate) const fn access_width<T>() -> u64 {
     w as u64
 }
 
+/// An element, or a field of one, that a lane will load with [`Thread::load_place`]:
+/// chosen first (from one view or another, in the arms of a branch), loaded after.
+#[derive(Clone, Copy, Debug)]
+pub struct Place<U> {
+    value: U,
+    addr: u64,
+}
+
+impl<U: DeviceCopy> Place<U> {
+    /// Element `i` of `v`.
+    pub fn of<V: Readable<U>>(v: &V, i: usize) -> Place<U> {
+        Place { value: v.read(i), addr: v.address(i) }
+    }
+
+    /// One field of element `i` of `v` (as [`Thread::load_field`]).
+    pub fn field<T: DeviceCopy, V: Readable<T>>(v: &V, i: usize, field: impl FnOnce(&T) -> &U) -> Place<U> {
+        let (value, addr) = read_field(v, i, field);
+        Place { value, addr }
+    }
+}
+
 /// The field of element `i` that `field` picks, and its address; panics unless the
 /// projection returns a part of the element itself.
 #[inline(always)]
@@ -588,6 +609,16 @@ impl Thread<'_> {
         let (value, addr) = read_field(v, i, field);
         self.note::<U>(Kind::Load, addr);
         value
+    }
+
+    /// Loads what `place` points at, as one load instruction at this call site whichever
+    /// view each lane's place is in: compiled code's if-converted branch, which selects
+    /// an address in each arm and loads once after them, with every lane.
+    #[inline(always)]
+    #[track_caller]
+    pub fn load_place<U: DeviceCopy>(&self, place: Place<U>) -> U {
+        self.note::<U>(Kind::Load, place.addr);
+        place.value
     }
 
     /// Stores element `i` of a global buffer.

@@ -3,7 +3,7 @@
 //! About 650 lines: one known answer per rule of the execution model, which reads best
 //! beside the others; other launch forms are in `launch_forms.rs`.
 
-use simt::{Device, DeviceConfig, LaunchConfig, LaunchError, WorkQueue};
+use simt::{Device, DeviceConfig, LaunchConfig, LaunchError, Place, WorkQueue};
 
 fn measured() -> Device {
     Device::new(DeviceConfig { measure: true, ..Default::default() })
@@ -407,6 +407,32 @@ fn an_unrolled_loop_issues_each_trip_apart() {
     // Nothing else changes: a copy ends with its closure.
     let after = dev.for_each("after", 32, |t, i| t.unrolled(0, || t.store(&yv, i, 2)));
     assert_eq!((after.stores.requests, after.stores.lanes), (1, 32));
+}
+
+#[test]
+fn a_load_from_a_chosen_place_is_one_instruction_of_every_lane() {
+    let dev = measured();
+    let a = dev.alloc_from(&(0..64u32).map(|k| [k, k + 100]).collect::<Vec<_>>());
+    let b = dev.alloc_from(&(0..64u32).map(|k| 1000 + k).collect::<Vec<_>>());
+    let (av, bv) = (a.view(), b.view());
+    let mut out = dev.alloc::<u32>(32);
+    let ov = out.view_mut();
+    // One warp: even lanes take field 1 of a[i], odd lanes b[i]; one load after the
+    // branch (if-converted), against the same choice loaded in each arm.
+    let selected = dev.for_each("selected", 32, |t, i| {
+        let place = if i % 2 == 0 { Place::field(&av, i, |x: &[u32; 2]| &x[1]) } else { Place::of(&bv, i) };
+        t.store(&ov, i, t.load_place(place));
+    });
+    assert_eq!((out.as_slice()[4], out.as_slice()[5]), (104, 1005));
+    // One load of 32 lanes: 16 words 8 bytes apart in a (bytes 4..252: 8 sectors) and 16
+    // words 4 bytes apart in b (bytes 4..128: 4 sectors).
+    assert_eq!((selected.loads.requests, selected.loads.lanes, selected.loads.sectors), (1, 32, 12));
+    let ov = out.view_mut();
+    let in_arms = dev.for_each("in_arms", 32, |t, i| {
+        let x = if i % 2 == 0 { t.load_field(&av, i, |x: &[u32; 2]| &x[1]) } else { t.load(&bv, i) };
+        t.store(&ov, i, x);
+    });
+    assert_eq!((in_arms.loads.requests, in_arms.loads.lanes, in_arms.loads.sectors), (2, 32, 12));
 }
 
 #[test]

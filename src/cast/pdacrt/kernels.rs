@@ -9,7 +9,7 @@
 use crate::cast::LEAF_PAIRS_FACTOR;
 use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir, triangle_test};
 use glam::Vec3;
-use simt::{Block, DeviceCopy, Global, GlobalMut, Readable, Thread};
+use simt::{Block, DeviceCopy, Global, GlobalMut, Place, Readable, Thread};
 
 /// Triangle and ray codes, packed under the node id: `node << 2 | code`. In the order
 /// of a segmented sort by this key, each node's elements come as L, B, R, N, so the
@@ -378,19 +378,24 @@ pub(crate) fn emit_child(
     // compiles it (the destinations are written, not read).
     let field = |f: fn(&ChildData) -> &u32| t.load_field(children, c, f);
     let (kind, rays, tris, whole) = (field(|x| &x.kind), field(|x| &x.rays), field(|x| &x.tris), field(|x| &x.whole));
+    // The scan's source is if-converted too: one load after the arms pick the array.
     let (scan, out) = match kind {
-        INNER => (t.load(inner_scan, c), next_nodes),
-        TERMINAL => (t.load(terminal_scan, c), terminal_nodes),
+        INNER => (Place::of(inner_scan, c), next_nodes),
+        TERMINAL => (Place::of(terminal_scan, c), terminal_nodes),
         _ => return,
     };
+    let scan = t.load_place(scan);
     let cd = ChildData { kind, rays, tris, dest_node: scan[0], dest_ray: scan[1], dest_tri: scan[2], whole };
     t.store(children, c, cd);
-    let (bounds, tries) = if cd.whole == 1 {
+    // So is the box's: each arm picks an address (and the parent's arm loads `tries`),
+    // and every lane loads the box once after the branch (the twin's SASS).
+    let (place, tries) = if cd.whole == 1 {
         let parent = c / 2;
-        (t.load_field(nodes, parent, |x| &x.bounds), t.load_field(nodes, parent, |x| &x.tries) + 1)
+        (Place::field(nodes, parent, |x| &x.bounds), t.load_field(nodes, parent, |x| &x.tries) + 1)
     } else {
-        (t.load(child_boxes, c), 0)
+        (Place::of(child_boxes, c), 0)
     };
+    let bounds = t.load_place(place);
     let node = NodeData {
         bounds,
         ray_start: cd.dest_ray,
