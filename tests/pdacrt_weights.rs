@@ -47,8 +47,8 @@ fn brute_force_counts_its_tests_and_the_path_past_the_edges_per_trip() {
     // Tests: 2 per lane, 99 instructions each besides the shared load, all 32 lanes.
     // Past the edges: A on one trip (16 lanes) and B on the other (16 lanes), 27 each:
     // two warp instructions of 16 lanes, not one of 32. Staging: 2 triangles, one
-    // 27-instruction trip for lanes 0 and 1. No search steps: one terminal node.
-    let issued = 2 * 99 + 2 * 27 + 27;
-    let active = 32 * 2 * 99 + 32 * 27 + 2 * 27;
+    // 19-instruction trip for lanes 0 and 1. No search steps: one terminal node.
+    let issued = 2 * 99 + 2 * 27 + 19;
+    let active = 32 * 2 * 99 + 32 * 27 + 2 * 19;
     assert_eq!((tests.issued, tests.active), (issued, active));
 }

@@ -251,7 +251,7 @@ impl<'w> Block<'w> {
             self.for_each_warp(|w| {
                 w.run_lanes(false, &mut |t: &Thread| {
                     if let Some(m) = t.meter {
-                        note_global(m, at, Kind::Load, addr, size, width);
+                        note_global(m, at, Kind::Load, addr, size, width, true);
                     }
                 })
             });
@@ -473,14 +473,8 @@ fn read_field<T: DeviceCopy, U: DeviceCopy, V: Readable<T>>(v: &V, i: usize, fie
 // code they sit in stays small enough to inline.
 #[cold]
 #[inline(never)]
-fn note_global(m: &RefCell<Meter>, site: usize, kind: Kind, addr: u64, size: u64, width: u64) {
-    m.borrow_mut().global(site, kind, addr, size, width);
-}
-
-#[cold]
-#[inline(never)]
-fn note_global_if(m: &RefCell<Meter>, site: usize, kind: Kind, addr: u64, size: u64, width: u64, on: bool) {
-    m.borrow_mut().global_if(site, kind, addr, size, width, on);
+fn note_global(m: &RefCell<Meter>, site: usize, kind: Kind, addr: u64, size: u64, width: u64, on: bool) {
+    m.borrow_mut().global(site, kind, addr, size, width, on);
 }
 
 #[cold]
@@ -578,10 +572,17 @@ impl Thread<'_> {
     #[inline(always)]
     #[track_caller]
     fn note<T>(&self, kind: Kind, addr: u64) {
+        self.note_if::<T>(kind, addr, true)
+    }
+
+    /// [`Thread::note`] of a predicated access, which touches memory only when `on`.
+    #[inline(always)]
+    #[track_caller]
+    fn note_if<T>(&self, kind: Kind, addr: u64, on: bool) {
         if let Some(m) = self.meter {
             let size = std::mem::size_of::<T>() as u64;
             let width = if kind == Kind::Atomic { size } else { access_width::<T>() };
-            note_global(m, site(), kind, addr, size, width);
+            note_global(m, site(), kind, addr, size, width, on);
         }
     }
 
@@ -636,10 +637,7 @@ impl Thread<'_> {
     #[inline(always)]
     #[track_caller]
     pub fn store_if<T: DeviceCopy>(&self, on: bool, v: &GlobalMut<T>, i: usize, value: T) {
-        if let Some(m) = self.meter {
-            let size = std::mem::size_of::<T>() as u64;
-            note_global_if(m, site(), Kind::Store, v.address(i), size, access_width::<T>(), on);
-        }
+        self.note_if::<T>(Kind::Store, v.address(i), on);
         if on {
             v.write(i, value)
         }

@@ -238,15 +238,10 @@ impl Meter {
     }
 
     /// A global access of a `size`-byte element at `addr`, issued as `size / width`
-    /// instructions of `width` bytes.
-    pub fn global(&mut self, site: usize, kind: Kind, addr: u64, size: u64, width: u64) {
-        self.global_if(site, kind, addr, size, width, true);
-    }
-
-    /// [`Meter::global`] of a predicated instruction: the lane takes part in it (it is
-    /// issued with the lane active) but touches memory only when `on`; a request is
-    /// counted only when some lane is on.
-    pub fn global_if(&mut self, site: usize, kind: Kind, addr: u64, size: u64, width: u64, on: bool) {
+    /// instructions of `width` bytes. A predicated one (`on` false for this lane) is
+    /// issued with the lane active but touches no memory; a request is counted only
+    /// when some lane is on.
+    pub fn global(&mut self, site: usize, kind: Kind, addr: u64, size: u64, width: u64, on: bool) {
         let parts = (size / width).max(1) as u32;
         let first = self.op(site, kind, parts, 1);
         if !on {

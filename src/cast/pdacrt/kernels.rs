@@ -494,9 +494,10 @@ const PAST_EDGES_INSTRUCTIONS: u32 = 27;
 /// One step of the binary search for the block's terminal node: a 10-instruction loop
 /// body, less its load. Path 2.
 const SEARCH_STEP_INSTRUCTIONS: u32 = 9;
-/// One trip of the staging loop: a 31-instruction body, less its two global loads and
-/// two shared stores. Path 3.
-const STAGE_STEP_INSTRUCTIONS: u32 = 27;
+/// One trip of the staging loop: a 31-instruction body, less the 12 memory instructions
+/// `simt` counts itself (the id's load, the triangle's nine 4-byte loads, and the two
+/// shared stores, one instruction each in the model). Path 3.
+const STAGE_STEP_INSTRUCTIONS: u32 = 19;
 
 /// Shared memory of one brute-force block: `STAGE` (128) triangles (36 bytes) and their
 /// ids (4 bytes), and the block's test count (8 bytes).
