@@ -1,6 +1,7 @@
 //! The device: configuration, memory accounting, kernel launches and statistics.
 
 use crate::exec::{Block, MAX_REGIONS, Thread, Worker};
+pub use crate::launch::{LaunchConfig, LaunchError, MAX_BLOCK_DIM};
 use crate::memory::{BufferPool, DeviceBuffer, DeviceCopy, MemCounter, Scratch};
 use crate::meter::{Counters, Race};
 use crate::stats::{KernelSummary, LaunchRecord, RegionStats, Stats};
@@ -9,9 +10,6 @@ use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
-
-/// Largest block, as on current NVIDIA GPUs.
-pub const MAX_BLOCK_DIM: u32 = 1024;
 
 /// What a device is like.
 #[derive(Clone, Debug)]
@@ -27,82 +25,6 @@ impl Default for DeviceConfig {
     fn default() -> Self {
         DeviceConfig { shared_capacity: 48 * 1024, measure: false }
     }
-}
-
-/// The shape of a launch: `grid` blocks of `block` threads, `shared_bytes` of shared
-/// memory per block, and the names of the regions the kernel reports work in.
-#[derive(Clone, Debug)]
-pub struct LaunchConfig {
-    /// Blocks in the grid.
-    pub grid: u32,
-    /// Threads per block (a multiple of the warp width is best).
-    pub block: u32,
-    /// Dynamic shared memory per block, bytes.
-    pub shared_bytes: usize,
-    /// Names of the work regions the kernel declares with `Thread::work`, in order.
-    pub regions: &'static [&'static str],
-}
-
-impl LaunchConfig {
-    /// Enough blocks of `block` threads to cover `n` threads.
-    pub fn linear(n: usize, block: u32) -> LaunchConfig {
-        let grid = n.div_ceil(block.max(1) as usize).min(u32::MAX as usize) as u32;
-        LaunchConfig { grid, block, shared_bytes: 0, regions: &[] }
-    }
-
-    /// This configuration with `bytes` of shared memory per block.
-    pub fn with_shared(mut self, bytes: usize) -> LaunchConfig {
-        self.shared_bytes = bytes;
-        self
-    }
-
-    /// This configuration with named work regions.
-    pub fn with_regions(mut self, regions: &'static [&'static str]) -> LaunchConfig {
-        self.regions = regions;
-        self
-    }
-}
-
-/// Why a launch was refused. Nothing runs when a launch fails.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum LaunchError {
-    #[error("kernel '{kernel}' asks for {requested} bytes of shared memory per block; the device has {capacity}")]
-    /// A launch asked for more shared memory per block than the device has.
-    SharedMemory {
-        /// The kernel.
-        kernel: &'static str,
-        /// Bytes asked for.
-        requested: usize,
-        /// Bytes a block may have.
-        capacity: usize,
-    },
-    #[error("kernel '{kernel}' has a block of {block} threads; blocks hold 1 to {MAX_BLOCK_DIM}")]
-    /// A launch asked for a block size of zero or above the limit.
-    BlockSize {
-        /// The kernel.
-        kernel: &'static str,
-        /// Threads per block asked for.
-        block: u32,
-    },
-    #[error("kernel '{kernel}' names {regions} regions; at most {MAX_REGIONS}")]
-    /// A launch declared more work regions than a kernel may have.
-    Regions {
-        /// The kernel.
-        kernel: &'static str,
-        /// Regions declared.
-        regions: usize,
-    },
-    /// Found in measured launches only (the kernel ran; its results are suspect).
-    #[error(
-        "kernel '{kernel}': shared-memory race ({}) on byte {} in block {}: threads {} and {} touch it with no sync_threads between them",
-        race.hazard, race.byte, race.block, race.first, race.second
-    )]
-    SharedRace {
-        /// The kernel.
-        kernel: &'static str,
-        /// The first race found.
-        race: Race,
-    },
 }
 
 struct Inner {
@@ -300,6 +222,10 @@ impl Device {
         if let Some(race) = race {
             return Err(LaunchError::SharedRace { kernel: name, race });
         }
+        let named = cfg.regions.len();
+        if let Some(region) = (named..MAX_REGIONS).find(|&r| counters.issued[r] > 0) {
+            return Err(LaunchError::UnnamedWork { kernel: name, region, named });
+        }
         Ok(self.record_launch(name, &cfg, seconds, measure, &counters))
     }
 
@@ -387,16 +313,30 @@ impl Device {
     where
         F: Fn(&Thread, usize) + Sync,
     {
-        let cfg = LaunchConfig::linear(n, ELEMENT_BLOCK);
-        self.launch(name, cfg, |blk| {
+        self.for_each_in(name, &[], n, f)
+    }
+
+    /// [`Device::for_each`] for a kernel that declares arithmetic with
+    /// [`Thread::work`]: `regions` names its work regions, as
+    /// [`LaunchConfig::with_regions`] does for [`Device::launch`].
+    ///
+    /// # Panics
+    /// In a measured launch, when `f` declares work in a region `regions` does not name
+    /// (the statistics would lose it): a fault of the kernel, not of its input.
+    pub fn for_each_in<F>(&self, name: &'static str, regions: &'static [&'static str], n: usize, f: F) -> LaunchRecord
+    where
+        F: Fn(&Thread, usize) + Sync,
+    {
+        let cfg = LaunchConfig::linear(n, ELEMENT_BLOCK).with_regions(regions);
+        let launched = self.launch(name, cfg, |blk| {
             blk.for_each_thread(|t| {
                 let i = t.global_idx();
                 if i < n {
                     f(t, i)
                 }
             })
-        })
-        .expect("a linear launch of 256-thread blocks is valid")
+        });
+        launched.unwrap_or_else(|e| panic!("{e}"))
     }
 
     /// Runs `f` on the host (a primitive's CPU backend) and records it like a launch:

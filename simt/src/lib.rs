@@ -49,6 +49,7 @@
 
 mod device;
 mod exec;
+mod launch;
 mod memory;
 pub mod meter;
 pub mod prims;

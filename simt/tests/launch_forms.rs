@@ -211,3 +211,26 @@ fn into_vec_moves_the_contents_out_of_the_accounting() {
     assert_eq!(b.into_vec(), vec![1, 2]);
     assert_eq!(dev.memory().current, before);
 }
+
+/// Work declared in a region the launch names is in its statistics; work in a region it
+/// does not name is a loud error of the measured launch (it used to vanish from the
+/// record), whether the launch is a plain kernel or an element-wise `for_each`.
+#[test]
+fn work_in_an_unnamed_region_is_an_error_not_a_loss() {
+    let dev = measured();
+    // Named: lanes 0..16 take arm 0 (3 units), lanes 16..32 arm 1 (1 unit).
+    let rec = dev.for_each_in("named", &["arms"], 32, |t, i| t.work(0, i / 16, if i < 16 { 3 } else { 1 }));
+    let arms = &rec.regions[0];
+    assert_eq!((arms.name, arms.issued, arms.active), ("arms", 4, 3 * 16 + 16));
+    // Region 1 has no name: an error naming the kernel and the region.
+    let cfg = LaunchConfig::linear(64, 32).with_regions(&["only"]);
+    let err = dev.launch("one_name", cfg, |blk| blk.for_each_thread(|t| t.work(1, 0, 2))).unwrap_err();
+    assert_eq!(err, simt::LaunchError::UnnamedWork { kernel: "one_name", region: 1, named: 1 });
+    assert!(err.to_string().contains("one_name") && err.to_string().contains("region 1"));
+    let caught = std::panic::catch_unwind(|| dev.for_each("no_names", 8, |t, _| t.work(0, 0, 1)));
+    let message = caught.unwrap_err();
+    let message = message.downcast_ref::<String>().expect("a formatted panic message");
+    assert!(message.contains("no_names") && message.contains("region 0"), "{message}");
+    // Unmeasured launches record no work, so there is nothing to lose.
+    Device::default().for_each("no_names", 8, |t, _| t.work(0, 0, 1));
+}

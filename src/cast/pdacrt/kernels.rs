@@ -297,6 +297,21 @@ pub(crate) struct LeafRule {
     pub at_max_depth: bool,
 }
 
+// Instructions of `pdacrt::classify_children` besides its loads and stores, block by
+// block, counted in the twin's SASS (sm_90, `cuobjdump -sass`; docs/gpu-check.md): the
+// shared head after the loads, the first block of either arm on `stuck`, the stuck
+// arm's branch-free leaf rule, the other arm's short-circuit tests, and the shared tail
+// before the stores (address arithmetic, predicates, the reconvergence).
+const CLASSIFY_HEAD: u32 = 27;
+const CLASSIFY_ARM: u32 = 9;
+const CLASSIFY_STUCK_RULE: u32 = 11;
+const CLASSIFY_TRIS_TEST: u32 = 4;
+const CLASSIFY_RAYS_TEST: u32 = 3;
+const CLASSIFY_PAIRS_TEST: u32 = 8;
+const CLASSIFY_DEPTH_TEST: u32 = 3;
+const CLASSIFY_INNER: u32 = 2;
+const CLASSIFY_TAIL: u32 = 18;
+
 /// `pdacrt::classify_children`: child `c` of node `c / 2`: sizes, source ranges, and
 /// whether it is dropped (no rays or no triangles), terminal, or an inner node of the
 /// next level. A split after which either child keeps every ray and triangle of the
@@ -317,40 +332,67 @@ pub(crate) fn classify_child(
 ) {
     let n = c / 2;
     let right = c % 2 == 1;
+    // The eight loads come first, before any branch, as in the twin's SASS: the node's
+    // two sizes and its counts of the three codes that enter a child. `tries` is loaded
+    // only where it is read. The arithmetic is declared arm by arm with the counts of
+    // that SASS (`CLASSIFY_*`).
     let field = |f: fn(&NodeData) -> &u32| t.load_field(nodes, n, f);
-    let (ray_count, tri_count, tries) = (field(|x| &x.ray_count), field(|x| &x.tri_count), field(|x| &x.tries));
+    let (ray_count, tri_count) = (field(|x| &x.ray_count), field(|x| &x.tri_count));
     let rc = |code: u32| t.load(ray_counts, n * 4 + code as usize);
     let tc = |code: u32| t.load(tri_counts, n * 4 + code as usize);
-    let (left_rays, left_tris) = (rc(LEFT) + rc(BOTH), tc(LEFT) + tc(BOTH));
-    let (right_rays, right_tris) = (rc(BOTH) + rc(RIGHT), tc(BOTH) + tc(RIGHT));
+    let [rays_left, rays_both, rays_right] = [rc(LEFT), rc(BOTH), rc(RIGHT)];
+    let [tris_left, tris_both, tris_right] = [tc(LEFT), tc(BOTH), tc(RIGHT)];
+    t.work(0, 0, CLASSIFY_HEAD);
+    let (left_rays, left_tris) = (rays_left + rays_both, tris_left + tris_both);
+    let (right_rays, right_tris) = (rays_both + rays_right, tris_both + tris_right);
     let keeps_all = |r: u32, tr: u32| r == ray_count && tr == tri_count;
     let stuck = keeps_all(left_rays, left_tris) || keeps_all(right_rays, right_tris);
     // Few triangles, or few rays *and* few pairs (as DACRT's leaf rule), or the cap.
     let pairs = LEAF_PAIRS_FACTOR * rule.leaf_rays as u64 * rule.leaf_tris as u64;
-    let small = |r: u32, tr: u32| {
-        tr <= rule.leaf_tris || (r <= rule.leaf_rays && r as u64 * tr as u64 <= pairs) || rule.at_max_depth
-    };
     let (kind, rays, tris, whole) = if stuck {
-        let (r, tr) = (left_rays + rc(RIGHT), left_tris + tc(RIGHT));
+        t.work(0, 0, CLASSIFY_ARM);
+        let (r, tr) = (left_rays + rays_right, left_tris + tris_right);
         let kind = if right || r == 0 || tr == 0 {
             DROPPED
-        } else if small(r, tr) || tries + 1 >= MAX_TRIES {
-            TERMINAL
         } else {
-            INNER
+            // Branch-free in the SASS: the whole leaf rule and the tries.
+            let tries = field(|x| &x.tries);
+            t.work(0, 0, CLASSIFY_STUCK_RULE);
+            let small =
+                tr <= rule.leaf_tris || (r <= rule.leaf_rays && r as u64 * tr as u64 <= pairs) || rule.at_max_depth;
+            if small || tries + 1 >= MAX_TRIES { TERMINAL } else { INNER }
         };
         (kind, r, tr, 1)
     } else {
+        t.work(0, 0, CLASSIFY_ARM);
         let (r, tr) = if right { (right_rays, right_tris) } else { (left_rays, left_tris) };
+        // The leaf rule's short circuits are branches here, each with its own count.
         let kind = if r == 0 || tr == 0 {
             DROPPED
-        } else if small(r, tr) {
-            TERMINAL
         } else {
-            INNER
+            t.work(0, 0, CLASSIFY_TRIS_TEST);
+            if tr <= rule.leaf_tris {
+                TERMINAL
+            } else {
+                t.work(0, 0, CLASSIFY_RAYS_TEST);
+                let inner = if r <= rule.leaf_rays {
+                    t.work(0, 0, CLASSIFY_PAIRS_TEST);
+                    r as u64 * tr as u64 > pairs && !rule.at_max_depth
+                } else {
+                    t.work(0, 0, CLASSIFY_DEPTH_TEST);
+                    !rule.at_max_depth
+                };
+                if inner {
+                    t.work(0, 0, CLASSIFY_INNER);
+                    INNER
+                } else {
+                    TERMINAL
+                }
+            }
         };
         (kind, r, tr, 0)
     };
+    t.work(0, 0, CLASSIFY_TAIL);
     // `inner[c] = kind == INNER ? chosen : none`: compiled as two predicated stores of
     // three words, each touching memory for its lanes only (the twin's SASS).
     for (buf, k) in [(inner, INNER), (terminal, TERMINAL)] {

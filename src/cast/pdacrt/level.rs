@@ -138,7 +138,7 @@ impl Pdacrt {
             };
             let (nv, rc, tc) = (ws.cur.nodes.view(), ws.ray_counts.view(), ws.tri_counts.view());
             let (cv, iv, tv) = (ws.children.view_mut(), ws.inner.view_mut(), ws.terminal.view_mut());
-            dev.for_each("pdacrt::classify_children", n_children, |t, c| {
+            dev.for_each_in("pdacrt::classify_children", &["classify"], n_children, |t, c| {
                 classify_child(t, &nv, &rc, &tc, rule, &cv, &iv, &tv, c)
             });
         }
