@@ -12,7 +12,8 @@
 //! ```
 //!
 //! `--json` prints one object per measured row (keys `scene, batch, caster, threads,
-//! rays, build_ms, trace_ms, peak_bytes, tests`, plus `structure_bytes`) instead of
+//! rays, build_ms, trace_ms, peak_bytes, tests`, plus `structure_bytes`, and for DACRT
+//! `phases`: the fastest call's ms by stage, `RayCaster::phase_seconds`) instead of
 //! the tables.
 
 use clap::Parser;
@@ -85,12 +86,14 @@ struct Row {
     peak_bytes: usize,
     structure_bytes: usize,
     tests: u64,
+    /// The caster's stages of the fastest call, ms (DACRT only).
+    phases: Vec<(&'static str, f64)>,
 }
 
 impl Row {
     fn json(&self) -> String {
         format!(
-            "{{\"scene\":\"{}\",\"batch\":\"{}\",\"caster\":\"{}\",\"threads\":{},\"rays\":{},\"build_ms\":{:.3},\"trace_ms\":{:.3},\"peak_bytes\":{},\"structure_bytes\":{},\"tests\":{}}}",
+            "{{\"scene\":\"{}\",\"batch\":\"{}\",\"caster\":\"{}\",\"threads\":{},\"rays\":{},\"build_ms\":{:.3},\"trace_ms\":{:.3},\"peak_bytes\":{},\"structure_bytes\":{},\"tests\":{}{}}}",
             self.scene,
             self.batch,
             self.caster,
@@ -100,9 +103,19 @@ impl Row {
             self.trace_ms,
             self.peak_bytes,
             self.structure_bytes,
-            self.tests
+            self.tests,
+            phases_json(&self.phases)
         )
     }
+}
+
+/// `,"phases":{...}` in ms, or nothing.
+fn phases_json(phases: &[(&str, f64)]) -> String {
+    if phases.is_empty() {
+        return String::new();
+    }
+    let items: Vec<String> = phases.iter().map(|(k, v)| format!("\"{k}\":{v:.3}")).collect();
+    format!(",\"phases\":{{{}}}", items.join(","))
 }
 
 fn scene(name: &str) -> Result<Scene, String> {
@@ -186,11 +199,15 @@ fn measure(
                 peak_bytes: st.peak_working_bytes + c.memory_bytes(),
                 structure_bytes: c.memory_bytes(),
                 tests: st.tests,
+                phases: c.phase_seconds().into_iter().map(|(k, v)| (k, v * 1e3)).collect(),
             };
             match rows.get_mut(k) {
                 Some(r) => {
                     r.build_ms = r.build_ms.min(row.build_ms);
-                    r.trace_ms = r.trace_ms.min(row.trace_ms);
+                    if row.trace_ms < r.trace_ms {
+                        r.trace_ms = row.trace_ms;
+                        r.phases = row.phases;
+                    }
                 }
                 None => rows.push(row),
             }

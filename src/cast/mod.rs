@@ -78,6 +78,12 @@ pub trait RayCaster: Send + Sync {
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats;
     /// Bytes of the caster's persistent structure (BVH nodes, indices, its triangle copy).
     fn memory_bytes(&self) -> usize;
+    /// The last call's seconds by stage, in order, for casters that time their stages
+    /// (DACRT: `filter`, `prepare` with its two halves run side by side, `groups` with
+    /// the groups' summed and longest times, `back`); empty for the others.
+    fn phase_seconds(&self) -> Vec<(&'static str, f64)> {
+        Vec::new()
+    }
     /// Seconds spent building the structure (0 for casters with none).
     fn build_seconds(&self) -> f64 {
         0.0

@@ -45,11 +45,16 @@ use crate::scene::Scene;
 use glam::Vec3;
 use packets::Packets;
 use rayon::prelude::*;
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::time::Instant;
 
 mod packets;
+mod planes;
+mod stages;
 mod top;
+use planes::{centroid_median, sah_plane};
+use stages::{Stages, timed};
 use top::Scratch;
 
 /// Tunables of [`Dacrt`]. The defaults were chosen by measurement (see
@@ -109,6 +114,8 @@ pub struct Dacrt {
     scene_box: Aabb,
     /// Tunables; may be changed between calls.
     pub params: DacrtParams,
+    /// The last call's seconds by stage ([`RayCaster::phase_seconds`]).
+    phases: Mutex<Vec<(&'static str, f64)>>,
 }
 
 /// Key of "no hit yet".
@@ -207,49 +214,6 @@ fn partition(ids: &mut [u32], mut keep: impl FnMut(u32) -> bool) -> usize {
     n
 }
 
-/// Binned SAH over a subsample of the triangles (their boxes clipped to the node):
-/// cost of a plane = area(left)·n(left) + area(right)·n(right).
-fn sah_plane(boxes: &[Aabb], bounds: &Aabb, tris: &[u32]) -> Option<(usize, f32)> {
-    let step = tris.len().div_ceil(SAH_SAMPLES).max(1);
-    let (ext, min) = (bounds.extent(), bounds.min);
-    let mut best: Option<(f32, usize, f32)> = None;
-    for axis in 0..3 {
-        if ext[axis] <= 0.0 {
-            continue;
-        }
-        let bin = |x: f32| (((x - min[axis]) / ext[axis] * SAH_BINS as f32) as usize).min(SAH_BINS - 1);
-        let (mut starts, mut ends) = ([0u32; SAH_BINS], [0u32; SAH_BINS]);
-        for &t in tris.iter().step_by(step) {
-            let b = boxes[t as usize].intersection(*bounds);
-            starts[bin(b.min[axis])] += 1;
-            ends[bin(b.max[axis])] += 1;
-        }
-        for k in 1..SAH_BINS {
-            let pos = min[axis] + ext[axis] * k as f32 / SAH_BINS as f32;
-            let n_lo: u32 = starts[..k].iter().sum();
-            let n_hi: u32 = ends[k..].iter().sum();
-            let (lo, hi) = bounds.split(axis, pos);
-            let cost = lo.surface_area() * n_lo as f32 + hi.surface_area() * n_hi as f32;
-            if best.is_none_or(|b| cost < b.0) {
-                best = Some((cost, axis, pos));
-            }
-        }
-    }
-    best.map(|(_, a, p)| (a, p))
-}
-
-/// The median of (a subsample of) the triangle centroids along `axis`.
-fn centroid_median(boxes: &[Aabb], tris: &[u32], axis: usize) -> Option<(usize, f32)> {
-    let step = tris.len().div_ceil(SAH_SAMPLES).max(1);
-    let mut c: Vec<f32> = tris.iter().step_by(step).map(|&t| boxes[t as usize].center()[axis]).collect();
-    if c.is_empty() {
-        return None;
-    }
-    let mid = c.len() / 2;
-    let (_, m, _) = c.select_nth_unstable_by(mid, f32::total_cmp);
-    Some((axis, *m))
-}
-
 impl Dacrt {
     /// A caster over the scene's triangles with the default parameters.
     pub fn new(scene: &Scene) -> Self {
@@ -260,7 +224,7 @@ impl Dacrt {
     pub fn from_triangles(tris: Triangles, params: DacrtParams) -> Self {
         let boxes: Vec<Aabb> = tris.iter().map(|t| Aabb::from_points(t)).collect();
         let scene_box = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(*b));
-        Dacrt { tris, boxes, scene_box, params }
+        Dacrt { tris, boxes, scene_box, params, phases: Mutex::default() }
     }
 
     /// The same caster with other parameters.
@@ -399,6 +363,7 @@ impl Dacrt {
     /// Runs the recursion for one batch; returns the per-ray keys (in the batch's
     /// order), the peak bytes and the ray–triangle tests made.
     fn trace(&self, rays: &[Ray], any_hit: bool) -> (Vec<u64>, usize, u64) {
+        let mut clock = Stages::default();
         let n = rays.len();
         let scene_box = self.scene_box;
         let order: Vec<u32> = (0..n as u32)
@@ -408,37 +373,58 @@ impl Dacrt {
                 r.is_valid() && scene_box.intersect(r.origin, inv_dir(r.dir), r.t_min, r.t_max).is_some()
             })
             .collect();
+        clock.lap("filter");
         if order.is_empty() || self.tris.is_empty() {
+            self.keep_phases(clock);
             return (vec![NONE; n], 0, 0);
         }
         let groups = self.group_count(order.len());
         // The shared top does not depend on the rays: it is built beside their sort and
         // copy, so that threads idle in one of the two help the other.
-        let (top, (order, tr)) = rayon::join(
-            || self.build_top(),
+        let ((top, top_s), ((order, tr), sort_s)) = rayon::join(
+            || timed(|| self.build_top()),
             || {
-                let order = self.coherence_order(rays, order);
-                // The valid rays renumbered in that order: ids, keys, reciprocal
-                // directions, the copies of the rays, the map back, and the packets.
-                // (The sort's own 16 bytes per ray are freed before these are made.)
-                let tr =
-                    Trace::new(order.par_iter().map(|&i| rays[i as usize]).collect(), any_hit, self.params.packet_rays);
-                (order, tr)
+                timed(|| {
+                    let order = self.coherence_order(rays, order);
+                    // The valid rays renumbered in that order: ids, keys, reciprocal
+                    // directions, the copies of the rays, the map back, and the packets.
+                    // (The sort's own 16 bytes per ray are freed before these are made.)
+                    let tr = Trace::new(
+                        order.par_iter().map(|&i| rays[i as usize]).collect(),
+                        any_hit,
+                        self.params.packet_rays,
+                    );
+                    (order, tr)
+                })
             },
         );
+        clock.lap("prepare");
+        clock.note("prepare_top", top_s);
+        clock.note("prepare_rays", sort_s);
         let m = order.len();
         tr.alloc(m * (4 + 8 + 12 + std::mem::size_of::<Ray>() + 4) + tr.packets.as_ref().map_or(0, Packets::bytes));
         tr.alloc(top.ids.len() * 4);
         let mut ray_ids: Vec<u32> = (0..m as u32).collect();
+        // Each group's own time: their sum against the stage's wall time and threads
+        // says how well the groups shared the cores, the longest one what was left last.
+        let (busy, longest) = (AtomicU64::new(0), AtomicU64::new(0));
+        let group = |ids: &mut [u32], scratch: &mut Scratch| {
+            let start = Instant::now();
+            self.trace_top(&tr, &top, &top.root, ids, scratch, 0);
+            let ns = start.elapsed().as_nanos() as u64;
+            busy.fetch_add(ns, Relaxed);
+            longest.fetch_max(ns, Relaxed);
+        };
         if groups <= 1 {
-            self.trace_top(&tr, &top, &top.root, &mut ray_ids, &mut Scratch::default(), 0);
+            group(&mut ray_ids, &mut Scratch::default());
         } else {
             let size = m.div_ceil(groups);
-            ray_ids.par_chunks_mut(size).for_each_init(Scratch::default, |scratch, group| {
-                self.trace_top(&tr, &top, &top.root, group, scratch, 0);
-            });
+            ray_ids.par_chunks_mut(size).for_each_init(Scratch::default, |scratch, ids| group(ids, scratch));
         }
         drop(ray_ids);
+        clock.lap("groups");
+        clock.note("groups_busy", busy.into_inner() as f64 * 1e-9);
+        clock.note("groups_longest", longest.into_inner() as f64 * 1e-9);
         // Back to the batch's order.
         tr.alloc(n * 4);
         let at: Vec<AtomicU32> = (0..n).into_par_iter().map(|_| AtomicU32::new(u32::MAX)).collect();
@@ -450,7 +436,13 @@ impl Dacrt {
                 k => tr.keys[k as usize].load(Relaxed),
             })
             .collect();
+        clock.lap("back");
+        self.keep_phases(clock);
         (keys, tr.peak.load(Relaxed), tr.tests.load(Relaxed))
+    }
+
+    fn keep_phases(&self, clock: Stages) {
+        *self.phases.lock().unwrap_or_else(|e| e.into_inner()) = clock.seconds;
     }
 }
 
@@ -488,5 +480,9 @@ impl RayCaster for Dacrt {
 
     fn memory_bytes(&self) -> usize {
         triangles_bytes(&self.tris) + self.boxes.len() * std::mem::size_of::<Aabb>()
+    }
+
+    fn phase_seconds(&self) -> Vec<(&'static str, f64)> {
+        self.phases.lock().unwrap_or_else(|e| e.into_inner()).clone()
     }
 }
