@@ -226,12 +226,12 @@ mod tests {
         (0..32)
             .map(|k| {
                 let mut dir = (axis + Vec3::new(u(), u(), u()) * spread).normalize_or(Vec3::X);
-                if trial % 7 == 0 && k % 5 == 0 {
+                if trial.is_multiple_of(7) && k % 5 == 0 {
                     dir.y = 0.0;
                 }
                 let origin = centre + Vec3::new(u(), u(), u()) * width;
-                let t_min = if trial % 3 == 0 { u().abs() * 0.2 } else { 0.0 };
-                let t_max = if trial % 2 == 0 { f32::INFINITY } else { 0.5 + u().abs() * 3.0 };
+                let t_min = if trial.is_multiple_of(3) { u().abs() * 0.2 } else { 0.0 };
+                let t_max = if trial.is_multiple_of(2) { f32::INFINITY } else { 0.5 + u().abs() * 3.0 };
                 Ray { origin, dir, t_min, t_max }
             })
             .collect()

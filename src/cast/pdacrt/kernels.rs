@@ -128,31 +128,69 @@ pub(crate) fn node_bounds(
     // word: near the root thousands of threads share one node, and their atomics on
     // its six words were the kernel's cost at 16 threads (4.8x from 1 thread, against
     // 9-11x for the other kernels); once a box has grown, the reads find it so.
-    let flush = |node: u32, b: Aabb| {
+    // The arithmetic is declared with the counts of the twin's SASS (`BOUNDS_*`).
+    let flush = |node: u32, b: Aabb, in_loop: bool| {
         let base = node as usize * 6;
+        t.work(0, 0, BOUNDS_FLUSH_ADDRESS + if in_loop { BOUNDS_FLUSH_RESET } else { 0 });
         for a in 0..3 {
             let (lo, hi) = (ordered(b.min[a]), ordered(b.max[a]));
-            if lo < t.load(bounds, base + a) {
-                t.atomic_min(bounds, base + a, lo);
-            }
-            if hi > t.load(bounds, base + 3 + a) {
-                t.atomic_max(bounds, base + 3 + a, hi);
-            }
+            // Six words, unrolled in the SASS: each its own instructions.
+            t.unrolled(2 * a, || {
+                let load = t.load(bounds, base + a);
+                t.work(0, 0, BOUNDS_WORD_TEST);
+                if lo < load {
+                    t.atomic_min(bounds, base + a, lo);
+                }
+                t.work(0, 0, BOUNDS_WORD_JOIN);
+            });
+            t.unrolled(2 * a + 1, || {
+                let load = t.load(bounds, base + 3 + a);
+                t.work(0, 0, BOUNDS_WORD_TEST);
+                if hi > load {
+                    t.atomic_max(bounds, base + 3 + a, hi);
+                }
+                t.work(0, 0, BOUNDS_WORD_JOIN);
+            });
         }
     };
     let mut current = t.load(tri_node, first);
+    t.work(0, 0, BOUNDS_HEAD);
     let mut acc = Aabb::EMPTY;
     for i in first..end {
-        let node = t.load(tri_node, i);
-        if node != current {
-            flush(current, acc);
-            current = node;
-            acc = Aabb::EMPTY;
-        }
-        acc = acc.union(Aabb::from_points(&corners(t.load(tris, t.load(tri_ids, i) as usize))));
+        // Every lane makes the same trips (but the last thread's), in step: trip `j` of
+        // one lane is the same warp instruction as trip `j` of another, and a flush at
+        // trip 5 is not matched with another lane's flush at trip 9.
+        t.unrolled(i - first, || {
+            let node = t.load(tri_node, i);
+            t.work(0, 0, BOUNDS_TRIP_TEST);
+            if node != current {
+                flush(current, acc, true);
+                current = node;
+                acc = Aabb::EMPTY;
+            }
+            acc = acc.union(Aabb::from_points(&corners(t.load(tris, t.load(tri_ids, i) as usize))));
+            t.work(0, 0, BOUNDS_TRIP_UNION);
+        });
     }
-    flush(current, acc);
+    t.work(0, 0, BOUNDS_TAIL);
+    flush(current, acc, false);
 }
+
+// Instructions of `pdacrt::node_bounds` besides its loads and atomics, counted in the
+// twin's SASS (sm_90, `cuobjdump -sass`; docs/gpu-check.md): after the bounds check,
+// the addresses, the first node, the empty box and the loop's set-up; per trip, the
+// node test before the branch, and after it the triangle's address, the box union
+// (18 FMNMX) and the loop counter; per flush, the word address (and, inside the loop,
+// the box reset); per word, the ordered encoding, the compare and the branch, then the
+// reconvergence; between the loop and the last flush, the loop's reconvergence.
+const BOUNDS_HEAD: u32 = 33;
+const BOUNDS_TRIP_TEST: u32 = 5;
+const BOUNDS_TRIP_UNION: u32 = 38;
+const BOUNDS_FLUSH_ADDRESS: u32 = 2;
+const BOUNDS_FLUSH_RESET: u32 = 7;
+const BOUNDS_WORD_TEST: u32 = 6;
+const BOUNDS_WORD_JOIN: u32 = 1;
+const BOUNDS_TAIL: u32 = 3;
 
 /// `pdacrt::split_nodes`: shrinks node `n`'s box to its triangles (stored back into the
 /// node) and writes children `2n` and `2n + 1`: the halves at the spatial median of the

@@ -58,7 +58,7 @@ impl Pdacrt {
         {
             let (ids, nd, tris, tv) =
                 (ws.cur.tri_ids.view(), ws.cur.tri_node.view(), self.tris.view(), ws.tight.view_mut());
-            dev.for_each("pdacrt::node_bounds", ids.len().div_ceil(BOUNDS_RUN), |t, k| {
+            dev.for_each_in("pdacrt::node_bounds", &["bounds"], ids.len().div_ceil(BOUNDS_RUN), |t, k| {
                 node_bounds(t, &ids, &nd, &tris, &tv, k)
             });
         }
