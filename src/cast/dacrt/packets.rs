@@ -246,7 +246,7 @@ mod tests {
             + Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 0.2
             - 0.1;
         let mut e = Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 0.3;
-        if trial % 5 == 0 {
+        if trial.is_multiple_of(5) {
             e.z = 0.0;
         }
         if trial % 6 == 1 {

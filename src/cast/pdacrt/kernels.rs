@@ -132,22 +132,18 @@ pub(crate) fn node_bounds(
     let flush = |node: u32, b: Aabb, in_loop: bool| {
         let base = node as usize * 6;
         t.work(0, 0, BOUNDS_FLUSH_ADDRESS + if in_loop { BOUNDS_FLUSH_RESET } else { 0 });
-        for a in 0..3 {
-            let (lo, hi) = (ordered(b.min[a]), ordered(b.max[a]));
-            // Six words, unrolled in the SASS: each its own instructions.
-            t.unrolled(2 * a, || {
-                let load = t.load(bounds, base + a);
+        // Six words, unrolled in the SASS (min x, max x, min y, ...): each its own
+        // instructions.
+        for (copy, (word, value)) in
+            (0..3).flat_map(|a| [(a, ordered(b.min[a])), (3 + a, ordered(b.max[a]))]).enumerate()
+        {
+            t.unrolled(copy, || {
+                let old = t.load(bounds, base + word);
                 t.work(0, 0, BOUNDS_WORD_TEST);
-                if lo < load {
-                    t.atomic_min(bounds, base + a, lo);
-                }
-                t.work(0, 0, BOUNDS_WORD_JOIN);
-            });
-            t.unrolled(2 * a + 1, || {
-                let load = t.load(bounds, base + 3 + a);
-                t.work(0, 0, BOUNDS_WORD_TEST);
-                if hi > load {
-                    t.atomic_max(bounds, base + 3 + a, hi);
+                if word < 3 && value < old {
+                    t.atomic_min(bounds, base + word, value);
+                } else if word >= 3 && value > old {
+                    t.atomic_max(bounds, base + word, value);
                 }
                 t.work(0, 0, BOUNDS_WORD_JOIN);
             });
