@@ -42,6 +42,8 @@ use std::time::Instant;
 
 mod level;
 mod record;
+#[cfg(test)]
+mod tests;
 
 pub use kernels::BRUTE_FORCE_SHARED_BYTES;
 pub use record::{KernelTime, LevelRecord};
