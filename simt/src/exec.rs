@@ -503,6 +503,22 @@ fn note_work(m: &RefCell<Meter>, site: usize, region: usize, path: usize, units:
     m.borrow_mut().work(site, region, path, units);
 }
 
+/// Enters copy `copy` of unrolled code; returns the copy it was in.
+#[cold]
+#[inline(never)]
+fn enter_copy(m: &RefCell<Meter>, copy: usize) -> usize {
+    let mut m = m.borrow_mut();
+    let outer = m.copy;
+    m.copy = outer.wrapping_mul(31).wrapping_add(copy + 1);
+    outer
+}
+
+#[cold]
+#[inline(never)]
+fn leave_copy(m: &RefCell<Meter>, outer: usize) {
+    m.borrow_mut().copy = outer;
+}
+
 /// The call site of the `#[track_caller]` function that calls this.
 #[inline(always)]
 #[track_caller]
@@ -806,20 +822,32 @@ impl Thread<'_> {
         unsafe { self.register(l).write_unaligned(value) }
     }
 
-    /// Runs `f` as copy `copy` of an unrolled loop body: the instructions it executes are
-    /// other instructions than those of the other copies, as when a compiler unrolls a
-    /// short loop (nvcc does `for (side = 0; side < 2; side++)`) and issues each trip's
-    /// accesses apart, each with only the lanes that take that trip's branch. Without it,
-    /// a lane's first execution of a call site is matched with the other lanes' first,
-    /// whichever trip each is in. Copies nest; unmeasured launches just run `f`.
+    /// Marks the rest of the enclosing scope as copy `copy` of an unrolled loop body,
+    /// until the returned guard drops: the instructions executed meanwhile are other
+    /// instructions than those of the other copies, as when a compiler unrolls a short
+    /// loop (nvcc does `for (side = 0; side < 2; side++)`) and issues each trip's
+    /// accesses apart, each with only the lanes that take that trip's branch. Without
+    /// it, a lane's first execution of a call site is matched with the other lanes'
+    /// first, whichever trip each is in. Copies nest.
+    ///
+    /// Bind the guard to a name (`let _trip = t.unroll(j);`; `let _ = ..` drops it at
+    /// once). A guard rather than a closure so that a hot loop's body stays inline:
+    /// unmeasured launches pay one test of a register, and no call.
+    #[inline(always)]
+    #[must_use = "the copy ends when the guard drops: bind it with `let _copy = ..`"]
+    pub fn unroll(&self, copy: usize) -> Unrolled<'_> {
+        match self.meter {
+            Some(m) => Unrolled { meter: Some(m), outer: enter_copy(m, copy) },
+            None => Unrolled { meter: None, outer: 0 },
+        }
+    }
+
+    /// Runs `f` as copy `copy` of an unrolled loop body ([`Thread::unroll`] for a
+    /// scope).
     #[inline(always)]
     pub fn unrolled<R>(&self, copy: usize, f: impl FnOnce() -> R) -> R {
-        let Some(m) = self.meter else { return f() };
-        let outer = m.borrow().copy;
-        m.borrow_mut().copy = outer.wrapping_mul(31).wrapping_add(copy + 1);
-        let r = f();
-        m.borrow_mut().copy = outer;
-        r
+        let _copy = self.unroll(copy);
+        f()
     }
 
     /// Declares `units` instructions of arithmetic on branch arm `path` of region
@@ -831,6 +859,21 @@ impl Thread<'_> {
     pub fn work(&self, region: usize, path: usize, units: u32) {
         if let Some(m) = self.meter {
             note_work(m, site(), region, path, units);
+        }
+    }
+}
+
+/// The copy of unrolled code a lane is in, from [`Thread::unroll`] until it drops.
+pub struct Unrolled<'a> {
+    meter: Option<&'a RefCell<Meter>>,
+    outer: usize,
+}
+
+impl Drop for Unrolled<'_> {
+    #[inline(always)]
+    fn drop(&mut self) {
+        if let Some(m) = self.meter {
+            leave_copy(m, self.outer);
         }
     }
 }

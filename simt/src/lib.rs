@@ -60,7 +60,7 @@ mod transform;
 pub use device::{Device, DeviceConfig, LaunchConfig, LaunchError, MAX_BLOCK_DIM, MemoryStats};
 pub use exec::{
     Block, Local, MAX_PATHS, MAX_REGIONS, Place, REGISTER_WORDS_PER_THREAD, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES,
-    Shared, Thread, WARP_SIZE, Warp,
+    Shared, Thread, Unrolled, WARP_SIZE, Warp,
 };
 pub use memory::{DeviceBuffer, DeviceCopy, Global, GlobalMut, Readable};
 pub use meter::{Race, Traffic};

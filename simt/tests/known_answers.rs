@@ -385,7 +385,8 @@ fn an_unrolled_loop_issues_each_trip_apart() {
     let mut y = dev.alloc::<u32>(64);
     let yv = y.view_mut();
     // Even lanes store on trip 0 only, odd lanes on trip 1 only.
-    let kernel = |unroll: bool| {
+    // 0: rolled; 1: each trip a closure run as its copy; 2: each trip's scope a copy.
+    let kernel = |form: u32| {
         dev.for_each("two_trips", 32, |t, i| {
             for side in 0..2 {
                 let body = || {
@@ -393,17 +394,29 @@ fn an_unrolled_loop_issues_each_trip_apart() {
                         t.store(&yv, 2 * i + side, 1);
                     }
                 };
-                if unroll { t.unrolled(side, body) } else { body() }
+                match form {
+                    0 => body(),
+                    1 => t.unrolled(side, body),
+                    _ => {
+                        let _trip = t.unroll(side);
+                        body()
+                    }
+                }
             }
+            // After the loop, every lane at one instruction again (the guards dropped).
+            t.store(&yv, i, 3);
         })
     };
     // Matched by occurrence: every lane's first store is one instruction of 32 lanes.
-    let rolled = kernel(false);
-    assert_eq!((rolled.stores.requests, rolled.stores.lanes), (1, 32));
-    // Unrolled: the trips are two instructions of 16 lanes each.
-    let unrolled = kernel(true);
-    assert_eq!((unrolled.stores.requests, unrolled.stores.lanes), (2, 32));
-    assert_eq!(unrolled.stores.simd_efficiency(), Some(0.5));
+    let rolled = kernel(0);
+    assert_eq!((rolled.stores.requests, rolled.stores.lanes), (2, 64));
+    // Unrolled, either form: the trips are two instructions of 16 lanes each, then the
+    // store after the loop one of 32.
+    for form in [1, 2] {
+        let unrolled = kernel(form);
+        assert_eq!((unrolled.stores.requests, unrolled.stores.lanes), (3, 64), "form {form}");
+        assert_eq!(unrolled.stores.simd_efficiency(), Some(64.0 / 96.0));
+    }
     // Nothing else changes: a copy ends with its closure.
     let after = dev.for_each("after", 32, |t, i| t.unrolled(0, || t.store(&yv, i, 2)));
     assert_eq!((after.stores.requests, after.stores.lanes), (1, 32));

@@ -409,9 +409,8 @@ impl Dacrt {
         // says how well the groups shared the cores, the longest one what was left last.
         let (busy, longest) = (AtomicU64::new(0), AtomicU64::new(0));
         let group = |ids: &mut [u32], scratch: &mut Scratch| {
-            let start = Instant::now();
-            self.trace_top(&tr, &top, &top.root, ids, scratch, 0);
-            let ns = start.elapsed().as_nanos() as u64;
+            let ((), s) = timed(|| self.trace_top(&tr, &top, &top.root, ids, scratch, 0));
+            let ns = (s * 1e9) as u64;
             busy.fetch_add(ns, Relaxed);
             longest.fetch_max(ns, Relaxed);
         };

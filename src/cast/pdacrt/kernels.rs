@@ -137,16 +137,15 @@ pub(crate) fn node_bounds(
         for (copy, (word, value)) in
             (0..3).flat_map(|a| [(a, ordered(b.min[a])), (3 + a, ordered(b.max[a]))]).enumerate()
         {
-            t.unrolled(copy, || {
-                let old = t.load(bounds, base + word);
-                t.work(0, 0, BOUNDS_WORD_TEST);
-                if word < 3 && value < old {
-                    t.atomic_min(bounds, base + word, value);
-                } else if word >= 3 && value > old {
-                    t.atomic_max(bounds, base + word, value);
-                }
-                t.work(0, 0, BOUNDS_WORD_JOIN);
-            });
+            let _word = t.unroll(copy);
+            let old = t.load(bounds, base + word);
+            t.work(0, 0, BOUNDS_WORD_TEST);
+            if word < 3 && value < old {
+                t.atomic_min(bounds, base + word, value);
+            } else if word >= 3 && value > old {
+                t.atomic_max(bounds, base + word, value);
+            }
+            t.work(0, 0, BOUNDS_WORD_JOIN);
         }
     };
     let mut current = t.load(tri_node, first);
@@ -156,17 +155,16 @@ pub(crate) fn node_bounds(
         // Every lane makes the same trips (but the last thread's), in step: trip `j` of
         // one lane is the same warp instruction as trip `j` of another, and a flush at
         // trip 5 is not matched with another lane's flush at trip 9.
-        t.unrolled(i - first, || {
-            let node = t.load(tri_node, i);
-            t.work(0, 0, BOUNDS_TRIP_TEST);
-            if node != current {
-                flush(current, acc, true);
-                current = node;
-                acc = Aabb::EMPTY;
-            }
-            acc = acc.union(Aabb::from_points(&corners(t.load(tris, t.load(tri_ids, i) as usize))));
-            t.work(0, 0, BOUNDS_TRIP_UNION);
-        });
+        let _trip = t.unroll(i - first);
+        let node = t.load(tri_node, i);
+        t.work(0, 0, BOUNDS_TRIP_TEST);
+        if node != current {
+            flush(current, acc, true);
+            current = node;
+            acc = Aabb::EMPTY;
+        }
+        acc = acc.union(Aabb::from_points(&corners(t.load(tris, t.load(tri_ids, i) as usize))));
+        t.work(0, 0, BOUNDS_TRIP_UNION);
     }
     t.work(0, 0, BOUNDS_TAIL);
     flush(current, acc, false);
@@ -528,26 +526,25 @@ pub(crate) fn scatter_ref(
     // Two trips, which compiled code unrolls: each side's accesses are its own
     // instructions, executed by the lanes whose reference goes to that side.
     for side in 0..2 {
-        t.unrolled(side, || {
-            // The child's fields, each loaded where it is first read (as compiled code does).
-            let field = |f: fn(&ChildData) -> &u32| t.load_field(children, 2 * node + side, f);
-            let whole = field(|x| &x.whole) == 1;
-            let takes = whole || if side == 0 { code != RIGHT } else { code != LEFT };
-            let kind = field(|x| &x.kind);
-            if !takes || kind == DROPPED {
-                return;
-            }
-            let first_code = if whole || side == 0 { LEFT } else { BOTH };
-            let before: u32 = (first_code..code).map(|c| t.load(&sp.counts, node * 4 + c as usize)).sum();
-            let dst = if rays { field(|x| &x.dest_ray) } else { field(|x| &x.dest_tri) };
-            let pos = (dst + before + rank) as usize;
-            if kind == INNER {
-                t.store(&dest.next_ids, pos, id);
-                t.store(&dest.next_node, pos, field(|x| &x.dest_node));
-            } else {
-                t.store(&dest.terminal_ids, pos, id);
-            }
-        })
+        let _side = t.unroll(side);
+        // The child's fields, each loaded where it is first read (as compiled code does).
+        let field = |f: fn(&ChildData) -> &u32| t.load_field(children, 2 * node + side, f);
+        let whole = field(|x| &x.whole) == 1;
+        let takes = whole || if side == 0 { code != RIGHT } else { code != LEFT };
+        let kind = field(|x| &x.kind);
+        if !takes || kind == DROPPED {
+            continue;
+        }
+        let first_code = if whole || side == 0 { LEFT } else { BOTH };
+        let before: u32 = (first_code..code).map(|c| t.load(&sp.counts, node * 4 + c as usize)).sum();
+        let dst = if rays { field(|x| &x.dest_ray) } else { field(|x| &x.dest_tri) };
+        let pos = (dst + before + rank) as usize;
+        if kind == INNER {
+            t.store(&dest.next_ids, pos, id);
+            t.store(&dest.next_node, pos, field(|x| &x.dest_node));
+        } else {
+            t.store(&dest.terminal_ids, pos, id);
+        }
     }
 }
 
