@@ -231,15 +231,15 @@ fn pct(v: Option<f64>) -> String {
 /// request, shared bytes per block, and time (GPU and the emulator).
 pub fn table(rows: &[Comparison]) -> String {
     let mut s = String::new();
-    s.push_str("| kernel | launches (simt / GPU) | SIMD eff. simt | GPU | Δ | ld sect/req simt | GPU | Δ | st sect/req simt | GPU | Δ | shared B simt / GPU | GPU ms |\n");
-    s.push_str("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    s.push_str("| kernel | launches (simt / GPU) | SIMD eff. simt | GPU | Δ | ld sect/req simt | GPU | Δ | st sect/req simt | GPU | Δ | atomic req simt / GPU | shared B simt / GPU | GPU ms |\n");
+    s.push_str("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for r in rows {
         let (se, ge) = (r.simt.simd_efficiency(), r.gpu.simd_efficiency());
         let (sl, gl) = (r.simt.loads.sectors_per_request(), r.gpu.loads.sectors_per_request());
         let (ss, gs) = (r.simt.stores.sectors_per_request(), r.gpu.stores.sectors_per_request());
         let _ = writeln!(
             s,
-            "| {} | {} / {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} / {} | {:.3} |",
+            "| {} | {} / {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} / {} | {} / {} | {:.3} |",
             r.name,
             r.simt.launches,
             r.gpu.launches,
@@ -252,6 +252,8 @@ pub fn table(rows: &[Comparison]) -> String {
             opt(ss, 2),
             opt(gs, 2),
             pct(relative(ss, gs)),
+            r.simt.atomics.requests,
+            r.gpu.atomics.requests,
             r.simt.shared_bytes,
             r.gpu.shared_bytes,
             r.gpu.seconds * 1e3
