@@ -358,46 +358,6 @@ unsafe impl simt::DeviceCopy for Ray {}
 unsafe impl simt::DeviceCopy for Hit {}
 unsafe impl simt::DeviceCopy for Aabb {}
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn triangle_hit_and_barycentrics() {
-        let (p0, p1, p2) = (Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0));
-        let o = Vec3::new(0.25, 0.5, 1.0);
-        let d = Vec3::new(0.0, 0.0, -1.0);
-        let (t, u, v) = intersect_triangle(o, &RayShear::new(d), p0, p1, p2, 0.0, f32::INFINITY).unwrap();
-        assert!((t - 1.0).abs() < 1e-6);
-        assert!((u - 0.25).abs() < 1e-6 && (v - 0.5).abs() < 1e-6);
-        // Behind the origin and beyond t_max are misses.
-        assert!(intersect_triangle(o, &RayShear::new(-d), p0, p1, p2, 0.0, f32::INFINITY).is_none());
-        assert!(intersect_triangle(o, &RayShear::new(d), p0, p1, p2, 0.0, 0.5).is_none());
-    }
-
-    #[test]
-    fn slab_accepts_zero_direction_components() {
-        let b = Aabb { min: Vec3::ZERO, max: Vec3::ONE };
-        // Axis-aligned ray inside the x and y slabs, origin exactly on the min x plane.
-        let o = Vec3::new(0.0, 0.5, -1.0);
-        let d = Vec3::new(0.0, 0.0, 1.0);
-        let (n, f) = b.intersect(o, inv_dir(d), 0.0, f32::INFINITY).unwrap();
-        assert!((n - 1.0).abs() < 1e-6 && (f - 2.0).abs() < 1e-5);
-        // Outside the y slab with a zero y component: a miss.
-        let o = Vec3::new(0.5, 1.5, -1.0);
-        assert!(b.intersect(o, inv_dir(d), 0.0, f32::INFINITY).is_none());
-    }
-
-    #[test]
-    fn offset_leaves_the_surface_on_the_normal_side() {
-        for &p in &[Vec3::new(1000.0, -2000.0, 3.0), Vec3::new(0.001, 0.0, -0.01), Vec3::new(-5.0, 7.0, 1e-6)] {
-            let n = Vec3::new(0.3, -0.5, 0.8).normalize();
-            let q = offset_ray_origin(p, n);
-            assert!((q - p).dot(n) > 0.0, "{p} -> {q}");
-        }
-    }
-}
-
 /// A unit sphere about the origin as a closed, outward-facing triangle mesh with shared
 /// vertices: the regular icosahedron, each triangle split in four `subdivisions` times
 /// (20·4^n triangles), every new vertex pushed out onto the sphere.
@@ -441,4 +401,44 @@ pub fn icosphere(subdivisions: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
         t = next;
     }
     (p, t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn triangle_hit_and_barycentrics() {
+        let (p0, p1, p2) = (Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0));
+        let o = Vec3::new(0.25, 0.5, 1.0);
+        let d = Vec3::new(0.0, 0.0, -1.0);
+        let (t, u, v) = intersect_triangle(o, &RayShear::new(d), p0, p1, p2, 0.0, f32::INFINITY).unwrap();
+        assert!((t - 1.0).abs() < 1e-6);
+        assert!((u - 0.25).abs() < 1e-6 && (v - 0.5).abs() < 1e-6);
+        // Behind the origin and beyond t_max are misses.
+        assert!(intersect_triangle(o, &RayShear::new(-d), p0, p1, p2, 0.0, f32::INFINITY).is_none());
+        assert!(intersect_triangle(o, &RayShear::new(d), p0, p1, p2, 0.0, 0.5).is_none());
+    }
+
+    #[test]
+    fn slab_accepts_zero_direction_components() {
+        let b = Aabb { min: Vec3::ZERO, max: Vec3::ONE };
+        // Axis-aligned ray inside the x and y slabs, origin exactly on the min x plane.
+        let o = Vec3::new(0.0, 0.5, -1.0);
+        let d = Vec3::new(0.0, 0.0, 1.0);
+        let (n, f) = b.intersect(o, inv_dir(d), 0.0, f32::INFINITY).unwrap();
+        assert!((n - 1.0).abs() < 1e-6 && (f - 2.0).abs() < 1e-5);
+        // Outside the y slab with a zero y component: a miss.
+        let o = Vec3::new(0.5, 1.5, -1.0);
+        assert!(b.intersect(o, inv_dir(d), 0.0, f32::INFINITY).is_none());
+    }
+
+    #[test]
+    fn offset_leaves_the_surface_on_the_normal_side() {
+        for &p in &[Vec3::new(1000.0, -2000.0, 3.0), Vec3::new(0.001, 0.0, -0.01), Vec3::new(-5.0, 7.0, 1e-6)] {
+            let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+            let q = offset_ray_origin(p, n);
+            assert!((q - p).dot(n) > 0.0, "{p} -> {q}");
+        }
+    }
 }

@@ -72,7 +72,7 @@ fn run_diff(args: DiffArgs) -> Result<bool> {
             println!("NaN/Inf   {} in the reference, {} in the test (left out)", d.non_finite.0, d.non_finite.1);
         }
     }
-    Ok(args.fail_above.is_some_and(|limit| !(d.rmse <= limit)))
+    Ok(args.fail_above.is_some_and(|limit| d.rmse > limit || d.rmse.is_nan()))
 }
 
 #[derive(Args)]

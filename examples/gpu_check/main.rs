@@ -166,8 +166,12 @@ fn params(input: &Input) -> PdacrtParams {
     p
 }
 
+/// One loaded (model, batch): the model's name, its scene, the batch's name, its rays,
+/// and whether they are shadow rays.
+type Loaded = (String, Scene, String, Vec<Ray>, bool);
+
 /// Every (model, batch) of the input, loaded.
-fn inputs(input: &Input) -> Result<Vec<(String, Scene, String, Vec<Ray>, bool)>, String> {
+fn inputs(input: &Input) -> Result<Vec<Loaded>, String> {
     let mut out = Vec::new();
     for m in &input.model {
         let scene = load(m)?;

@@ -67,7 +67,7 @@ impl Passes {
     /// Whether sample `k` is the last of its pass.
     #[inline]
     pub fn ends_pass(&self, k: u32) -> bool {
-        (k + 1) % self.per_pass == 0
+        (k + 1).is_multiple_of(self.per_pass)
     }
 
     /// The waves of up to `size` samples over all the passes, in order.

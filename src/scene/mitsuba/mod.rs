@@ -148,7 +148,7 @@ impl Builder<'_, '_> {
             }
         }
         let mut p = Props::of(doc, node)?;
-        let m = p.to_world()?;
+        let m = p.world_transform()?;
         let fov = match (p.number("fov")?, p.text("focal_length")?) {
             (Some(f), None) => f,
             (None, focal) => {
@@ -327,7 +327,7 @@ impl Builder<'_, '_> {
             }
         }
         let mut p = Props::of(doc, node)?;
-        let m = p.to_world()?;
+        let m = p.world_transform()?;
         let flip = p.bool_or("flip_normals", false)?;
         let mesh = match kind.as_str() {
             "rectangle" => shapes::place(shapes::rectangle(), m, true, flip),
@@ -376,7 +376,7 @@ impl Builder<'_, '_> {
             return Err(doc.err(node, "emitter not supported at the top level (point; area emitters sit on shapes)"));
         }
         let mut p = Props::of(doc, node)?;
-        let m = p.to_world()?;
+        let m = p.world_transform()?;
         let position = p.point("position")?.unwrap_or(Vec3::ZERO);
         let intensity = p.color_or("intensity", Vec3::ONE)?;
         p.finish()?;

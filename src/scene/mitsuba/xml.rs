@@ -297,7 +297,7 @@ impl<'d, 'a, 'input> Props<'d, 'a, 'input> {
     }
 
     /// The `to_world` transform (identity when absent).
-    pub fn to_world(&mut self) -> Result<Mat4> {
+    pub fn world_transform(&mut self) -> Result<Mat4> {
         let m =
             self.typed("to_world", "a <transform>", |v| if let Value::Transform(x) = v { Some(x) } else { None })?;
         Ok(m.unwrap_or(Mat4::IDENTITY))
