@@ -516,7 +516,11 @@ fn enter_copy(m: &RefCell<Meter>, copy: usize) -> usize {
 #[cold]
 #[inline(never)]
 fn leave_copy(m: &RefCell<Meter>, outer: usize) {
-    m.borrow_mut().copy = outer;
+    // `try_`: a guard dropped while a panic unwinds out of the meter itself must not
+    // panic again (the launch reports the first panic).
+    if let Ok(mut m) = m.try_borrow_mut() {
+        m.copy = outer;
+    }
 }
 
 /// The call site of the `#[track_caller]` function that calls this.
