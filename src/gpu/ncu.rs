@@ -316,4 +316,24 @@ mod tests {
         assert_eq!(rows.len(), 1);
         assert!(table(&rows).contains("| pdacrt::filter_rays | 2 / 2 |"));
     }
+
+    #[test]
+    fn atomic_requests_are_atom_and_red_summed_beside_the_emulators() {
+        let csv = concat!(
+            "\"ID\",\"Kernel Name\",\"l1tex__t_requests_pipe_lsu_mem_global_op_atom.sum\",\"l1tex__t_requests_pipe_lsu_mem_global_op_red.sum\"\n",
+            "\"\",\"\",\"\",\"\"\n",
+            "\"0\",\"pdacrt::node_bounds(const unsigned int *)\",\"3\",\"40\"\n",
+            "\"1\",\"pdacrt::node_bounds(const unsigned int *)\",\"0\",\"7\"\n",
+        );
+        let gpu = parse_csv(csv).unwrap();
+        assert_eq!(gpu[0].atomics.requests, 50);
+        let simt = KernelSummary {
+            name: "pdacrt::node_bounds",
+            launches: 2,
+            atomics: Traffic { requests: 21, sectors: 30, lanes: 90 },
+            ..Default::default()
+        };
+        let t = table(&compare(&[simt], &gpu));
+        assert!(t.contains("| 21 / 50 | 0 / 0 |"), "{t}");
+    }
 }
