@@ -836,7 +836,8 @@ impl Thread<'_> {
     ///
     /// Bind the guard to a name (`let _trip = t.unroll(j);`; `let _ = ..` drops it at
     /// once). A guard rather than a closure so that a hot loop's body stays inline:
-    /// unmeasured launches pay one test of a register, and no call.
+    /// unmeasured launches pay a test of a register where the copy starts and one where
+    /// it ends, and no call.
     #[inline(always)]
     #[must_use = "the copy ends when the guard drops: bind it with `let _copy = ..`"]
     pub fn unroll(&self, copy: usize) -> Unrolled<'_> {
