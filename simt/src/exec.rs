@@ -499,14 +499,14 @@ fn note_spin(m: &RefCell<Meter>, site: usize, word: usize) {
 
 #[cold]
 #[inline(never)]
-fn note_work(m: &RefCell<Meter>, site: usize, region: usize, path: usize, units: u32) {
+pub(crate) fn note_work(m: &RefCell<Meter>, site: usize, region: usize, path: usize, units: u32) {
     m.borrow_mut().work(site, region, path, units);
 }
 
 /// Enters copy `copy` of unrolled code; returns the copy it was in.
 #[cold]
 #[inline(never)]
-fn enter_copy(m: &RefCell<Meter>, copy: usize) -> usize {
+pub(crate) fn enter_copy(m: &RefCell<Meter>, copy: usize) -> usize {
     let mut m = m.borrow_mut();
     let outer = m.copy;
     m.copy = outer.wrapping_mul(31).wrapping_add(copy + 1);
@@ -515,7 +515,7 @@ fn enter_copy(m: &RefCell<Meter>, copy: usize) -> usize {
 
 #[cold]
 #[inline(never)]
-fn leave_copy(m: &RefCell<Meter>, outer: usize) {
+pub(crate) fn leave_copy(m: &RefCell<Meter>, outer: usize) {
     // `try_`: a guard dropped while a panic unwinds out of the meter itself must not
     // panic again (the launch reports the first panic).
     if let Ok(mut m) = m.try_borrow_mut() {
@@ -526,7 +526,7 @@ fn leave_copy(m: &RefCell<Meter>, outer: usize) {
 /// The call site of the `#[track_caller]` function that calls this.
 #[inline(always)]
 #[track_caller]
-fn site() -> usize {
+pub(crate) fn site() -> usize {
     Location::caller() as *const Location as usize
 }
 
@@ -553,6 +553,12 @@ impl Thread<'static> {
 }
 
 impl Thread<'_> {
+    /// The launch's meter (`None` when it is not measured).
+    #[inline(always)]
+    pub(crate) fn meter(&self) -> Option<&RefCell<Meter>> {
+        self.meter
+    }
+
     /// `threadIdx.x`.
     #[inline(always)]
     pub fn thread_idx(&self) -> u32 {

@@ -47,6 +47,7 @@
 //!
 #![doc = concat!("```rust\n", include_str!("../examples/block_sum.rs"), "\n```")]
 
+pub mod ambient;
 mod device;
 mod exec;
 mod launch;
@@ -57,6 +58,7 @@ pub mod seq;
 pub mod stats;
 mod transform;
 
+pub use ambient::{Scope, declare, scope};
 pub use device::{Device, DeviceConfig, LaunchConfig, LaunchError, MAX_BLOCK_DIM, MemoryStats};
 pub use exec::{
     Block, Local, MAX_PATHS, MAX_REGIONS, Place, REGISTER_WORDS_PER_THREAD, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES,

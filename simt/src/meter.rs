@@ -19,6 +19,8 @@
 
 use crate::WARP_SIZE;
 use crate::exec::{MAX_PATHS, MAX_REGIONS, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES};
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 /// Requests and sectors of one kind of memory instruction.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -157,8 +159,9 @@ pub struct Race {
 #[derive(Default)]
 pub(crate) struct Meter {
     pub totals: Counters,
-    /// Interned keys (call site and path) of the operations seen by this worker.
-    keys: Vec<usize>,
+    /// Interned keys (call site and path) of the operations seen by this worker, and
+    /// their ids.
+    index: HashMap<usize, u32, BuildHasherDefault<KeyHasher>>,
     last_key: (usize, u32),
     /// Per key: executions by the current lane.
     lane_occ: Vec<u32>,
@@ -184,18 +187,15 @@ pub(crate) struct Meter {
 
 impl Meter {
     fn intern(&mut self, key: usize) -> u32 {
-        if self.last_key.0 == key && !self.keys.is_empty() {
+        if self.last_key.0 == key && !self.index.is_empty() {
             return self.last_key.1;
         }
-        let id = match self.keys.iter().position(|&k| k == key) {
-            Some(i) => i as u32,
-            None => {
-                self.keys.push(key);
-                self.lane_occ.push(0);
-                self.slot_of.push(Vec::new());
-                (self.keys.len() - 1) as u32
-            }
-        };
+        let next = self.index.len() as u32;
+        let id = *self.index.entry(key).or_insert(next);
+        if id == next {
+            self.lane_occ.push(0);
+            self.slot_of.push(Vec::new());
+        }
         self.last_key = (key, id);
         id
     }
@@ -360,6 +360,23 @@ impl Meter {
         self.spins.clear();
     }
 
+    /// The current lane enters scope `site` (a call or loop of code that runs a varying
+    /// number of times): the copy it runs in from now on is told by the site and by how
+    /// many times this lane entered it before, so the lanes' n-th entries are matched
+    /// with each other, whatever each did in its earlier ones. Returns the copy it was in.
+    pub fn enter_scope(&mut self, site: usize) -> usize {
+        let key = self.salted(site).wrapping_mul(16) + 1;
+        let id = self.intern(key) as usize;
+        let occ = self.lane_occ[id];
+        if occ == 0 {
+            self.lane_touched.push(id as u32);
+        }
+        self.lane_occ[id] += 1;
+        let outer = self.copy;
+        self.copy = outer.wrapping_mul(31).wrapping_add(key ^ (occ as usize + 1).wrapping_mul(0x2545_f491));
+        outer
+    }
+
     pub fn work(&mut self, site: usize, region: usize, path: usize, units: u32) {
         let site = self.salted(site);
         if units > 0 {
@@ -477,5 +494,25 @@ impl Meter {
         }
         self.warp_touched.clear();
         self.slots.clear();
+    }
+}
+
+/// Hasher of interned keys: they are code addresses mixed with copies, so one
+/// multiply spreads them well enough (and much faster than SipHash).
+#[derive(Default)]
+pub(crate) struct KeyHasher(u64);
+
+impl Hasher for KeyHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ b as u64).wrapping_mul(0x100_0000_01b3);
+        }
+    }
+    fn write_usize(&mut self, n: usize) {
+        let h = (n as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        self.0 = h ^ (h >> 32);
     }
 }

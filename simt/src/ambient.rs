@@ -1,0 +1,121 @@
+//! Work declared by code that does not hold the [`Thread`]: functions a kernel shares
+//! with host code (a renderer's BSDFs, its MIS weights) declare their arithmetic with
+//! [`declare`] and mark the calls and loops whose copies a GPU compiler keeps apart with
+//! [`scope`]. Inside [`Thread::ambient`] these record into that lane's measurement as
+//! [`Thread::work`] would; anywhere else (host code, an unmeasured launch) they cost a
+//! thread-local read and do nothing.
+//!
+//! Why scopes: nvcc inlines a device function at each call site, and lanes reconverge
+//! after a loop. Without scopes the meter matches a lane's n-th execution of a site
+//! with the other lanes' n-th, so after one lane made three trips of a loop and another
+//! five, their next calls would be matched three against five. A scope entered at a call
+//! site or loop is a copy of the code inside, told apart by the site and by how many
+//! times the lane entered it: the lanes' k-th entries are one copy, in which trips are
+//! matched again from the first.
+
+use crate::exec::{Thread, leave_copy, note_work, site};
+use crate::meter::Meter;
+use std::cell::{Cell, RefCell};
+
+/// The lane whose work `declare` records, and the region it goes to.
+#[derive(Clone, Copy)]
+struct Ambient {
+    meter: *const RefCell<Meter>,
+    region: usize,
+}
+
+thread_local! {
+    static AMBIENT: Cell<Option<Ambient>> = const { Cell::new(None) };
+}
+
+/// Puts the previous ambient lane back, and the lane's copy as it was when the ambient
+/// call began (so a scope guard kept past the call cannot leave later code in its
+/// copy), also when the call unwinds.
+struct Restore<'a> {
+    previous: Option<Ambient>,
+    meter: &'a RefCell<Meter>,
+    copy: usize,
+}
+
+impl Drop for Restore<'_> {
+    fn drop(&mut self) {
+        AMBIENT.set(self.previous);
+        leave_copy(self.meter, self.copy);
+    }
+}
+
+impl Thread<'_> {
+    /// Runs `f` with this thread as the *ambient* lane: [`declare`] and [`scope`] called
+    /// anywhere inside `f` (in code that does not hold the thread) record into it, the
+    /// declared work in region `region` (named by the launch like any region). In an
+    /// unmeasured launch `f` runs with no ambient lane.
+    pub fn ambient<R>(&self, region: usize, f: impl FnOnce() -> R) -> R {
+        let Some(meter) = self.meter() else { return f() };
+        let copy = meter.borrow().copy;
+        let previous = AMBIENT.replace(Some(Ambient { meter, region }));
+        let _restore = Restore { previous, meter, copy };
+        f()
+    }
+}
+
+#[inline(always)]
+fn ambient() -> Option<Ambient> {
+    AMBIENT.get()
+}
+
+/// Declares `units` instructions of arithmetic at the caller's site for the ambient lane
+/// ([`Thread::ambient`]); outside one, nothing. Lanes at the same site, copy and
+/// occurrence share a warp instruction issued `max(units)` times, as with
+/// [`Thread::work`].
+#[inline(always)]
+#[track_caller]
+pub fn declare(units: u32) {
+    if let Some(a) = ambient() {
+        // SAFETY: `Thread::ambient` sets the pointer from a borrow that outlives the
+        // closure it runs, and puts the previous value back before returning or
+        // unwinding; nothing else writes `AMBIENT`.
+        note_work(unsafe { &*a.meter }, site(), a.region, 0, units);
+    }
+}
+
+/// Enters a scope at the caller's site for the ambient lane, until the guard drops (see
+/// the module's text). Outside an ambient lane the guard does nothing. In a
+/// `#[track_caller]` function the site is that function's caller: one copy per call
+/// site, as nvcc inlines.
+#[inline(always)]
+#[track_caller]
+#[must_use = "the scope ends when the guard drops: bind it with `let _scope = ..`"]
+pub fn scope() -> Scope {
+    match ambient() {
+        Some(a) => {
+            // SAFETY: as in `declare`.
+            let m = unsafe { &*a.meter };
+            Scope { meter: a.meter, outer: enter_scope(m, site()) }
+        }
+        None => Scope { meter: std::ptr::null(), outer: 0 },
+    }
+}
+
+#[cold]
+#[inline(never)]
+fn enter_scope(m: &RefCell<Meter>, site: usize) -> usize {
+    m.borrow_mut().enter_scope(site)
+}
+
+/// A scope of the ambient lane, from [`scope`] until it drops.
+pub struct Scope {
+    meter: *const RefCell<Meter>,
+    outer: usize,
+}
+
+impl Drop for Scope {
+    #[inline(always)]
+    fn drop(&mut self) {
+        // Only while the ambient lane that made the guard is still this thread's: a
+        // guard kept past its `Thread::ambient` call (or sent out of it) does nothing.
+        if !self.meter.is_null() && ambient().is_some_and(|a| a.meter == self.meter) {
+            // SAFETY: the pointer is the current ambient lane's, valid as in `declare`.
+            leave_copy(unsafe { &*self.meter }, self.outer);
+        }
+    }
+}
