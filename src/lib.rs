@@ -30,6 +30,7 @@ pub mod aov;
 pub mod bsdf;
 pub mod cast;
 pub mod converge;
+pub(crate) mod cost;
 pub mod diff;
 pub mod error;
 pub mod film;

@@ -111,17 +111,26 @@ impl Lights {
     }
 
     /// Picks a light with `u_select` and a point on it with `u`.
+    #[inline]
+    #[track_caller]
     pub fn sample(&self, scene: &Scene, u_select: f32, u: Vec2) -> Option<LightSample> {
+        let _inlined = crate::cost::scope();
         if self.lights.is_empty() {
             return None;
         }
+        // (`simt`'s model: the binary search's trips, the selection's difference.)
+        let trips = usize::BITS - self.cdf.len().leading_zeros();
+        crate::cost::declare!(6 * trips + 4 + 2 * crate::cost::BRANCH);
         let i = self.cdf.partition_point(|&c| c <= u_select).min(self.lights.len() - 1);
         let p_sel = self.select_pdf(i);
         if p_sel <= 0.0 {
             return None;
         }
+        crate::cost::declare!(crate::cost::BRANCH);
         Some(match self.lights[i] {
             Light::Area { tri, area, normal, radiance } => {
+                use crate::cost::{DIV, SQRT, V3};
+                crate::cost::declare!(SQRT + 3 + 6 * V3 + DIV);
                 let [a, b, c] = scene.vertices(tri);
                 let (b1, b2) = uniform_triangle(u);
                 let position = a * (1.0 - b1 - b2) + b * b1 + c * b2;

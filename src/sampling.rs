@@ -52,7 +52,10 @@ impl Rng {
 
     /// Uniform in `[0, 1)`, with 24 bits of precision.
     #[inline]
+    #[track_caller]
     pub fn uniform(&mut self) -> f32 {
+        let _inlined = crate::cost::scope();
+        crate::cost::declare!(crate::cost::RNG);
         (self.next_u64() >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
     }
 
@@ -85,7 +88,11 @@ pub struct Frame {
 
 impl Frame {
     /// An orthonormal frame around unit normal `n`.
+    #[inline]
+    #[track_caller]
     pub fn from_normal(n: Vec3) -> Frame {
+        let _inlined = crate::cost::scope();
+        crate::cost::declare!(crate::cost::FRAME);
         let sign = 1.0f32.copysign(n.z);
         let a = -1.0 / (sign + n.z);
         let b = n.x * n.y * a;
@@ -95,19 +102,29 @@ impl Frame {
     }
     #[inline]
     /// World direction to local coordinates.
+    #[track_caller]
     pub fn to_local(&self, v: Vec3) -> Vec3 {
+        let _inlined = crate::cost::scope();
+        crate::cost::declare!(crate::cost::TO_LOCAL);
         Vec3::new(v.dot(self.s), v.dot(self.t), v.dot(self.n))
     }
     #[inline]
     /// Local direction to world coordinates.
+    #[track_caller]
     pub fn to_world(&self, v: Vec3) -> Vec3 {
+        let _inlined = crate::cost::scope();
+        crate::cost::declare!(crate::cost::TO_WORLD);
         self.s * v.x + self.t * v.y + self.n * v.z
     }
 }
 
 /// Cosine-weighted direction on the +z hemisphere; pdf = cos θ / π.
+#[inline]
+#[track_caller]
 pub fn cosine_hemisphere(u: Vec2) -> Vec3 {
+    let _inlined = crate::cost::scope();
     let d = concentric_disk(u);
+    crate::cost::declare!(6 + crate::cost::SQRT);
     Vec3::new(d.x, d.y, (1.0 - d.length_squared()).max(0.0).sqrt())
 }
 
@@ -145,11 +162,17 @@ pub fn power_heuristic(pf: f32, pg: f32) -> f32 {
 }
 
 /// Shirley–Chiu concentric map from the unit square to the unit disk.
+#[inline]
+#[track_caller]
 pub fn concentric_disk(u: Vec2) -> Vec2 {
+    let _inlined = crate::cost::scope();
+    use crate::cost::{BRANCH, DIV, SIN_COS};
+    crate::cost::declare!(4 + 2 * BRANCH);
     let o = 2.0 * u - Vec2::ONE;
     if o == Vec2::ZERO {
         return Vec2::ZERO;
     }
+    crate::cost::declare!(2 + BRANCH + DIV + 3 + 2 * SIN_COS + 2);
     let (r, theta) = if o.x.abs() > o.y.abs() {
         (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
     } else {

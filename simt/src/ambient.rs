@@ -1,6 +1,6 @@
 //! Work declared by code that does not hold the [`Thread`]: functions a kernel shares
 //! with host code (a renderer's BSDFs, its MIS weights) declare their arithmetic with
-//! [`declare`] and mark the calls and loops whose copies a GPU compiler keeps apart with
+//! [`declare!`](crate::declare!) and mark the calls and loops whose copies a GPU compiler keeps apart with
 //! [`scope`]. Inside [`Thread::ambient`] these record into that lane's measurement as
 //! [`Thread::work`] would; anywhere else (host code, an unmeasured launch) they cost a
 //! thread-local read and do nothing.
@@ -16,6 +16,7 @@
 use crate::exec::{Thread, leave_copy, note_work, site};
 use crate::meter::Meter;
 use std::cell::{Cell, RefCell};
+use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 
 /// The lane whose work `declare` records, and the region it goes to.
 #[derive(Clone, Copy)]
@@ -23,6 +24,12 @@ struct Ambient {
     meter: *const RefCell<Meter>,
     region: usize,
 }
+
+/// Ambient calls running now, on any thread. Host code reads this one global (a plain
+/// load, well predicted) and only looks further when a measured kernel runs somewhere:
+/// a thread-local read on every declaration cost the CPU integrators a quarter of their
+/// time.
+static ACTIVE: AtomicUsize = AtomicUsize::new(0);
 
 thread_local! {
     static AMBIENT: Cell<Option<Ambient>> = const { Cell::new(None) };
@@ -41,6 +48,7 @@ impl Drop for Restore<'_> {
     fn drop(&mut self) {
         AMBIENT.set(self.previous);
         leave_copy(self.meter, self.copy);
+        ACTIVE.fetch_sub(1, Relaxed);
     }
 }
 
@@ -52,6 +60,7 @@ impl Thread<'_> {
     pub fn ambient<R>(&self, region: usize, f: impl FnOnce() -> R) -> R {
         let Some(meter) = self.meter() else { return f() };
         let copy = meter.borrow().copy;
+        ACTIVE.fetch_add(1, Relaxed);
         let previous = AMBIENT.replace(Some(Ambient { meter, region }));
         let _restore = Restore { previous, meter, copy };
         f()
@@ -60,21 +69,48 @@ impl Thread<'_> {
 
 #[inline(always)]
 fn ambient() -> Option<Ambient> {
+    if ACTIVE.load(Relaxed) == 0 { None } else { ambient_here() }
+}
+
+#[cold]
+#[inline(never)]
+fn ambient_here() -> Option<Ambient> {
     AMBIENT.get()
 }
 
-/// Declares `units` instructions of arithmetic at the caller's site for the ambient lane
-/// ([`Thread::ambient`]); outside one, nothing. Lanes at the same site, copy and
-/// occurrence share a warp instruction issued `max(units)` times, as with
-/// [`Thread::work`].
+/// Declares `units` instructions of arithmetic at a site of its own (the macro's place in
+/// the source) for the ambient lane ([`Thread::ambient`]); outside one, nothing. Lanes
+/// at the same site, copy and occurrence share a warp instruction issued `max(units)`
+/// times, as with [`Thread::work`]. A macro rather than a `#[track_caller]` function:
+/// inside a `#[track_caller]` function (one that opens a [`scope`] per call site) the
+/// caller's location would pass through to every declaration in its body.
+#[macro_export]
+macro_rules! declare {
+    ($units:expr) => {
+        $crate::ambient::declare_at(
+            $crate::ambient::site_of(::core::file!(), ::core::line!(), ::core::column!()),
+            $units,
+        )
+    };
+}
+
+/// A site key for a place in the source: the file name's address mixed with its line
+/// and column (what [`declare!`] passes).
+#[doc(hidden)]
 #[inline(always)]
-#[track_caller]
-pub fn declare(units: u32) {
+pub fn site_of(file: &'static str, line: u32, column: u32) -> usize {
+    (file.as_ptr() as usize) ^ ((line as usize) << 40) ^ ((column as usize) << 28)
+}
+
+/// The function behind [`declare!`].
+#[doc(hidden)]
+#[inline(always)]
+pub fn declare_at(site: usize, units: u32) {
     if let Some(a) = ambient() {
         // SAFETY: `Thread::ambient` sets the pointer from a borrow that outlives the
         // closure it runs, and puts the previous value back before returning or
         // unwinding; nothing else writes `AMBIENT`.
-        note_work(unsafe { &*a.meter }, site(), a.region, 0, units);
+        note_work(unsafe { &*a.meter }, site, a.region, 0, units);
     }
 }
 

@@ -58,7 +58,7 @@ pub mod seq;
 pub mod stats;
 mod transform;
 
-pub use ambient::{Scope, declare, scope};
+pub use ambient::{Scope, scope};
 pub use device::{Device, DeviceConfig, LaunchConfig, LaunchError, MAX_BLOCK_DIM, MemoryStats};
 pub use exec::{
     Block, Local, MAX_PATHS, MAX_REGIONS, Place, REGISTER_WORDS_PER_THREAD, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES,

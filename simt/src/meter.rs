@@ -16,6 +16,10 @@
 //! dividing both the size and the alignment) is `s / w` instructions of `w` bytes.
 //! Each warp-level memory instruction is one *request*; the distinct 32-byte sectors its
 //! lanes touch are its *sectors*. Loads, stores and atomics are kept apart.
+//!
+//! About 520 lines on purpose: the matching of lanes into warp instructions, the
+//! memory traffic and the race check share the per-lane and per-warp state kept
+//! private here.
 
 use crate::WARP_SIZE;
 use crate::exec::{MAX_PATHS, MAX_REGIONS, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES};

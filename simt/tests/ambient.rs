@@ -13,10 +13,10 @@ fn measured() -> Device {
 fn shared_helper(trips: usize, per_trip: u32, scoped: bool) {
     let _loop = scoped.then(simt::scope);
     for _ in 0..trips {
-        simt::declare(per_trip);
+        simt::declare!(per_trip);
     }
     drop(_loop);
-    simt::declare(10);
+    simt::declare!(10);
 }
 
 #[test]
@@ -56,15 +56,11 @@ fn a_scope_is_copied_per_call_site_and_entry() {
     let dev = measured();
     // Half the lanes reach the helper from one call site, half from the other: two
     // inlined copies, so two instructions of 16 lanes for each of its sites.
-    // (The declaration is in a function of its own: `#[track_caller]` would otherwise
-    // pass the call site on to `declare` too.)
-    fn body() {
-        simt::declare(5);
-    }
+    // (`declare!` keeps its own site inside a `#[track_caller]` function.)
     #[track_caller]
     fn helper() {
         let _inlined = simt::scope();
-        body();
+        simt::declare!(5);
     }
     #[allow(clippy::if_same_then_else)] // two call sites are the point
     let rec =
@@ -87,7 +83,7 @@ fn outside_an_ambient_lane_nothing_is_recorded() {
     // A guard kept past its ambient call does nothing when it drops.
     let rec = dev.for_each_in("kept", &["shared"], 32, |t, _i| {
         let kept = t.ambient(0, simt::scope);
-        t.ambient(0, || simt::declare(1));
+        t.ambient(0, || simt::declare!(1));
         drop(kept);
     });
     assert_eq!((rec.regions[0].issued, rec.regions[0].active), (1, 32));
@@ -97,6 +93,6 @@ fn outside_an_ambient_lane_nothing_is_recorded() {
 fn work_in_a_region_the_launch_does_not_name_is_refused() {
     let dev = measured();
     let cfg = simt::LaunchConfig::linear(32, 32).with_regions(&["one"]);
-    let res = dev.launch("unnamed", cfg, |blk| blk.for_each_thread(|t| t.ambient(3, || simt::declare(1))));
+    let res = dev.launch("unnamed", cfg, |blk| blk.for_each_thread(|t| t.ambient(3, || simt::declare!(1))));
     assert!(res.is_err(), "region 3 is not named by the launch");
 }

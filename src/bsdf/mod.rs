@@ -10,6 +10,8 @@
 pub mod layered;
 pub mod microfacet;
 
+use crate::cost::declare;
+use crate::cost::{BRANCH, DIV, DOT, LUMINANCE, SQRT, V3, V3_DIV};
 use crate::film::luminance;
 use crate::scene::Material;
 use glam::{Vec2, Vec3};
@@ -59,13 +61,21 @@ fn reflect_z(w: Vec3) -> Vec3 {
     Vec3::new(-w.x, -w.y, w.z)
 }
 
+#[inline]
+#[track_caller]
 fn continuous(wi: Vec3, f: Vec3, pdf: f32) -> Option<BsdfSample> {
+    let _inlined = crate::cost::scope();
+    declare!(2 * BRANCH + 1 + V3 + V3_DIV);
     (pdf > 0.0 && wi.z != 0.0).then(|| BsdfSample { wi, f, pdf, weight: f * wi.z.abs() / pdf, delta: false })
 }
 
 impl Material {
     /// Probability of choosing the specular lobe of a glossy material.
+    #[inline]
+    #[track_caller]
     fn specular_weight(diffuse: Vec3, specular: Vec3) -> f32 {
+        let _inlined = crate::cost::scope();
+        declare!(2 * LUMINANCE + 1 + BRANCH + DIV);
         let (d, s) = (luminance(diffuse), luminance(specular));
         if d + s > 0.0 { s / (d + s) } else { 0.0 }
     }
@@ -88,51 +98,79 @@ impl Material {
     }
 
     /// The BSDF value for the pair (continuous part only).
+    #[inline]
+    #[track_caller]
     pub fn f(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> Vec3 {
+        let _inlined = crate::cost::scope();
+        declare!(BRANCH);
         if let Material::RoughGlass { ior, roughness, tint } = *self {
+            declare!(BRANCH);
             if roughness < SMOOTH {
                 return Vec3::ZERO;
             }
+            declare!(BRANCH + 4 + DIV);
             let (wo_u, wi_u, eta) = if wo.z < 0.0 { (flip(wo), flip(wi), 1.0 / ior) } else { (wo, wi, ior) };
             let (v, _) = rough_dielectric(Ggx { alpha: roughness }, eta, wo_u, wi_u, mode);
+            declare!(1 + BRANCH + V3);
             return if wo.z * wi.z < 0.0 { tint * v } else { Vec3::splat(v) };
         }
+        declare!(3 * BRANCH + 2);
         let (wo, wi) = upper(wo, wi);
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return Vec3::ZERO;
         }
+        declare!(BRANCH);
         match *self {
-            Material::Diffuse { albedo } => albedo * FRAC_1_PI,
+            Material::Diffuse { albedo } => {
+                declare!(V3);
+                albedo * FRAC_1_PI
+            }
             Material::Glossy { diffuse, specular, roughness } => {
                 let spec = Ggx { alpha: roughness }.reflection(wo, wi).map_or(0.0, |(v, _, _)| v);
+                declare!(3 * V3);
                 diffuse * FRAC_1_PI + specular * spec
             }
-            Material::Conductor { eta, k, roughness } if roughness >= SMOOTH => Ggx { alpha: roughness }
-                .reflection(wo, wi)
-                .map_or(Vec3::ZERO, |(v, _, wm)| fresnel_conductor(wo.dot(wm), eta, k) * v),
+            Material::Conductor { eta, k, roughness } if roughness >= SMOOTH => {
+                Ggx { alpha: roughness }.reflection(wo, wi).map_or(Vec3::ZERO, |(v, _, wm)| {
+                    declare!(DOT + V3);
+                    fresnel_conductor(wo.dot(wm), eta, k) * v
+                })
+            }
             Material::Layered(l) => l.f(wo, wi),
             _ => Vec3::ZERO,
         }
     }
 
     /// Solid-angle density with which [`Material::sample_f`] picks `wi` (continuous part).
+    #[inline]
+    #[track_caller]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+        let _inlined = crate::cost::scope();
+        declare!(BRANCH);
         if let Material::RoughGlass { ior, roughness, .. } = *self {
+            declare!(BRANCH);
             if roughness < SMOOTH {
                 return 0.0;
             }
+            declare!(BRANCH + 4 + DIV);
             let (wo_u, wi_u, eta) = if wo.z < 0.0 { (flip(wo), flip(wi), 1.0 / ior) } else { (wo, wi, ior) };
             return rough_dielectric(Ggx { alpha: roughness }, eta, wo_u, wi_u, TransportMode::Radiance).1;
         }
+        declare!(3 * BRANCH + 2);
         let (wo, wi) = upper(wo, wi);
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return 0.0;
         }
+        declare!(BRANCH);
         match *self {
-            Material::Diffuse { .. } => wi.z * FRAC_1_PI,
+            Material::Diffuse { .. } => {
+                declare!(1);
+                wi.z * FRAC_1_PI
+            }
             Material::Glossy { diffuse, specular, roughness } => {
                 let ws = Self::specular_weight(diffuse, specular);
                 let spec = Ggx { alpha: roughness }.reflection(wo, wi).map_or(0.0, |(_, p, _)| p);
+                declare!(5);
                 (1.0 - ws) * wi.z * FRAC_1_PI + ws * spec
             }
             Material::Conductor { roughness, .. } if roughness >= SMOOTH => {
@@ -144,10 +182,15 @@ impl Material {
     }
 
     /// Samples an incident direction for `wo`. `u_lobe` picks a lobe, `u` the direction.
+    #[inline]
+    #[track_caller]
     pub fn sample_f(&self, wo: Vec3, u_lobe: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
+        let _inlined = crate::cost::scope();
+        declare!(BRANCH);
         if wo.z == 0.0 {
             return None;
         }
+        declare!(2 * BRANCH + 1);
         let side = if wo.z < 0.0 { -1.0 } else { 1.0 };
         let to_side = |w: Vec3| Vec3::new(w.x, w.y, w.z * side);
         let wo_up = to_side(wo);
@@ -158,49 +201,63 @@ impl Material {
                         if u_lobe < Self::specular_weight(diffuse, specular) =>
                     {
                         let wm = Ggx { alpha: roughness }.sample_visible(wo_up, u);
+                        declare!(DOT + 1 + 2 * V3);
                         2.0 * wo_up.dot(wm) * wm - wo_up
                     }
                     _ => crate::sampling::cosine_hemisphere(u),
                 };
+                declare!(BRANCH);
                 if wi_up.z <= 0.0 {
                     return None;
                 }
+                declare!(1);
                 let wi = to_side(wi_up);
                 continuous(wi, self.f(wo, wi, mode), self.pdf(wo, wi))
             }
             Material::Conductor { eta, k, roughness } => {
+                declare!(BRANCH);
                 if roughness < SMOOTH {
                     let wi = reflect_z(wo);
                     let fr = fresnel_conductor(wo_up.z, eta, k);
+                    declare!(1 + V3_DIV);
                     return Some(BsdfSample { wi, f: fr / wi.z.abs(), pdf: 1.0, weight: fr, delta: true });
                 }
                 let wm = Ggx { alpha: roughness }.sample_visible(wo_up, u);
+                declare!(DOT + 1 + 2 * V3 + BRANCH);
                 let wi_up = 2.0 * wo_up.dot(wm) * wm - wo_up;
                 if wi_up.z <= 0.0 {
                     return None;
                 }
+                declare!(1);
                 let wi = to_side(wi_up);
                 continuous(wi, self.f(wo, wi, mode), self.pdf(wo, wi))
             }
             Material::Layered(l) => {
                 let s = l.sample(wo_up, u_lobe, u, mode)?;
+                declare!(1);
                 Some(BsdfSample { wi: to_side(s.wi), ..s })
             }
             Material::Mirror { reflectance } => {
+                declare!(1 + V3_DIV);
                 let wi = reflect_z(wo);
                 Some(BsdfSample { wi, f: reflectance / wi.z.abs(), pdf: 1.0, weight: reflectance, delta: true })
             }
             Material::RoughGlass { ior, roughness, .. } if roughness >= SMOOTH => {
+                declare!(BRANCH + DIV);
                 let eta = if wo.z > 0.0 { ior } else { 1.0 / ior };
                 let wi_up = sample_rough_dielectric(Ggx { alpha: roughness }, eta, wo_up, u_lobe, u)?;
+                declare!(1);
                 let wi = to_side(wi_up);
                 continuous(wi, self.f(wo, wi, mode), self.pdf(wo, wi))
             }
             Material::Glass { ior, tint } | Material::RoughGlass { ior, tint, .. } => {
+                declare!(BRANCH + DIV + 1);
                 let entering = wo.z > 0.0;
                 let eta = if entering { ior } else { 1.0 / ior };
                 let fr = fresnel_dielectric(wo.z.abs(), eta);
+                declare!(BRANCH);
                 if u_lobe < fr {
+                    declare!(2 + DIV);
                     let wi = reflect_z(wo);
                     return Some(BsdfSample {
                         wi,
@@ -211,6 +268,7 @@ impl Material {
                     });
                 }
                 // Refraction about the normal on wo's side.
+                declare!(12 + 4 * DIV + SQRT + BRANCH + 2 * V3);
                 let cos_i = wo.z.abs();
                 let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
                 let cos_t = (1.0 - sin2_t).max(0.0).sqrt();

@@ -18,9 +18,10 @@
 
 use super::Context;
 use super::bidir::{
-    Pending, Vertex, VertexList, camera_vertex, connect_to_camera, full_path, mis_weight, strategy_connect,
-    strategy_emitter, strategy_light_sample,
+    Pending, Vertex, VertexList, camera_vertex, connect_to_camera, full_path, strategy_connect, strategy_emitter,
+    strategy_light_sample,
 };
+use super::mis::mis_weight;
 use super::walk::{
     Passes, Walker, WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave, start_light_wave,
 };

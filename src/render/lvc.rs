@@ -12,11 +12,13 @@
 use super::Context;
 use super::bidir::{
     Pending, Vertex, VertexKind, VertexList, camera_vertex, connect_contribution, connect_to_camera, connectible,
-    full_path, mis_weight_counts, strategy_connect, strategy_emitter, strategy_light_sample,
+    full_path, strategy_connect, strategy_emitter, strategy_light_sample,
 };
+use super::mis::mis_weight_counts;
 use super::walk::WaveBuffers;
 use super::walk::{Passes, Subpaths, extend_together, flush_wave, resolve_wave, start_camera_wave, start_light_wave};
 use crate::cast::CastStats;
+use crate::cost::{BRANCH, DIV, LUMINANCE, V3};
 use crate::film::Film;
 use crate::film::luminance;
 use crate::sampling::Rng;
@@ -279,7 +281,11 @@ impl LvcBdpt {
     }
 }
 
+#[inline]
+#[track_caller]
 fn uniform_entry(cache_len: usize, rng: &mut Rng) -> usize {
+    let _inlined = crate::cost::scope();
+    crate::cost::declare!(5);
     ((rng.uniform() * cache_len as f32) as usize).min(cache_len - 1)
 }
 
@@ -342,17 +348,24 @@ pub(crate) fn vertex_strategies(
     // full render would draw has been drawn.
     let weight =
         |path: &VertexList, s: usize| ctx.opts.strategy_weight(s, t, || mis_weight_counts(ctx, path, s, count));
-    if t - 2 <= max_depth
-        && let Some(l) = strategy_emitter(cam, t, &[], path)
-        && let Some(w) = weight(path, 0)
+    // (Each strategy is a scope for `simt`'s model: nvcc inlines `weight` at each.)
     {
-        sink((None, l * w, None));
+        let _strategy = crate::cost::scope();
+        if t - 2 <= max_depth
+            && let Some(l) = strategy_emitter(cam, t, &[], path)
+            && let Some(w) = weight(path, 0)
+        {
+            sink((None, l * w, None));
+        }
     }
-    if t - 1 <= max_depth
-        && let Some((l, ray)) = strategy_light_sample(ctx, cam, t, rng, path)
-        && let Some(w) = weight(path, 1)
     {
-        sink((Some(ray), l * w, None));
+        let _strategy = crate::cost::scope();
+        if t - 1 <= max_depth
+            && let Some((l, ray)) = strategy_light_sample(ctx, cam, t, rng, path)
+            && let Some(w) = weight(path, 1)
+        {
+            sink((Some(ray), l * w, None));
+        }
     }
     if cache_len == 0 || connections.per_vertex() == 0 || t > max_depth {
         return;
@@ -361,18 +374,21 @@ pub(crate) fn vertex_strategies(
     let mut light = VertexList::default();
     let mut connect = |e: usize, extra: f32, path: &mut VertexList, sink: &mut dyn FnMut(Pending)| {
         let s = subpath(e, &mut light, false);
+        crate::cost::declare!(BRANCH);
         if s + t - 2 > max_depth {
             return;
         }
         if let Some((l, ray)) = strategy_connect(ctx, &light, s, cam, t, path)
             && let Some(w) = weight(path, s)
         {
+            crate::cost::declare!(2 + DIV + V3);
             sink((Some(ray), l * (w * extra / counts.connection as f32), None));
         }
     };
     match connections {
         Connections::Uniform { n } => {
             for _ in 0..n {
+                let _trip = crate::cost::scope();
                 let e = uniform_entry(cache_len, rng);
                 connect(e, 1.0, path, sink);
             }
@@ -383,8 +399,10 @@ pub(crate) fn vertex_strategies(
             let mut total = 0.0f32;
             let mut tail = VertexList::default();
             for k in 0..n {
+                let _trip = crate::cost::scope();
                 entry[k] = uniform_entry(cache_len, rng);
                 let s = subpath(entry[k], &mut tail, true);
+                crate::cost::declare!(3 * BRANCH);
                 let (lv, prev) = match &tail[..] {
                     [prev, lv] => (Some(lv), Some(prev)),
                     [lv] => (Some(lv), None),
@@ -396,20 +414,27 @@ pub(crate) fn vertex_strategies(
                     }
                     _ => 0.0,
                 };
+                crate::cost::declare!(LUMINANCE + 2);
                 total += target[k];
             }
+            crate::cost::declare!(BRANCH);
             if total <= 0.0 {
                 return;
             }
+            crate::cost::declare!(DIV + 2);
             let mean = total / n as f32;
             for _ in 0..draws {
+                let _trip = crate::cost::scope();
                 let mut u = rng.uniform() * total;
                 let mut k = 0;
                 while k + 1 < n && (u >= target[k] || target[k] == 0.0) {
                     u -= target[k];
                     k += 1;
                 }
+                // The search: its tests, subtraction and step per candidate passed.
+                crate::cost::declare!(1 + 6 * (k as u32 + 1) + BRANCH);
                 if target[k] > 0.0 {
+                    crate::cost::declare!(DIV);
                     connect(entry[k], mean / target[k], path, sink);
                 }
             }

@@ -12,6 +12,7 @@ mod compact;
 mod light;
 pub mod lvc;
 pub(crate) mod megakernel;
+pub(crate) mod mis;
 mod path;
 pub mod registry;
 mod walk;

@@ -186,13 +186,24 @@ impl CacheRead<'_> {
     }
 }
 
-/// Region of the shading kernel's SIMD accounting.
+/// Region of the shading kernel's SIMD accounting: one step per material kind.
 pub const SHADE_REGION: usize = 0;
+/// Region of the arithmetic the shading kernel runs in code it shares with the CPU
+/// integrators (BSDFs, sampling, MIS weights, connections), declared there through
+/// [`simt::declare`] with the weights of [`crate::cost`].
+pub const ARITHMETIC_REGION: usize = 1;
+/// The shading launch's regions, in index order.
+pub const SHADE_REGIONS: &[&str] = &["shade", "arithmetic"];
 
 /// `cis::shade`: the sample at sorted position `j` meets its hit: the vertex joins its
 /// camera subpath, every strategy at it is evaluated into the pending slots, and the
 /// BSDF chooses the next ray (or the path ends).
 pub fn shade(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
+    t.ambient(ARITHMETIC_REGION, || shade_lane(t, ctx, a, j))
+}
+
+fn shade_lane(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
+    use crate::cost::{BRANCH, CROSS, DOT, NORMALIZE, NORMALIZE_OR_ZERO, V3, V3_DIV, VERTEX_COPY};
     let i = t.load(&a.order, j) as usize;
     let slot_id = t.load(&a.active, i) as usize;
     let mut slot = t.load(&a.slots, slot_id);
@@ -211,12 +222,16 @@ pub fn shade(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
     let scene = ctx.scene;
     let material = scene.material(hit.prim);
     t.work(SHADE_REGION, kind_index(material.kind_name()), 1);
+    crate::cost::declare!(2 * V3 + CROSS + NORMALIZE_OR_ZERO + 4);
     let [p0, p1, p2] = scene.vertices(hit.prim);
     let n = (p1 - p0).cross(p2 - p0).normalize_or_zero();
     if n == Vec3::ZERO {
         slot.alive = 0;
         return t.store(&a.slots, slot_id, slot);
     }
+    // The hit point, and the camera subpath copied into a vertex list with the new
+    // vertex (the loads are the kernel's own).
+    crate::cost::declare!(2 + 3 * V3 + 2 * V3 + (slot.depth + 1) * VERTEX_COPY);
     let p = p0 * (1.0 - hit.u - hit.v) + p1 * hit.u + p2 * hit.v;
     let vbase = slot_id * MAX_CAMERA_VERTICES;
     let depth = slot.depth as usize;
@@ -241,6 +256,7 @@ pub fn shade(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
 
     // Continue the subpath.
     let max_vertices = ctx.opts.max_depth as usize + 2;
+    crate::cost::declare!(NORMALIZE + 3 + 2 * BRANCH);
     let frame = Frame::from_normal(n);
     let wo = frame.to_local(-slot.ray.dir.normalize());
     let sample = if t_len >= max_vertices || t_len >= MAX_CAMERA_VERTICES {
@@ -258,8 +274,11 @@ pub fn shade(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
     slot.depth += 1;
     match sample {
         Some(s) => {
+            // Throughput, the finiteness tests, the next ray off the surface.
+            crate::cost::declare!(V3 + BRANCH + 8 + DOT + BRANCH + 15 + 10);
             slot.beta *= s.weight;
             if t_len > 4 {
+                crate::cost::declare!(3 + BRANCH + V3_DIV);
                 let q = slot.beta.max_element().min(0.95);
                 if slot.rng.uniform() >= q {
                     slot.alive = 0;

@@ -289,7 +289,7 @@ impl<'d> CameraPool<'d> {
                 connections,
             },
         };
-        let cfg = simt::LaunchConfig::linear(n, 128).with_regions(&["shade"]);
+        let cfg = simt::LaunchConfig::linear(n, 128).with_regions(kernels::SHADE_REGIONS);
         self.dev
             .launch("cis::shade", cfg, |blk| {
                 blk.for_each_thread(|t| {

@@ -1,0 +1,96 @@
+//! Instruction weights of the arithmetic that `simt` kernels share with host code (the
+//! BSDFs, sampling, MIS weights and connections that CIS-LBDPT's `cis::shade` runs), for
+//! the emulator's SIMD model. Shared functions declare them with [`declare!`] (and mark
+//! inlined calls and loops with [`scope`]); inside a kernel's
+//! [`simt::Thread::ambient`] call they count as that lane's instructions, anywhere else
+//! they do nothing.
+//!
+//! Both compile to nothing without the cargo feature `model-arithmetic` (which `cuda`
+//! turns on): even a check that finds no kernel running, at every declaration, cost the
+//! CPU integrators about a quarter of their time (BDPT on the materials scene, 256²,
+//! 8 spp: 2.64-2.79 s without, 3.48-3.76 s with; the development VM).
+//!
+//! **The rule** (`docs/gpu-check.md`, "The shading kernel's arithmetic"): one
+//! instruction per scalar f32 add, subtract, multiply, compare, min, max, abs or select
+//! (the twin is compiled with `-fmad=false`, so no multiply fuses with an add); for the
+//! operations that compile to sequences on sm_90 with `-prec-div=true -prec-sqrt=true`,
+//! the length of their common path: a division is a reciprocal estimate, five fused
+//! refinements, a range check and its branch; a square root a reciprocal square root,
+//! four refinements and a range check with its branch; `expf` a range reduction and
+//! `MUFU.EX2`; `sinf`/`cosf` a Cody–Waite reduction and a polynomial. Vector operations
+//! are three scalar ones. The weights are counted from the Rust source, not fitted to
+//! any measurement: the GPU's counts of the same launches judge them.
+
+/// A compare and its branch (or a select).
+pub const BRANCH: u32 = 2;
+/// f32 division (IEEE).
+pub const DIV: u32 = 10;
+/// f32 square root (IEEE).
+pub const SQRT: u32 = 9;
+/// `expf`.
+pub const EXP: u32 = 8;
+/// `sinf` or `cosf`.
+pub const SIN_COS: u32 = 20;
+/// A component-wise `Vec3` add, subtract or multiply.
+pub const V3: u32 = 3;
+/// `Vec3 / f32`: three divisions.
+pub const V3_DIV: u32 = 3 * DIV;
+/// Dot product: three multiplies, two adds.
+pub const DOT: u32 = 5;
+/// Cross product.
+pub const CROSS: u32 = 9;
+/// `normalize`: the length's reciprocal, three multiplies.
+pub const NORMALIZE: u32 = DOT + SQRT + DIV + 3;
+/// `normalize_or_zero`: the same and a finiteness test.
+pub const NORMALIZE_OR_ZERO: u32 = NORMALIZE + 4;
+/// A shading frame from a normal (Duff et al. 2017).
+pub const FRAME: u32 = DIV + 16;
+/// A direction into or out of a frame: three dot products, or three scaled adds.
+pub const TO_LOCAL: u32 = 3 * DOT;
+/// The reverse of [`TO_LOCAL`].
+pub const TO_WORLD: u32 = 15;
+/// One uniform number of [`crate::sampling::Rng`]: the 64-bit counter step and
+/// `mix64` (64-bit multiplies are several 32-bit ones), then the conversion.
+pub const RNG: u32 = 26;
+/// Copying a path vertex (15 words) into a vertex list in local memory.
+pub const VERTEX_COPY: u32 = 16;
+/// Luminance of a colour.
+pub const LUMINANCE: u32 = 5;
+
+/// Declares `units` instructions of arithmetic here ([`simt::declare!`]) with the
+/// feature `model-arithmetic`; nothing without it.
+#[cfg(feature = "model-arithmetic")]
+macro_rules! declare {
+    ($units:expr) => {
+        simt::declare!($units)
+    };
+}
+
+/// Declares `units` instructions of arithmetic here ([`simt::declare!`]) with the
+/// feature `model-arithmetic`; nothing without it.
+#[cfg(not(feature = "model-arithmetic"))]
+macro_rules! declare {
+    ($units:expr) => {{
+        let _ = $units;
+    }};
+}
+pub(crate) use declare;
+
+/// The caller's inlined copy ([`simt::scope`]) with the feature `model-arithmetic`.
+#[cfg(feature = "model-arithmetic")]
+#[inline(always)]
+#[track_caller]
+pub(crate) fn scope() -> simt::Scope {
+    simt::scope()
+}
+
+/// Nothing without the feature `model-arithmetic`.
+#[cfg(not(feature = "model-arithmetic"))]
+#[inline(always)]
+pub(crate) fn scope() -> NoScope {
+    NoScope
+}
+
+/// What [`scope`] returns without the feature `model-arithmetic`.
+#[cfg(not(feature = "model-arithmetic"))]
+pub(crate) struct NoScope;

@@ -1,0 +1,102 @@
+//! The arithmetic that BSDF code declares for `simt`'s model (`src/cost.rs`), counted by
+//! hand from the rule and checked on one warp: a lane-uniform warp executes every
+//! declared instruction with all 32 lanes, and a warp split between two materials issues
+//! the shared prefix once and each material's arm for its own lanes. Without the cargo
+//! feature `model-arithmetic` (which `cuda`, and so the README's test command, turns on)
+//! the declarations compile to nothing, and that is what is checked instead.
+
+#![cfg_attr(not(feature = "model-arithmetic"), allow(dead_code))]
+
+use glam::Vec3;
+use simt::{Device, DeviceConfig};
+use warpray::bsdf::TransportMode;
+use warpray::scene::Material;
+
+// The rule's weights (src/cost.rs), restated: the test counts by hand from them.
+const BRANCH: u64 = 2;
+const DIV: u64 = 10;
+const SQRT: u64 = 9;
+const V3: u64 = 3;
+const DOT: u64 = 5;
+const NORMALIZE_OR_ZERO: u64 = DOT + SQRT + DIV + 3 + 4;
+
+/// `Material::f` before its match: the rough-glass test, the two-sided flip and the
+/// hemisphere tests, the match's branch.
+const PREFIX: u64 = BRANCH + (3 * BRANCH + 2) + BRANCH;
+/// The diffuse arm.
+const DIFFUSE_ARM: u64 = V3;
+
+/// GGX `lambda` for a direction off the horizon.
+const LAMBDA: u64 = (1 + BRANCH) + (7 + DIV + SQRT);
+/// GGX `d` for a normal above the horizon.
+const D: u64 = BRANCH + 7 + DIV;
+/// `reflection`: the side tests, the half vector, the value's and density's own
+/// arithmetic, then D, G2 (two lambdas) and the visible density (G1, one lambda, D).
+const REFLECTION: u64 = 2 * BRANCH
+    + (V3 + NORMALIZE_OR_ZERO + 4)
+    + (4 + DIV + DOT + 1 + DIV)
+    + D
+    + (2 + DIV + 2 * LAMBDA)
+    + (DOT + 3 + DIV + (1 + DIV + LAMBDA) + D);
+/// Fresnel of a conductor: per channel 29 operations, two roots and two divisions.
+const FRESNEL_CONDUCTOR: u64 = 4 + 3 * (29 + 2 * SQRT + 2 * DIV);
+/// The rough conductor's arm.
+const CONDUCTOR_ARM: u64 = REFLECTION + (DOT + V3) + FRESNEL_CONDUCTOR;
+
+fn warp_of(materials: impl Fn(usize) -> Material + Sync) -> (u64, u64) {
+    let dev = Device::new(DeviceConfig { measure: true, ..Default::default() });
+    let (wo, wi) = (Vec3::new(0.3, 0.1, 0.9).normalize(), Vec3::new(-0.2, 0.4, 0.8).normalize());
+    let rec = dev.for_each_in("bsdf::f", &["arithmetic"], 32, |t, i| {
+        t.ambient(0, || {
+            std::hint::black_box(materials(i).f(wo, wi, TransportMode::Radiance));
+        })
+    });
+    (rec.regions[0].issued, rec.regions[0].active)
+}
+
+fn diffuse() -> Material {
+    Material::Diffuse { albedo: Vec3::splat(0.5) }
+}
+
+fn conductor() -> Material {
+    Material::Conductor { eta: Vec3::new(0.2, 0.9, 1.1), k: Vec3::new(3.9, 2.4, 2.2), roughness: 0.3 }
+}
+
+#[cfg(feature = "model-arithmetic")]
+#[test]
+fn a_uniform_warp_executes_every_declared_instruction_with_all_lanes() {
+    assert_eq!(warp_of(|_| diffuse()), (PREFIX + DIFFUSE_ARM, 32 * (PREFIX + DIFFUSE_ARM)));
+    assert_eq!(warp_of(|_| conductor()), (PREFIX + CONDUCTOR_ARM, 32 * (PREFIX + CONDUCTOR_ARM)));
+}
+
+#[cfg(feature = "model-arithmetic")]
+#[test]
+fn a_warp_split_between_materials_issues_each_arm_for_its_own_lanes() {
+    let (issued, active) = warp_of(|i| if i < 16 { diffuse() } else { conductor() });
+    assert_eq!(active, 16 * (PREFIX + DIFFUSE_ARM) + 16 * (PREFIX + CONDUCTOR_ARM));
+    assert_eq!(issued, PREFIX + DIFFUSE_ARM + CONDUCTOR_ARM);
+}
+
+#[test]
+fn outside_a_kernel_the_declarations_do_nothing() {
+    // Host code: the same call, no ambient lane; and a measured launch that does not
+    // make its lanes ambient records no arithmetic.
+    let (wo, wi) = (Vec3::Z, Vec3::new(0.0, 0.6, 0.8));
+    let host = conductor().f(wo, wi, TransportMode::Radiance);
+    assert!(host.max_element() > 0.0);
+    let dev = Device::new(DeviceConfig { measure: true, ..Default::default() });
+    let rec = dev.for_each_in("bsdf::f", &["arithmetic"], 32, |_t, _i| {
+        std::hint::black_box(conductor().f(wo, wi, TransportMode::Radiance));
+    });
+    assert_eq!((rec.regions[0].issued, rec.regions[0].active), (0, 0));
+}
+
+#[cfg(not(feature = "model-arithmetic"))]
+#[test]
+fn without_the_feature_nothing_is_declared() {
+    eprintln!(
+        "model-arithmetic is off in this build: the known counts of BSDF arithmetic are \
+         checked with `--features model-arithmetic` (or `cuda`); here only their absence"
+    );
+    assert_eq!(warp_of(|_| conductor()), (0, 0));
+}
