@@ -14,23 +14,26 @@
 //! instruction per scalar f32 add, subtract, multiply, compare, min, max, abs or select
 //! (the twin is compiled with `-fmad=false`, so no multiply fuses with an add); for the
 //! operations that compile to sequences on sm_90 with `-prec-div=true -prec-sqrt=true`,
-//! the length of their common path: a division is a reciprocal estimate, five fused
-//! refinements, a range check and its branch; a square root a reciprocal square root,
-//! four refinements and a range check with its branch; `expf` a range reduction and
-//! `MUFU.EX2`; `sinf`/`cosf` a Cody–Waite reduction and a polynomial. Vector operations
-//! are three scalar ones. The weights are counted from the Rust source, not fitted to
-//! any measurement: the GPU's counts of the same launches judge them.
+//! the length of their common path as nvcc 13.0 emits it for sm_90 (read from the SASS
+//! of `cuda/probe_costs.cu`, `sh cuda/probe_costs.sh`): a division is 10 instructions
+//! (the convergence barrier, `MUFU.RCP`, `FCHK`, five `FFMA`, the branch around the slow
+//! path, the barrier's end), a square root 10 (`MUFU.RSQ`, a range check and its branch,
+//! four refinements, the barrier), `expf` 10 (a range reduction and `MUFU.EX2`), `sinf`
+//! or `cosf` 27 (a Cody–Waite reduction, the large-argument test and its branch, the
+//! polynomial with its selects). Vector operations are three scalar ones. The weights
+//! are counted from the Rust source, not fitted to any measurement: the GPU's counts of
+//! the same launches judge them.
 
 /// A compare and its branch (or a select).
 pub const BRANCH: u32 = 2;
 /// f32 division (IEEE).
 pub const DIV: u32 = 10;
 /// f32 square root (IEEE).
-pub const SQRT: u32 = 9;
+pub const SQRT: u32 = 10;
 /// `expf`.
-pub const EXP: u32 = 8;
+pub const EXP: u32 = 10;
 /// `sinf` or `cosf`.
-pub const SIN_COS: u32 = 20;
+pub const SIN_COS: u32 = 27;
 /// A component-wise `Vec3` add, subtract or multiply.
 pub const V3: u32 = 3;
 /// `Vec3 / f32`: three divisions.
@@ -58,11 +61,12 @@ pub const VERTEX_COPY: u32 = 16;
 pub const LUMINANCE: u32 = 5;
 
 /// Declares `units` instructions of arithmetic here ([`simt::declare!`]) with the
-/// feature `model-arithmetic`; nothing without it.
+/// feature `model-arithmetic`, in the region of its part of the code ([`part_of`]);
+/// nothing without it.
 #[cfg(feature = "model-arithmetic")]
 macro_rules! declare {
     ($units:expr) => {
-        simt::declare!($units)
+        simt::declare!($units, part { const PART: usize = $crate::cost::part_of(file!()); PART })
     };
 }
 
@@ -94,3 +98,38 @@ pub(crate) fn scope() -> NoScope {
 /// What [`scope`] returns without the feature `model-arithmetic`.
 #[cfg(not(feature = "model-arithmetic"))]
 pub(crate) struct NoScope;
+
+/// The part of the code a source file belongs to, whose declared work a kernel's
+/// statistics keep apart (the k-th region after the kernel's arithmetic region: 0 the
+/// kernel's own, 1 microfacet, 2 BSDFs, 3 bidirectional, 4 sampling, 5 lights), as
+/// `gpu_check source --lines` groups the twin's source lines.
+#[cfg_attr(not(feature = "model-arithmetic"), allow(dead_code))]
+pub const fn part_of(file: &str) -> usize {
+    const fn ends_with(a: &[u8], b: &[u8]) -> bool {
+        if b.len() > a.len() {
+            return false;
+        }
+        let mut i = 0;
+        while i < b.len() {
+            if a[a.len() - b.len() + i] != b[i] {
+                return false;
+            }
+            i += 1;
+        }
+        true
+    }
+    let f = file.as_bytes();
+    if ends_with(f, b"microfacet.rs") {
+        1
+    } else if ends_with(f, b"bsdf/mod.rs") || ends_with(f, b"layered.rs") {
+        2
+    } else if ends_with(f, b"bidir.rs") || ends_with(f, b"mis.rs") || ends_with(f, b"lvc.rs") {
+        3
+    } else if ends_with(f, b"sampling.rs") {
+        4
+    } else if ends_with(f, b"lights.rs") {
+        5
+    } else {
+        0
+    }
+}

@@ -288,6 +288,10 @@ fn cis_run(
             let mut r = warpray::render::Renderer::new(&scene, &caster, &opts).map_err(|e| e.to_string())?;
             let mut film = r.film().map_err(|e| e.to_string())?;
             r.passes(0, 1, &mut film);
+            let log = r.device().map(|d| d.launch_log()).unwrap_or_default();
+            if let Some(first) = log.iter().find(|l| l.name == "cis::shade") {
+                print_parts(&name, first);
+            }
             let order = if sorted { "cis::shade_sorted" } else { "cis::shade_unsorted" };
             let rename = |k: &mut simt::KernelSummary| match k.name {
                 "cis::shade" => {
@@ -321,6 +325,27 @@ fn cis_run(
         ));
     }
     Ok(())
+}
+
+/// A measured launch's instructions by part: its memory and intrinsic operations, then
+/// each region's declared work (for the shading kernel: the dispatch, then the shared
+/// arithmetic by part of the code), with its share of the issued instructions and its
+/// SIMD efficiency: the emulator's side of `gpu_check source --lines`' table.
+fn print_parts(name: &str, l: &simt::LaunchRecord) {
+    let all = l.all_regions();
+    let total = all.issued.max(1) as f64;
+    println!(
+        "{name}, first shading launch: {} warp instructions, SIMD efficiency {:.3}",
+        all.issued,
+        l.simd_efficiency().unwrap_or(0.0)
+    );
+    for r in std::iter::once(&l.ops).chain(&l.regions) {
+        if r.issued > 0 {
+            let simd = r.simd_efficiency().unwrap_or(0.0);
+            let part = if std::ptr::eq(r, &l.ops) { "memory, intrinsics" } else { r.name };
+            println!("  {part:<28} {:>6.1} %  SIMD {simd:.3}", 100.0 * r.issued as f64 / total);
+        }
+    }
 }
 
 /// Summaries of several runs, added up by kernel name.

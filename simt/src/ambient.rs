@@ -81,14 +81,21 @@ fn ambient_here() -> Option<Ambient> {
 /// Declares `units` instructions of arithmetic at a site of its own (the macro's place in
 /// the source) for the ambient lane ([`Thread::ambient`]); outside one, nothing. Lanes
 /// at the same site, copy and occurrence share a warp instruction issued `max(units)`
-/// times, as with [`Thread::work`]. A macro rather than a `#[track_caller]` function:
-/// inside a `#[track_caller]` function (one that opens a [`scope`] per call site) the
-/// caller's location would pass through to every declaration in its body.
+/// times, as with [`Thread::work`]. The work goes to the region the ambient call named,
+/// or with `declare!(units, part k)` to the k-th region after it (so shared code can
+/// split its work by part of the code, each part a region the launch names). A macro
+/// rather than a `#[track_caller]` function: inside a `#[track_caller]` function (one
+/// that opens a [`scope`] per call site) the caller's location would pass through to
+/// every declaration in its body.
 #[macro_export]
 macro_rules! declare {
     ($units:expr) => {
+        $crate::declare!($units, part 0)
+    };
+    ($units:expr, part $part:expr) => {
         $crate::ambient::declare_at(
             $crate::ambient::site_of(::core::file!(), ::core::line!(), ::core::column!()),
+            $part,
             $units,
         )
     };
@@ -105,12 +112,12 @@ pub fn site_of(file: &'static str, line: u32, column: u32) -> usize {
 /// The function behind [`declare!`].
 #[doc(hidden)]
 #[inline(always)]
-pub fn declare_at(site: usize, units: u32) {
+pub fn declare_at(site: usize, part: usize, units: u32) {
     if let Some(a) = ambient() {
         // SAFETY: `Thread::ambient` sets the pointer from a borrow that outlives the
         // closure it runs, and puts the previous value back before returning or
         // unwinding; nothing else writes `AMBIENT`.
-        note_work(unsafe { &*a.meter }, site, a.region, 0, units);
+        note_work(unsafe { &*a.meter }, site, a.region + part, 0, units);
     }
 }
 

@@ -51,8 +51,7 @@ impl Ggx {
     #[track_caller]
     pub fn g1(&self, w: Vec3) -> f32 {
         let _inlined = crate::cost::scope();
-        declare!(1 + DIV);
-        1.0 / (1.0 + self.lambda(w))
+        g1_of(self.lambda(w))
     }
 
     /// Height-correlated masking-shadowing G2(ωo, ωi).
@@ -60,8 +59,17 @@ impl Ggx {
     #[track_caller]
     pub fn g2(&self, wo: Vec3, wi: Vec3) -> f32 {
         let _inlined = crate::cost::scope();
+        let lambda_o = self.lambda(wo);
+        self.g2_with(lambda_o, wi)
+    }
+
+    /// G2 with Λ(ωo) already known.
+    #[inline]
+    #[track_caller]
+    fn g2_with(&self, lambda_o: f32, wi: Vec3) -> f32 {
+        let _inlined = crate::cost::scope();
         declare!(2 + DIV);
-        1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
+        1.0 / (1.0 + lambda_o + self.lambda(wi))
     }
 
     /// Density of visible normal `wm` seen from `wo` (`wo.z > 0`).
@@ -69,8 +77,8 @@ impl Ggx {
     #[track_caller]
     pub fn visible_pdf(&self, wo: Vec3, wm: Vec3) -> f32 {
         let _inlined = crate::cost::scope();
-        declare!(DOT + 3 + DIV);
-        self.g1(wo) * wo.dot(wm).max(0.0) * self.d(wm) / wo.z
+        let lambda_o = self.lambda(wo);
+        visible_pdf_with(lambda_o, self.d(wm), wo, wm)
     }
 
     /// Samples a visible normal seen from `wo` (`wo.z > 0`).
@@ -112,10 +120,30 @@ impl Ggx {
             return None;
         }
         declare!(4 + DIV + DOT + 1 + DIV);
-        let value = self.d(wm) * self.g2(wo, wi) / (4.0 * wo.z * wi.z);
-        let pdf = self.visible_pdf(wo, wm) / (4.0 * wo.dot(wm));
+        let (d, lambda_o) = (self.d(wm), self.lambda(wo));
+        let value = d * self.g2_with(lambda_o, wi) / (4.0 * wo.z * wi.z);
+        let pdf = visible_pdf_with(lambda_o, d, wo, wm) / (4.0 * wo.dot(wm));
         Some((value, pdf, wm))
     }
+}
+
+/// G1 from Λ.
+#[inline]
+fn g1_of(lambda: f32) -> f32 {
+    declare!(1 + DIV);
+    1.0 / (1.0 + lambda)
+}
+
+/// The visible-normal density with Λ(ωo) and D(ωm) already known. A lobe's value and
+/// density both need D(ωm) and Λ(ωo); they are computed once, as the compiled twin
+/// computes them (nvcc keeps one of each after inlining), and the results are the same
+/// to the bit.
+#[inline]
+#[track_caller]
+fn visible_pdf_with(lambda_o: f32, d: f32, wo: Vec3, wm: Vec3) -> f32 {
+    let _inlined = crate::cost::scope();
+    declare!(DOT + 3 + DIV);
+    g1_of(lambda_o) * wo.dot(wm).max(0.0) * d / wo.z
 }
 
 /// Unpolarised Fresnel reflectance of a dielectric interface; `eta = η_t / η_i`.
@@ -205,10 +233,11 @@ pub fn rough_dielectric(ggx: Ggx, eta: f32, wo: Vec3, wi: Vec3, mode: TransportM
     }
     declare!(DOT);
     let fr = fresnel_dielectric(wo.dot(wm), eta);
-    let vis = ggx.visible_pdf(wo, wm);
+    let (d, lambda_o) = (ggx.d(wm), ggx.lambda(wo));
+    let vis = visible_pdf_with(lambda_o, d, wo, wm);
     if reflect {
         declare!(5 + DIV + DOT + 3 + DIV);
-        let value = ggx.d(wm) * ggx.g2(wo, wi) * fr / (4.0 * cos_o * cos_i);
+        let value = d * ggx.g2_with(lambda_o, wi) * fr / (4.0 * cos_o * cos_i);
         let pdf = vis / (4.0 * wo.dot(wm)) * fr;
         (value, pdf)
     } else {
@@ -216,7 +245,7 @@ pub fn rough_dielectric(ggx: Ggx, eta: f32, wo: Vec3, wi: Vec3, mode: TransportM
         let denom = wi.dot(wm) + wo.dot(wm) / etap;
         let denom2 = denom * denom;
         let mut value =
-            ggx.d(wm) * (1.0 - fr) * ggx.g2(wo, wi) * (wi.dot(wm) * wo.dot(wm) / (cos_i * cos_o * denom2)).abs();
+            d * (1.0 - fr) * ggx.g2_with(lambda_o, wi) * (wi.dot(wm) * wo.dot(wm) / (cos_i * cos_o * denom2)).abs();
         if mode == TransportMode::Radiance {
             declare!(1 + DIV);
             value /= etap * etap;

@@ -190,10 +190,20 @@ impl CacheRead<'_> {
 pub const SHADE_REGION: usize = 0;
 /// Region of the arithmetic the shading kernel runs in code it shares with the CPU
 /// integrators (BSDFs, sampling, MIS weights, connections), declared there through
-/// [`simt::declare`] with the weights of [`crate::cost`].
+/// `simt::declare!` with the weights of [`crate::cost`]; its parts of the code follow in
+/// the regions after it.
 pub const ARITHMETIC_REGION: usize = 1;
-/// The shading launch's regions, in index order.
-pub const SHADE_REGIONS: &[&str] = &["shade", "arithmetic"];
+/// The shading launch's regions, in index order: the dispatch, then the declared
+/// arithmetic by part of the code ([`crate::cost::part_of`]).
+pub const SHADE_REGIONS: &[&str] = &[
+    "shade",
+    "arithmetic",
+    "arithmetic: microfacet",
+    "arithmetic: bsdf",
+    "arithmetic: bidirectional",
+    "arithmetic: sampling",
+    "arithmetic: lights",
+];
 
 /// `cis::shade`: the sample at sorted position `j` meets its hit: the vertex joins its
 /// camera subpath, every strategy at it is evaluated into the pending slots, and the
