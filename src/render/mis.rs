@@ -4,7 +4,7 @@
 //! by BDPT, LVC-BDPT and CIS-LBDPT; the vertices and strategies are in `bidir.rs`.
 
 use super::Context;
-use super::bidir::{Vertex, VertexKind, camera_importance, cos_at};
+use super::bidir::{MAX_PATH, Vertex, VertexKind, camera_importance, cos_at};
 use crate::cost::{BRANCH, DIV, DOT, NORMALIZE, SQRT, V3, V3_DIV, declare};
 use crate::sampling::Frame;
 use glam::Vec3;
@@ -92,21 +92,20 @@ pub(crate) fn mis_weight(ctx: &Context, path: &[Vertex], s: usize) -> f32 {
 pub(crate) fn mis_weight_counts(ctx: &Context, path: &[Vertex], s: usize, count: impl Fn(usize, usize) -> f64) -> f32 {
     let k = path.len() - 1;
     // Each trip of the two density loops: its test, index arithmetic and conversion.
-    let pl: Vec<f64> = (0..=k)
-        .map(|i| {
-            declare!(6);
-            match i {
-                0 => light_origin_pdf(ctx, &path[0]) as f64,
-                _ => pdf_area(ctx, if i >= 2 { Some(&path[i - 2]) } else { None }, &path[i - 1], &path[i]) as f64,
-            }
-        })
-        .collect();
-    let pc: Vec<f64> = (0..=k)
-        .map(|i| {
-            declare!(6);
-            if i == k { 1.0 } else { pdf_area(ctx, path.get(i + 2), &path[i + 1], &path[i]) as f64 }
-        })
-        .collect();
+    // Fixed arrays: kernels call this, and kernels do not allocate (a full path holds
+    // at most `MAX_PATH` vertices, a `VertexList`'s capacity).
+    let (mut pl, mut pc) = ([0f64; MAX_PATH], [0f64; MAX_PATH]);
+    for i in 0..=k {
+        declare!(6);
+        pl[i] = match i {
+            0 => light_origin_pdf(ctx, &path[0]) as f64,
+            _ => pdf_area(ctx, if i >= 2 { Some(&path[i - 2]) } else { None }, &path[i - 1], &path[i]) as f64,
+        };
+    }
+    for i in 0..=k {
+        declare!(6);
+        pc[i] = if i == k { 1.0 } else { pdf_area(ctx, path.get(i + 2), &path[i + 1], &path[i]) as f64 };
+    }
     // The sum over strategies: for each of the k + 1, its validity tests (8), its count
     // (4) and the two products over all k + 1 densities (a multiply and the loop's
     // step, test and branch per factor), then the quotient (a double division, twice a
@@ -130,7 +129,7 @@ pub(crate) fn mis_weight_counts(ctx: &Context, path: &[Vertex], s: usize, count:
         let connectible = |v: &Vertex| v.kind != VertexKind::Surface || !v.delta;
         connectible(&path[s - 1]) && connectible(&path[s])
     };
-    let p = |s: usize| count(s, k + 1 - s) * pl[..s].iter().product::<f64>() * pc[s..].iter().product::<f64>();
+    let p = |s: usize| count(s, k + 1 - s) * pl[..s].iter().product::<f64>() * pc[s..=k].iter().product::<f64>();
     let total: f64 = (0..=k).filter(|&s| valid(s)).map(p).sum();
     if total > 0.0 && valid(s) { (p(s) / total) as f32 } else { 0.0 }
 }
