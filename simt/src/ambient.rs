@@ -94,19 +94,31 @@ macro_rules! declare {
     };
     ($units:expr, part $part:expr) => {
         $crate::ambient::declare_at(
-            $crate::ambient::site_of(::core::file!(), ::core::line!(), ::core::column!()),
+            {
+                const SITE: usize = $crate::ambient::site_of(::core::file!(), ::core::line!(), ::core::column!());
+                SITE
+            },
             $part,
             $units,
         )
     };
 }
 
-/// A site key for a place in the source: the file name's address mixed with its line
-/// and column (what [`declare!`] passes).
+/// A site key for a place in the source, computed when the crate compiles (what
+/// [`declare!`] passes): a hash of the file's name, line and column, the same in every
+/// build and wherever the code is inlined.
 #[doc(hidden)]
-#[inline(always)]
-pub fn site_of(file: &'static str, line: u32, column: u32) -> usize {
-    (file.as_ptr() as usize) ^ ((line as usize) << 40) ^ ((column as usize) << 28)
+pub const fn site_of(file: &str, line: u32, column: u32) -> usize {
+    let bytes = file.as_bytes();
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut i = 0;
+    while i < bytes.len() {
+        h = (h ^ bytes[i] as u64).wrapping_mul(0x100_0000_01b3);
+        i += 1;
+    }
+    h = (h ^ line as u64).wrapping_mul(0x100_0000_01b3);
+    h = (h ^ column as u64).wrapping_mul(0x100_0000_01b3);
+    h as usize
 }
 
 /// The function behind [`declare!`].
