@@ -53,7 +53,7 @@ impl Drop for Restore<'_> {
 }
 
 impl Thread<'_> {
-    /// Runs `f` with this thread as the *ambient* lane: [`declare`] and [`scope`] called
+    /// Runs `f` with this thread as the *ambient* lane: [`declare!`](crate::declare!) and [`scope`] called
     /// anywhere inside `f` (in code that does not hold the thread) record into it, the
     /// declared work in region `region` (named by the launch like any region). In an
     /// unmeasured launch `f` runs with no ambient lane.

@@ -12,7 +12,9 @@
 //!   closest-hit keys).
 //! * **Measurement** (switchable): per named kernel, launches and time always; SIMD
 //!   efficiency (active lanes per issued warp step), warp-wide memory requests and the
-//!   32-byte sectors they touch when [`Device::set_measure`] is on.
+//!   32-byte sectors they touch when [`Device::set_measure`] is on. Code a kernel shares
+//!   with host code declares its arithmetic through the kernel's ambient lane
+//!   ([`ambient`]: [`Thread::ambient`], [`declare!`](crate::declare!), [`scope`]).
 //! * **Primitives** with Thrust names, written as kernels: [`inclusive_scan`],
 //!   [`exclusive_scan`], [`transform_exclusive_scan`], [`reduce`], [`reduce_by_key`], [`sort_by_key`] (stable radix),
 //!   [`copy_if`], [`gather`], [`scatter`], [`fill`], [`sequence`], and [`WorkQueue`].

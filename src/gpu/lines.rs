@@ -23,7 +23,7 @@ pub struct Line {
 }
 
 /// Every instruction summed per kernel and source line, over the launches `keep`
-/// accepts (as for [`split`]); each kernel's lines by warp instructions, most first.
+/// accepts (as for [`split`](super::source::split)); each kernel's lines by warp instructions, most first.
 /// A line's share of its kernel's warp instructions and its SIMD efficiency show where
 /// a kernel's divergence sits (the loop a lane leaves early, a retry loop).
 pub fn lines(insts: &[Instruction], keep: impl Fn(&str, usize) -> bool) -> Vec<Line> {
