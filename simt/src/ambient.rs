@@ -16,7 +16,6 @@
 use crate::exec::{Thread, leave_copy, note_work, site};
 use crate::meter::Meter;
 use std::cell::{Cell, RefCell};
-use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 
 /// The lane whose work `declare` records, and the region it goes to.
 #[derive(Clone, Copy)]
@@ -24,12 +23,6 @@ struct Ambient {
     meter: *const RefCell<Meter>,
     region: usize,
 }
-
-/// Ambient calls running now, on any thread. Host code reads this one global (a plain
-/// load, well predicted) and only looks further when a measured kernel runs somewhere:
-/// a thread-local read on every declaration cost the CPU integrators a quarter of their
-/// time.
-static ACTIVE: AtomicUsize = AtomicUsize::new(0);
 
 thread_local! {
     static AMBIENT: Cell<Option<Ambient>> = const { Cell::new(None) };
@@ -48,7 +41,6 @@ impl Drop for Restore<'_> {
     fn drop(&mut self) {
         AMBIENT.set(self.previous);
         leave_copy(self.meter, self.copy);
-        ACTIVE.fetch_sub(1, Relaxed);
     }
 }
 
@@ -60,7 +52,6 @@ impl Thread<'_> {
     pub fn ambient<R>(&self, region: usize, f: impl FnOnce() -> R) -> R {
         let Some(meter) = self.meter() else { return f() };
         let copy = meter.borrow().copy;
-        ACTIVE.fetch_add(1, Relaxed);
         let previous = AMBIENT.replace(Some(Ambient { meter, region }));
         let _restore = Restore { previous, meter, copy };
         f()
@@ -69,12 +60,6 @@ impl Thread<'_> {
 
 #[inline(always)]
 fn ambient() -> Option<Ambient> {
-    if ACTIVE.load(Relaxed) == 0 { None } else { ambient_here() }
-}
-
-#[cold]
-#[inline(never)]
-fn ambient_here() -> Option<Ambient> {
     AMBIENT.get()
 }
 

@@ -506,11 +506,8 @@ pub(crate) fn note_work(m: &RefCell<Meter>, site: usize, region: usize, path: us
 /// Enters copy `copy` of unrolled code; returns the copy it was in.
 #[cold]
 #[inline(never)]
-pub(crate) fn enter_copy(m: &RefCell<Meter>, copy: usize) -> usize {
-    let mut m = m.borrow_mut();
-    let outer = m.copy;
-    m.copy = outer.wrapping_mul(31).wrapping_add(copy + 1);
-    outer
+fn enter_copy(m: &RefCell<Meter>, copy: usize) -> usize {
+    m.borrow_mut().enter_copy(copy)
 }
 
 #[cold]

@@ -211,13 +211,20 @@ impl Meter {
         self.op_keyed(site.wrapping_mul(16), kind, parts, units)
     }
 
-    fn op_keyed(&mut self, key: usize, kind: Kind, parts: u32, units: u32) -> u32 {
-        let id = self.intern(key) as usize;
+    /// Counts one more execution of interned key `id` by the current lane; returns how
+    /// many came before it.
+    fn next_occurrence(&mut self, id: usize) -> usize {
         let occ = self.lane_occ[id] as usize;
         if occ == 0 {
             self.lane_touched.push(id as u32);
         }
         self.lane_occ[id] += 1;
+        occ
+    }
+
+    fn op_keyed(&mut self, key: usize, kind: Kind, parts: u32, units: u32) -> u32 {
+        let id = self.intern(key) as usize;
+        let occ = self.next_occurrence(id);
         let per_site = &mut self.slot_of[id];
         if per_site.is_empty() {
             self.warp_touched.push(id as u32);
@@ -371,13 +378,14 @@ impl Meter {
     pub fn enter_scope(&mut self, site: usize) -> usize {
         let key = self.salted(site).wrapping_mul(16) + 1;
         let id = self.intern(key) as usize;
-        let occ = self.lane_occ[id];
-        if occ == 0 {
-            self.lane_touched.push(id as u32);
-        }
-        self.lane_occ[id] += 1;
+        let occ = self.next_occurrence(id);
+        self.enter_copy(key ^ (occ + 1).wrapping_mul(0x2545_f491))
+    }
+
+    /// Enters copy `copy` of code, nested in the current one; returns the copy it was in.
+    pub fn enter_copy(&mut self, copy: usize) -> usize {
         let outer = self.copy;
-        self.copy = outer.wrapping_mul(31).wrapping_add(key ^ (occ as usize + 1).wrapping_mul(0x2545_f491));
+        self.copy = outer.wrapping_mul(31).wrapping_add(copy + 1);
         outer
     }
 
