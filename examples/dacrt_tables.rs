@@ -63,6 +63,9 @@ struct Args {
     /// DACRT's `packet_rays` (0: no packet filtering; default: DACRT's own).
     #[arg(long)]
     dacrt_packet: Option<usize>,
+    /// DACRT's `fork_min_rays` (0: no forks; default: DACRT's own).
+    #[arg(long)]
+    dacrt_fork: Option<usize>,
 }
 
 /// Tunables given on the command line, over the casters' defaults.
@@ -72,6 +75,7 @@ struct Tunables {
     dacrt_top_cell: Option<usize>,
     dacrt_groups_per_thread: Option<usize>,
     dacrt_packet: Option<usize>,
+    dacrt_fork: Option<usize>,
 }
 
 /// One measured (scene, batch, caster, threads) cell.
@@ -149,6 +153,7 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
             d.params.top_cell_triangles = t.dacrt_top_cell.unwrap_or(d.params.top_cell_triangles);
             d.params.groups_per_thread = t.dacrt_groups_per_thread.unwrap_or(d.params.groups_per_thread);
             d.params.packet_rays = t.dacrt_packet.unwrap_or(d.params.packet_rays);
+            d.params.fork_min_rays = t.dacrt_fork.unwrap_or(d.params.fork_min_rays);
             Box::new(d)
         }
         "pdacrt" => {
@@ -304,6 +309,7 @@ fn run(a: Args) -> Result<(), String> {
         dacrt_top_cell: a.dacrt_top_cell,
         dacrt_groups_per_thread: a.dacrt_groups_per_thread,
         dacrt_packet: a.dacrt_packet,
+        dacrt_fork: a.dacrt_fork,
     };
     TUNABLES.set(tunables).map_err(|_| "tunables set twice".to_string())?;
     let mut pool = rayon::ThreadPoolBuilder::new();

@@ -25,6 +25,18 @@ fn casters_under_test(scene: &Scene) -> Vec<Box<dyn RayCaster>> {
             scene.triangle_vertices(),
             DacrtParams { leaf_rays: 1, leaf_triangles: 1, packet_rays: 8, ..DacrtParams::default() },
         )),
+        // Forks at nearly every node (with more than one thread: far halves run as tasks,
+        // taken over by idle threads), one group per thread.
+        Box::new(Dacrt::from_triangles(
+            scene.triangle_vertices(),
+            DacrtParams {
+                fork_min_rays: 2,
+                leaf_rays: 2,
+                leaf_triangles: 2,
+                groups_per_thread: 1,
+                ..DacrtParams::default()
+            },
+        )),
         Box::new(Pdacrt::new(scene)),
         Box::new(Pdacrt::from_triangles(
             &scene.triangle_vertices(),

@@ -26,8 +26,11 @@
 //!   streaming passes over the triangles' boxes). With more than one thread the
 //!   batch's rays are cut into groups (in coherence order, below); each group walks
 //!   the shared top levels near child first and runs its own DACRT inside the cells it
-//!   reaches, serially, so early termination is kept. With one thread there is one
-//!   group. Nothing is kept between calls.
+//!   reaches, serially, so early termination is kept. A batch from one origin (primary
+//!   rays, rays from a point light) is cut into many groups; a batch from many origins
+//!   into one per thread, whose recursions fork their far halves for idle threads to
+//!   take (`fork.rs`). With one thread there is one group. Nothing is kept between
+//!   calls.
 //! * **Ray order and packets.** The batch's valid rays are sorted by a coherence key (a
 //!   Morton code over origin and direction) and copied in that order, so nearby rays
 //!   sit together in memory, at any thread count (the conference room's AO rays at
@@ -43,12 +46,13 @@ use super::{CastStats, RayCaster, Triangles, triangles_bytes};
 use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir};
 use crate::scene::Scene;
 use glam::Vec3;
-use packets::Packets;
+use packets::{ORIGIN_BITS, Packets};
 use rayon::prelude::*;
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicU32, AtomicU64, AtomicUsize, Ordering::Relaxed};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::time::Instant;
 
+mod fork;
 mod packets;
 mod planes;
 mod stages;
@@ -77,8 +81,14 @@ pub struct DacrtParams {
     /// The shared top levels stop splitting at cells of at most this many triangles
     /// (0: no shared top; every group starts from the root).
     pub top_cell_triangles: usize,
-    /// Ray groups per thread (load balance); 0 traces the batch as one group.
+    /// Ray groups per thread (load balance) for a batch whose rays share one origin;
+    /// 0 traces every batch as one group.
     pub groups_per_thread: usize,
+    /// For a batch from many origins, when several threads run: one ray group per
+    /// thread, and a node with at least this many rays hands its far child to rayon as
+    /// a task (`fork.rs`), run after the near child on the same thread or at once by a
+    /// thread that would otherwise idle (0: such batches are grouped like the others).
+    pub fork_min_rays: usize,
     /// Rays per packet for packet filtering (rounded up to a power of two; 0: every
     /// ray is tested on its own). Off by default: on the 16-core machine it lost on the
     /// dragon and gained on the bunny (`docs/dacrt.md`, run K).
@@ -95,6 +105,7 @@ impl Default for DacrtParams {
             min_group_rays: 128,
             top_cell_triangles: 4096,
             groups_per_thread: 8,
+            fork_min_rays: 4096,
             packet_rays: 0,
         }
     }
@@ -103,7 +114,7 @@ impl Default for DacrtParams {
 impl DacrtParams {
     /// One recursion over the whole batch, whatever the thread count.
     pub fn serial() -> Self {
-        DacrtParams { groups_per_thread: 0, ..Default::default() }
+        DacrtParams { groups_per_thread: 0, fork_min_rays: 0, ..Default::default() }
     }
 }
 
@@ -151,11 +162,15 @@ struct Trace {
     bytes: AtomicUsize,
     peak: AtomicUsize,
     tests: AtomicU64,
+    /// The ray groups' and forked tasks' summed busy time (`fork.rs` keeps it exact).
+    busy_ns: AtomicU64,
+    /// Nodes with at least this many rays fork their far child (0: never).
+    fork_min_rays: usize,
 }
 
 impl Trace {
     /// A trace of `rays` (already renumbered) with no hits yet.
-    fn new(rays: Vec<Ray>, any_hit: bool, packet_rays: usize) -> Trace {
+    fn new(rays: Vec<Ray>, any_hit: bool, packet_rays: usize, fork_min_rays: usize) -> Trace {
         let inv: Vec<Vec3> = rays.par_iter().map(|r| inv_dir(r.dir)).collect();
         let keys: Vec<AtomicU64> = (0..rays.len()).into_par_iter().map(|_| AtomicU64::new(NONE)).collect();
         let packets = Packets::new(&rays, &inv, packet_rays);
@@ -168,12 +183,14 @@ impl Trace {
             bytes: AtomicUsize::new(0),
             peak: AtomicUsize::new(0),
             tests: AtomicU64::new(0),
+            busy_ns: AtomicU64::new(0),
+            fork_min_rays,
         }
     }
 
     /// A trace with no rays (the shared top levels choose planes from triangles alone).
     fn empty() -> Trace {
-        Trace::new(Vec::new(), false, 0)
+        Trace::new(Vec::new(), false, 0, 0)
     }
 
     fn alloc(&self, bytes: usize) {
@@ -290,6 +307,9 @@ impl Dacrt {
         // Near child first, judged by the rays' mean direction along the split axis.
         let toward_hi: f32 = rays.iter().map(|&r| tr.rays[r as usize].dir[axis].signum()).sum();
         let (near, far) = if toward_hi >= 0.0 { (lo, hi) } else { (hi, lo) };
+        if tr.forks(rays.len()) {
+            return self.fork(tr, near, far, rays, tris, spare, depth);
+        }
         self.child(tr, near, rays, tris, spare, depth);
         self.child(tr, far, rays, tris, spare, depth);
     }
@@ -362,30 +382,23 @@ impl Dacrt {
 
     /// Runs the recursion for one batch; returns the per-ray keys (in the batch's
     /// order), the peak bytes and the ray–triangle tests made.
-    fn trace(&self, rays: &[Ray], any_hit: bool) -> (Vec<u64>, usize, u64) {
+    fn trace(&self, rays: &[Ray], any_hit: bool) -> (Vec<AtomicU64>, usize, u64) {
         let mut clock = Stages::default();
         let n = rays.len();
-        let scene_box = self.scene_box;
-        let order: Vec<u32> = (0..n as u32)
-            .into_par_iter()
-            .filter(|&i| {
-                let r = &rays[i as usize];
-                r.is_valid() && scene_box.intersect(r.origin, inv_dir(r.dir), r.t_min, r.t_max).is_some()
-            })
-            .collect();
+        let (order, keys, varying) = self.valid_rays(rays);
         clock.lap("filter");
         if order.is_empty() || self.tris.is_empty() {
             self.keep_phases(clock);
-            return (vec![NONE; n], 0, 0);
+            return ((0..n).map(|_| AtomicU64::new(NONE)).collect(), 0, 0);
         }
-        let groups = self.group_count(order.len());
+        let (groups, fork_min_rays) = self.grouping(order.len(), varying & ORIGIN_BITS == 0);
         // The shared top does not depend on the rays: it is built beside their sort and
         // copy, so that threads idle in one of the two help the other.
         let ((top, top_s), ((order, tr), sort_s)) = rayon::join(
             || timed(|| self.build_top()),
             || {
                 timed(|| {
-                    let order = self.coherence_order(rays, order);
+                    let order = self.coherence_order(order, keys, varying);
                     // The valid rays renumbered in that order: ids, keys, reciprocal
                     // directions, the copies of the rays, the map back, and the packets.
                     // (The sort's own 16 bytes per ray are freed before these are made.)
@@ -393,6 +406,7 @@ impl Dacrt {
                         order.par_iter().map(|&i| rays[i as usize]).collect(),
                         any_hit,
                         self.params.packet_rays,
+                        fork_min_rays,
                     );
                     (order, tr)
                 })
@@ -407,11 +421,13 @@ impl Dacrt {
         let mut ray_ids: Vec<u32> = (0..m as u32).collect();
         // Each group's own time: their sum against the stage's wall time and threads
         // says how well the groups shared the cores, the longest one what was left last.
-        let (busy, longest) = (AtomicU64::new(0), AtomicU64::new(0));
+        // (With forks a group's span also holds the waits for its far halves; the summed
+        // time leaves them out.)
+        let longest = AtomicU64::new(0);
         let group = |ids: &mut [u32], scratch: &mut Scratch| {
             let ((), s) = timed(|| self.trace_top(&tr, &top, &top.root, ids, scratch, 0));
             let ns = (s * 1e9) as u64;
-            busy.fetch_add(ns, Relaxed);
+            tr.busy_ns.fetch_add(ns, Relaxed);
             longest.fetch_max(ns, Relaxed);
         };
         if groups <= 1 {
@@ -422,19 +438,12 @@ impl Dacrt {
         }
         drop(ray_ids);
         clock.lap("groups");
-        clock.note("groups_busy", busy.into_inner() as f64 * 1e-9);
+        clock.note("groups_busy", tr.busy_ns.load(Relaxed) as f64 * 1e-9);
         clock.note("groups_longest", longest.into_inner() as f64 * 1e-9);
         // Back to the batch's order.
-        tr.alloc(n * 4);
-        let at: Vec<AtomicU32> = (0..n).into_par_iter().map(|_| AtomicU32::new(u32::MAX)).collect();
-        order.par_iter().enumerate().for_each(|(k, &i)| at[i as usize].store(k as u32, Relaxed));
-        let keys: Vec<u64> = at
-            .into_par_iter()
-            .map(|k| match k.into_inner() {
-                u32::MAX => NONE,
-                k => tr.keys[k as usize].load(Relaxed),
-            })
-            .collect();
+        tr.alloc(n * 8);
+        let keys: Vec<AtomicU64> = (0..n).into_par_iter().map(|_| AtomicU64::new(NONE)).collect();
+        order.par_iter().zip(&tr.keys).for_each(|(&i, k)| keys[i as usize].store(k.load(Relaxed), Relaxed));
         clock.lap("back");
         self.keep_phases(clock);
         (keys, tr.peak.load(Relaxed), tr.tests.load(Relaxed))
@@ -455,6 +464,7 @@ impl RayCaster for Dacrt {
         let start = Instant::now();
         let (keys, peak, tests) = self.trace(rays, false);
         hits.par_iter_mut().zip(keys).zip(rays).for_each(|((h, k), ray)| {
+            let k = k.into_inner();
             *h = if k == NONE {
                 Hit::MISS
             } else {
@@ -473,7 +483,7 @@ impl RayCaster for Dacrt {
         assert_eq!(rays.len(), out.len(), "one result slot per ray");
         let start = Instant::now();
         let (keys, peak, tests) = self.trace(rays, true);
-        out.par_iter_mut().zip(keys).for_each(|(o, k)| *o = k == BLOCKED);
+        out.par_iter_mut().zip(keys).for_each(|(o, k)| *o = k.into_inner() == BLOCKED);
         CastStats { rays: rays.len(), seconds: start.elapsed().as_secs_f64(), peak_working_bytes: peak, tests }
     }
 

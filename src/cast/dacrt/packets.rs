@@ -19,7 +19,7 @@
 //! or on which the members' directions have both signs, gives no bound.
 
 use super::{Dacrt, Trace};
-use crate::geometry::{Aabb, Ray, SLAB_WIDEN};
+use crate::geometry::{Aabb, Ray, SLAB_WIDEN, inv_dir};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -131,33 +131,93 @@ impl Packets {
 
 /// A Morton-style key that puts rays with nearby origins and directions next to each
 /// other: 10 bits per component of the origin (in `bounds`) and the unit direction,
-/// interleaved (direction bits first at every level).
-fn coherence_key(ray: &Ray, bounds: &Aabb) -> u64 {
-    let q = |x: f32| (x.clamp(0.0, 1.0) * 1023.0) as u64;
+/// interleaved (direction bits first at every level): bit `b` of component `j` (x, y,
+/// z of the direction, then of the origin) lands on bit `6b + 5 - j`.
+pub(super) fn coherence_key(ray: &Ray, bounds: &Aabb) -> u64 {
+    let q = |x: f32| (x.clamp(0.0, 1.0) * 1023.0) as usize;
     let o = (ray.origin - bounds.min) / bounds.extent().max(Vec3::splat(1e-30));
     let d = ray.dir.normalize_or_zero() * 0.5 + 0.5;
     let comps = [q(d.x), q(d.y), q(d.z), q(o.x), q(o.y), q(o.z)];
-    let mut key = 0u64;
-    for bit in (0..10).rev() {
-        for c in comps {
-            key = key << 1 | (c >> bit & 1);
-        }
-    }
-    key
+    comps.iter().enumerate().fold(0, |key, (j, &c)| key | SPREAD6[c] << (5 - j))
 }
 
+/// The coherence key's origin bits: a batch whose keys agree on all of them starts
+/// from one point (to 1/1024 of the scene's box on every axis).
+pub(super) const ORIGIN_BITS: u64 = {
+    let (mut bits, mut b) = (0u64, 0);
+    while b < 10 {
+        bits |= 0b111 << (6 * b);
+        b += 1;
+    }
+    bits
+};
+
+/// Every 10-bit value with bit `b` moved to bit `6b` (one lookup per component instead
+/// of a loop over 60 bits: the loop took half of the rays' preparation).
+static SPREAD6: [u64; 1024] = {
+    let mut table = [0u64; 1024];
+    let mut v = 0;
+    while v < 1024 {
+        let mut b = 0;
+        while b < 10 {
+            table[v] |= ((v as u64 >> b) & 1) << (6 * b);
+            b += 1;
+        }
+        v += 1;
+    }
+    table
+};
+
 impl Dacrt {
-    /// The ids of `order` sorted by the rays' coherence keys, ties by id (so the order
-    /// is deterministic). Key and id share one word: the key's 32 bits from its highest
-    /// bit that differs between rays (primary rays share their origin bits).
-    pub(super) fn coherence_order(&self, rays: &[Ray], order: Vec<u32>) -> Vec<u32> {
+    /// The ids of the rays that are valid and meet the scene's box, ascending, with
+    /// their coherence keys, and the key bits that differ between them: each chunk of
+    /// the batch keeps its own in one pass, then the chunks' lists are copied side by
+    /// side into lists of the exact length.
+    pub(super) fn valid_rays(&self, rays: &[Ray]) -> (Vec<u32>, Vec<u64>, u64) {
+        const CHUNK: usize = 1 << 14;
         let scene_box = self.scene_box;
-        let keys: Vec<u64> = order.par_iter().map(|&i| coherence_key(&rays[i as usize], &scene_box)).collect();
-        let (or, and) = keys
+        let kept: Vec<(Vec<u32>, Vec<u64>)> = rays
+            .par_chunks(CHUNK)
+            .enumerate()
+            .map(|(c, chunk)| {
+                let (mut ids, mut keys) = (Vec::with_capacity(chunk.len()), Vec::with_capacity(chunk.len()));
+                for (i, r) in chunk.iter().enumerate() {
+                    if r.is_valid() && scene_box.intersect(r.origin, inv_dir(r.dir), r.t_min, r.t_max).is_some() {
+                        ids.push((c * CHUNK + i) as u32);
+                        keys.push(coherence_key(r, &scene_box));
+                    }
+                }
+                (ids, keys)
+            })
+            .collect();
+        let (or, and) = kept
             .par_iter()
-            .fold(|| (0, u64::MAX), |(o, a), &k| (o | k, a & k))
+            .map(|k| k.1.iter().fold((0, u64::MAX), |(o, a), &k| (o | k, a & k)))
             .reduce(|| (0, u64::MAX), |x, y| (x.0 | y.0, x.1 & y.1));
-        let shift = (64 - (or ^ and).leading_zeros()).saturating_sub(32);
+        let m = kept.iter().map(|k| k.0.len()).sum();
+        let (mut ids, mut keys) = (vec![0u32; m], vec![0u64; m]);
+        let (mut id_rest, mut key_rest) = (&mut ids[..], &mut keys[..]);
+        let mut slots = Vec::with_capacity(kept.len());
+        for k in &kept {
+            let (a, ta) = id_rest.split_at_mut(k.0.len());
+            let (b, tb) = key_rest.split_at_mut(k.1.len());
+            slots.push((a, b));
+            (id_rest, key_rest) = (ta, tb);
+        }
+        slots.into_par_iter().zip(kept).for_each(|((a, b), k)| {
+            a.copy_from_slice(&k.0);
+            b.copy_from_slice(&k.1);
+        });
+        (ids, keys, or ^ and)
+    }
+
+    /// The ids of `order` sorted by their rays' coherence keys (`keys`, one per id, of
+    /// which the bits `varying` differ),
+    /// ties by id (so the order is deterministic). Key and id share one word: the key's
+    /// 32 bits from its highest bit that differs between rays (primary rays share their
+    /// origin bits).
+    pub(super) fn coherence_order(&self, order: Vec<u32>, keys: Vec<u64>, varying: u64) -> Vec<u32> {
+        let shift = (64 - varying.leading_zeros()).saturating_sub(32);
         // A stable radix sort (simt's, on its CPU backend) of the 32 bits: the ids are
         // in ascending order, so ties stay ordered by id.
         let dev = simt::Device::default();
@@ -214,6 +274,43 @@ mod tests {
     use super::*;
     use crate::geometry::inv_dir;
     use crate::sampling::Rng;
+
+    /// The coherence key's table lookups put every component bit where the plain
+    /// interleave (bit by bit, direction first at every level) puts it, for random rays
+    /// and for each single set bit of each component.
+    #[test]
+    fn coherence_key_interleaves_like_the_bit_loop() {
+        let interleave = |comps: [u64; 6]| {
+            let mut key = 0u64;
+            for bit in (0..10).rev() {
+                for c in comps {
+                    key = key << 1 | (c >> bit & 1);
+                }
+            }
+            key
+        };
+        for j in 0..6 {
+            for b in 0..10 {
+                let mut comps = [0; 6];
+                comps[j] = 1 << b;
+                let lookup = comps.iter().enumerate().fold(0, |k, (j, &c)| k | SPREAD6[c as usize] << (5 - j));
+                assert_eq!(lookup, interleave(comps), "component {j}, bit {b}");
+            }
+        }
+        let bounds = Aabb { min: Vec3::splat(-2.0), max: Vec3::new(3.0, 1.0, 2.0) };
+        let mut rng = Rng::for_sample(5, 0, 0);
+        for _ in 0..2000 {
+            let mut u = || rng.uniform();
+            let ray = Ray::new(
+                Vec3::new(u() * 6.0 - 2.5, u() * 4.0 - 2.5, u() * 5.0 - 2.5),
+                Vec3::new(u() - 0.5, u() - 0.5, u() - 0.5),
+            );
+            let q = |x: f32| (x.clamp(0.0, 1.0) * 1023.0) as u64;
+            let o = (ray.origin - bounds.min) / bounds.extent();
+            let d = ray.dir.normalize_or_zero() * 0.5 + 0.5;
+            assert_eq!(coherence_key(&ray, &bounds), interleave([q(d.x), q(d.y), q(d.z), q(o.x), q(o.y), q(o.z)]));
+        }
+    }
 
     /// A packet of rays around one direction from nearby origins (some trials share the
     /// origin, some have a zero or sign-changing direction component, some end early).

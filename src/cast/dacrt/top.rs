@@ -136,7 +136,7 @@ pub(super) enum Top {
 }
 
 impl Top {
-    fn bounds(&self) -> &Aabb {
+    pub(super) fn bounds(&self) -> &Aabb {
         match self {
             Top::Cell { bounds, .. } | Top::Split { bounds, .. } => bounds,
         }
@@ -167,18 +167,25 @@ pub(super) struct SharedTop {
 }
 
 impl Dacrt {
-    /// How many independent ray groups a batch of `n` rays is traced in.
-    pub(super) fn group_count(&self, n: usize) -> usize {
+    /// How many independent ray groups a batch of `n` rays is traced in, and from how
+    /// many rays a node forks its far child (0: never). Rays from one origin (a pinhole
+    /// camera's, a point light's) make narrow groups in coherence order, each reaching
+    /// few cells, so many small groups balance the threads at little cost and nothing
+    /// forks; rays from many origins make groups that reach most cells, each one
+    /// re-partitioning their triangles, so one group per thread, with forks, is cheaper.
+    pub(super) fn grouping(&self, n: usize, one_origin: bool) -> (usize, usize) {
         let p = &self.params;
         let threads = rayon::current_num_threads();
         if threads <= 1 || p.groups_per_thread == 0 {
-            return 1;
+            return (1, 0);
         }
+        let (per_thread, fork) =
+            if one_origin || p.fork_min_rays == 0 { (p.groups_per_thread, 0) } else { (1, p.fork_min_rays) };
         // A group re-partitions the triangles of every cell it reaches: it should carry
         // at least a quarter as many rays as a cell has triangles.
         let cell = if p.top_cell_triangles == 0 { self.tris.len() } else { self.tris.len().min(p.top_cell_triangles) };
         let min_rays = p.min_group_rays.max(cell / 4).max(1);
-        (threads * p.groups_per_thread).min(n / min_rays).max(1)
+        ((threads * per_thread).min(n / min_rays).max(1), fork)
     }
 
     /// The shared top levels: planes chosen on a sample of the triangles
@@ -321,6 +328,9 @@ impl Dacrt {
             Top::Split { axis, kids, .. } => {
                 let toward_hi: f32 = rays.iter().map(|&r| tr.rays[r as usize].dir[*axis].signum()).sum();
                 let order = if toward_hi >= 0.0 { [0, 1] } else { [1, 0] };
+                if tr.forks(rays.len()) {
+                    return self.fork_top(tr, top, order.map(|k| &kids[k]), rays, scratch, depth);
+                }
                 for k in order {
                     let child = &kids[k];
                     let b = *child.bounds();
