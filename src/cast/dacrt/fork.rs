@@ -137,6 +137,7 @@ impl Dacrt {
 
 #[cfg(test)]
 mod tests {
+    use super::super::DacrtParams;
     use super::super::packets::ORIGIN_BITS;
     use super::*;
 
@@ -146,7 +147,8 @@ mod tests {
     #[test]
     fn batches_from_one_origin_are_grouped_and_the_others_fork() {
         let scene = crate::scene::cornell_box();
-        let d = Dacrt::new(&scene);
+        // Forks from 64 rays, so that the AO batch of a small image is large enough.
+        let d = Dacrt::new(&scene).with_params(DacrtParams { fork_min_rays: 64, ..DacrtParams::default() });
         let b = crate::cast::batches::batches(&scene, 64, 64, 2, 3);
         let pool = rayon::ThreadPoolBuilder::new().num_threads(4).build().expect("a pool of 4 threads");
         pool.install(|| {
@@ -156,7 +158,9 @@ mod tests {
             assert!(groups > 4 && fork == 0, "{groups} groups, forks from {fork} rays");
             let (ids, _, varying) = d.valid_rays(&b.ambient);
             assert_ne!(varying & ORIGIN_BITS, 0, "AO rays start at many points");
-            assert_eq!(d.grouping(ids.len(), false), (4, d.params.fork_min_rays));
+            assert_eq!(d.grouping(ids.len(), false), (4, 64));
+            // A batch from many origins with less than 2 · 64 rays a thread is grouped.
+            assert_eq!(d.grouping(511, false).1, 0);
         });
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("a pool of 1 thread");
         assert_eq!(one.install(|| d.grouping(4096, false)), (1, 0), "one thread: one group, no forks");

@@ -172,15 +172,19 @@ impl Dacrt {
     /// camera's, a point light's) make narrow groups in coherence order, each reaching
     /// few cells, so many small groups balance the threads at little cost and nothing
     /// forks; rays from many origins make groups that reach most cells, each one
-    /// re-partitioning their triangles, so one group per thread, with forks, is cheaper.
+    /// re-partitioning their triangles, so one group per thread, with forks, is cheaper,
+    /// once a thread's share has at least twice
+    /// [`fork_min_rays`](super::DacrtParams::fork_min_rays) rays (below that nothing
+    /// would fork, and the threads would be left unbalanced).
     pub(super) fn grouping(&self, n: usize, one_origin: bool) -> (usize, usize) {
         let p = &self.params;
         let threads = rayon::current_num_threads();
         if threads <= 1 || p.groups_per_thread == 0 {
             return (1, 0);
         }
-        let (per_thread, fork) =
-            if one_origin || p.fork_min_rays == 0 { (p.groups_per_thread, 0) } else { (1, p.fork_min_rays) };
+        // (A batch too small for a thread's share to fork is grouped as well.)
+        let forked = !one_origin && p.fork_min_rays > 0 && n >= 2 * threads * p.fork_min_rays;
+        let (per_thread, fork) = if forked { (1, p.fork_min_rays) } else { (p.groups_per_thread, 0) };
         // A group re-partitions the triangles of every cell it reaches: it should carry
         // at least a quarter as many rays as a cell has triangles.
         let cell = if p.top_cell_triangles == 0 { self.tris.len() } else { self.tris.len().min(p.top_cell_triangles) };
