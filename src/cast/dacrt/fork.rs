@@ -77,7 +77,6 @@ impl Dacrt {
     }
 
     /// A shared-top split's two children, `near` in place and `far` as a task.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn fork_top(
         &self,
         tr: &Trace,
