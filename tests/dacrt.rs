@@ -5,7 +5,7 @@
 mod common;
 
 use common::*;
-use warpray::cast::{BruteForce, BvhCaster, Dacrt, DacrtParams, RayCaster};
+use warpray::cast::{BruteForce, BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster};
 use warpray::geometry::{Hit, Ray};
 use warpray::glam::Vec3;
 use warpray::pdacrt::{Pdacrt, PdacrtParams};
@@ -25,17 +25,15 @@ fn casters_under_test(scene: &Scene) -> Vec<Box<dyn RayCaster>> {
             scene.triangle_vertices(),
             DacrtParams { leaf_rays: 1, leaf_triangles: 1, packet_rays: 8, ..DacrtParams::default() },
         )),
-        // Forks at nearly every node (with more than one thread: far halves run as tasks,
-        // taken over by idle threads), one group per thread.
-        Box::new(Dacrt::from_triangles(
-            scene.triangle_vertices(),
-            DacrtParams {
-                fork_min_rays: 2,
-                leaf_rays: 2,
-                leaf_triangles: 2,
-                groups_per_thread: 1,
-                ..DacrtParams::default()
-            },
+        // Forks at nearly every node of a batch from many origins (far halves run as
+        // tasks, taken over by idle threads), in a pool of its own of 4 threads so that
+        // it forks on a machine of any size.
+        Box::new(InPool(
+            Dacrt::from_triangles(
+                scene.triangle_vertices(),
+                DacrtParams { fork_min_rays: 2, leaf_rays: 2, leaf_triangles: 2, ..DacrtParams::default() },
+            ),
+            rayon::ThreadPoolBuilder::new().num_threads(4).build().expect("a pool of 4 threads"),
         )),
         Box::new(Pdacrt::new(scene)),
         Box::new(Pdacrt::from_triangles(
@@ -43,6 +41,24 @@ fn casters_under_test(scene: &Scene) -> Vec<Box<dyn RayCaster>> {
             PdacrtParams { leaf_rays: 1, leaf_triangles: 1, measure: true, ..PdacrtParams::default() },
         )),
     ]
+}
+
+/// A caster whose calls run in a thread pool of their own.
+struct InPool<C>(C, rayon::ThreadPool);
+
+impl<C: RayCaster> RayCaster for InPool<C> {
+    fn name(&self) -> &'static str {
+        self.0.name()
+    }
+    fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
+        self.1.install(|| self.0.closest(rays, hits))
+    }
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
+        self.1.install(|| self.0.occluded(rays, out))
+    }
+    fn memory_bytes(&self) -> usize {
+        self.0.memory_bytes()
+    }
 }
 
 fn compare_closest(oracle: &dyn RayCaster, scene: &Scene, rays: &[Ray], what: &str) {

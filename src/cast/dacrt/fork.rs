@@ -43,18 +43,8 @@ impl Dacrt {
         depth: u32,
     ) {
         let mut union = Aabb::EMPTY;
-        let mut far_tris: Vec<u32> = tris
-            .iter()
-            .copied()
-            .filter(|&t| {
-                let b = &self.boxes[t as usize];
-                let keep = b.overlaps(&far);
-                if keep {
-                    union = union.union(*b);
-                }
-                keep
-            })
-            .collect();
+        let mut far_tris: Vec<u32> =
+            tris.iter().copied().filter(|&t| self.overlaps_growing(t, &far, &mut union)).collect();
         let tight = far.intersection(union);
         let far_rays: Vec<u32> = if far_tris.is_empty() {
             Vec::new()

@@ -364,14 +364,7 @@ impl Dacrt {
     /// and recurses.
     fn child(&self, tr: &Trace, child: Aabb, rays: &mut [u32], tris: &mut [u32], spare: &mut Vec<u32>, depth: u32) {
         let mut union = Aabb::EMPTY;
-        let nt = partition(tris, |t| {
-            let b = &self.boxes[t as usize];
-            let keep = b.overlaps(&child);
-            if keep {
-                union = union.union(*b);
-            }
-            keep
-        });
+        let nt = partition(tris, |t| self.overlaps_growing(t, &child, &mut union));
         if nt == 0 {
             return;
         }

@@ -152,8 +152,8 @@ pub(super) const ORIGIN_BITS: u64 = {
     bits
 };
 
-/// Every 10-bit value with bit `b` moved to bit `6b` (one lookup per component instead
-/// of a loop over 60 bits: the loop took half of the rays' preparation).
+/// Every 10-bit value with bit `b` moved to bit `6b`: one lookup per component instead
+/// of a loop over the key's 60 bits.
 static SPREAD6: [u64; 1024] = {
     let mut table = [0u64; 1024];
     let mut v = 0;
@@ -176,24 +176,25 @@ impl Dacrt {
     pub(super) fn valid_rays(&self, rays: &[Ray]) -> (Vec<u32>, Vec<u64>, u64) {
         const CHUNK: usize = 1 << 14;
         let scene_box = self.scene_box;
-        let kept: Vec<(Vec<u32>, Vec<u64>)> = rays
+        // Each chunk's ids and keys, and the OR and AND of its keys.
+        let kept: Vec<(Vec<u32>, Vec<u64>, u64, u64)> = rays
             .par_chunks(CHUNK)
             .enumerate()
             .map(|(c, chunk)| {
                 let (mut ids, mut keys) = (Vec::with_capacity(chunk.len()), Vec::with_capacity(chunk.len()));
+                let (mut or, mut and) = (0, u64::MAX);
                 for (i, r) in chunk.iter().enumerate() {
                     if r.is_valid() && scene_box.intersect(r.origin, inv_dir(r.dir), r.t_min, r.t_max).is_some() {
+                        let key = coherence_key(r, &scene_box);
+                        (or, and) = (or | key, and & key);
                         ids.push((c * CHUNK + i) as u32);
-                        keys.push(coherence_key(r, &scene_box));
+                        keys.push(key);
                     }
                 }
-                (ids, keys)
+                (ids, keys, or, and)
             })
             .collect();
-        let (or, and) = kept
-            .par_iter()
-            .map(|k| k.1.iter().fold((0, u64::MAX), |(o, a), &k| (o | k, a & k)))
-            .reduce(|| (0, u64::MAX), |x, y| (x.0 | y.0, x.1 & y.1));
+        let (or, and) = kept.iter().fold((0, u64::MAX), |(o, a), k| (o | k.2, a & k.3));
         let m = kept.iter().map(|k| k.0.len()).sum();
         let (mut ids, mut keys) = (vec![0u32; m], vec![0u64; m]);
         let (mut id_rest, mut key_rest) = (&mut ids[..], &mut keys[..]);

@@ -1,8 +1,22 @@
 //! Split planes that do not depend on the rays: a binned SAH over a subsample of a
-//! node's triangles, and the median of their centroids.
+//! node's triangles, and the median of their centroids; and a child's triangle test.
 
-use super::{SAH_BINS, SAH_SAMPLES};
+use super::{Dacrt, SAH_BINS, SAH_SAMPLES};
 use crate::geometry::Aabb;
+
+impl Dacrt {
+    /// True when triangle `t`'s box overlaps `child`; such a box is added to `union`
+    /// (a child's tight box is the child clipped to that union).
+    #[inline]
+    pub(super) fn overlaps_growing(&self, t: u32, child: &Aabb, union: &mut Aabb) -> bool {
+        let b = &self.boxes[t as usize];
+        let keep = b.overlaps(child);
+        if keep {
+            *union = union.union(*b);
+        }
+        keep
+    }
+}
 
 /// Binned SAH over a subsample of the triangles (their boxes clipped to the node):
 /// cost of a plane = area(left)·n(left) + area(right)·n(right).
