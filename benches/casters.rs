@@ -1,10 +1,14 @@
 //! Caster throughput: BVH build, closest-hit and shadow batches of primary rays for the
-//! BVH, serial DACRT and PDACRT, and the brute-force oracle for scale. The paper's full
-//! tables come from `examples/dacrt_tables.rs`. `cargo bench --bench casters`.
+//! BVH, serial DACRT and PDACRT, Embree's two settings with the cargo feature `embree`
+//! (build and trace apart), and the brute-force oracle for scale. The paper's full
+//! tables come from `examples/dacrt_tables.rs`.
+//! `cargo bench --features embree --bench casters`.
 //! The bunny needs `WARPRAY_MODELS`; without it that group is skipped with a notice.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
+#[cfg(feature = "embree")]
+use warpray::cast::embree::{EmbreeCaster, EmbreeParams};
 use warpray::prelude::*;
 
 fn bench_scene(c: &mut Criterion, name: &str, scene: &Scene, with_brute: bool) {
@@ -28,6 +32,16 @@ fn bench_scene(c: &mut Criterion, name: &str, scene: &Scene, with_brute: bool) {
     let pdacrt = Pdacrt::new(scene);
     g.bench_function("pdacrt_closest", |b| b.iter(|| pdacrt.closest(black_box(&rays), &mut hits)));
     g.bench_function("pdacrt_occluded", |b| b.iter(|| pdacrt.occluded(black_box(&shadow), &mut occ)));
+    #[cfg(feature = "embree")]
+    for params in [EmbreeParams::default(), EmbreeParams::fastest()] {
+        let label = params.label();
+        g.bench_function(format!("{label}_build"), |b| {
+            b.iter(|| EmbreeCaster::from_triangles(black_box(tris.clone()), params).expect("Embree"))
+        });
+        let e = EmbreeCaster::from_triangles(tris.clone(), params).expect("Embree");
+        g.bench_function(format!("{label}_closest"), |b| b.iter(|| e.closest(black_box(&rays), &mut hits)));
+        g.bench_function(format!("{label}_occluded"), |b| b.iter(|| e.occluded(black_box(&shadow), &mut occ)));
+    }
     if with_brute {
         let brute = BruteForce::new(scene);
         g.bench_function("brute_closest", |b| b.iter(|| brute.closest(black_box(&rays), &mut hits)));

@@ -1,13 +1,22 @@
 //! Changing geometry, where structure-free ray casting should win: a procedurally
 //! waving grid (not a Stanford model: their terms forbid animation) whose vertices
 //! move every frame. Per frame and caster: set-up (the obvhs BVH build; DACRT's
-//! triangle boxes; PDACRT's upload), primary rays, and shadow rays to a point light
-//! from the primary hits, on each thread count.
+//! triangle boxes; PDACRT's upload; Embree's rebuild or refit), primary rays, and
+//! secondary rays from the primary hits, on each thread count.
 //!
 //! ```text
-//! cargo run --release --example animated -- [--triangles 1000000] [--size 1024]
-//!     [--frames 3] [--threads 1,2,4,8,16] [--casters bvh,dacrt,pdacrt] [--json]
+//! cargo run --release --features embree --example animated -- [--triangles 1000000]
+//!     [--size 1024] [--frames 5] [--threads 1,2,4,8,16] [--secondary shadow|diffuse]
+//!     [--casters bvh,dacrt,pdacrt,embree,embree-fast,embree-refit] [--json]
 //! ```
+//!
+//! Secondary rays: `shadow` (segments to a point light above the grid: coherent, the
+//! easy case) or `diffuse` (one cosine-weighted bounce per hit, closest hit: the
+//! incoherent case). Casters: `embree` rebuilds every frame with Embree's defaults,
+//! `embree-fast` with low quality and the dynamic flag, in 16-ray packets;
+//! `embree-refit` keeps one structure and refits it to each frame's vertices (built
+//! once before the timed frames). Within each frame the casters run one after another
+//! (interleaved), and the table gives medians over the frames.
 
 use clap::Parser;
 use std::time::Instant;
@@ -27,8 +36,11 @@ struct Args {
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=8192))]
     size: u32,
     /// Frames per configuration (the geometry moves between frames).
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     frames: u32,
+    /// Secondary rays: `shadow` or `diffuse` (one cosine-weighted bounce per hit).
+    #[arg(long, default_value = "shadow", value_parser = ["shadow", "diffuse"])]
+    secondary: String,
     #[arg(long, value_delimiter = ',', default_values_t = [1usize, 2, 4, 8, 16])]
     threads: Vec<usize>,
     #[arg(long, value_delimiter = ',', default_values_t = ["bvh".to_string(), "dacrt".into(), "pdacrt".into()])]
@@ -75,15 +87,84 @@ fn shadow_rays(tris: &[[Vec3; 3]], primary: &[Ray], hits: &[Hit]) -> Vec<Ray> {
         .collect()
 }
 
-struct Frame {
+/// One cosine-weighted diffuse bounce from every primary hit (seeded by pixel).
+fn diffuse_rays(tris: &[[Vec3; 3]], primary: &[Ray], hits: &[Hit]) -> Vec<Ray> {
+    use warpray::sampling::{Frame, Rng, cosine_hemisphere};
+    primary
+        .iter()
+        .zip(hits)
+        .enumerate()
+        .filter(|(_, (_, h))| h.is_hit())
+        .map(|(i, (r, h))| {
+            let [a, b, c] = tris[h.prim as usize];
+            let n = (b - a).cross(c - a).normalize_or_zero();
+            let n = if n.dot(r.dir) > 0.0 { -n } else { n };
+            let p = offset_ray_origin(r.at(h.t), n);
+            let d = Frame::from_normal(n).to_world(cosine_hemisphere(Rng::for_sample(7, i as u64, 0).uniform2()));
+            Ray::new(p, d)
+        })
+        .collect()
+}
+
+struct FrameRow {
     caster: String,
     threads: usize,
     frame: u32,
     setup_ms: f64,
     primary_ms: f64,
-    shadow_ms: f64,
+    secondary_ms: f64,
     rays: usize,
     tests: u64,
+}
+
+/// The casters this build can measure.
+#[cfg(feature = "embree")]
+const KNOWN: &[&str] = &["bvh", "dacrt", "pdacrt", "embree", "embree-fast", "embree-refit"];
+#[cfg(not(feature = "embree"))]
+const KNOWN: &[&str] = &["bvh", "dacrt", "pdacrt"];
+
+/// A caster kept across frames and told each frame's triangles, or rebuilt each frame.
+enum Live {
+    Rebuilt(String),
+    #[cfg(feature = "embree")]
+    Refit(Option<warpray::cast::embree::EmbreeCaster>),
+}
+
+impl Live {
+    fn new(name: &str) -> Live {
+        match name {
+            #[cfg(feature = "embree")]
+            "embree-refit" => Live::Refit(None),
+            other => Live::Rebuilt(other.to_string()),
+        }
+    }
+
+    /// Sets up the caster for this frame's triangles and runs `f` on it; returns the
+    /// set-up's seconds and what `f` returned.
+    fn frame<R>(&mut self, tris: Vec<[Vec3; 3]>, f: impl FnOnce(&dyn RayCaster) -> R) -> Result<(f64, R), String> {
+        let start = Instant::now();
+        match self {
+            Live::Rebuilt(name) => {
+                let c = build(name, tris)?;
+                let setup = start.elapsed().as_secs_f64();
+                Ok((setup, f(c.as_ref())))
+            }
+            #[cfg(feature = "embree")]
+            Live::Refit(slot) => {
+                use warpray::cast::embree::{EmbreeCaster, EmbreeParams};
+                let c = match slot {
+                    Some(c) => {
+                        c.update(tris).map_err(|e| e.to_string())?;
+                        c
+                    }
+                    None => slot
+                        .insert(EmbreeCaster::from_triangles(tris, EmbreeParams::refit()).map_err(|e| e.to_string())?),
+                };
+                let setup = start.elapsed().as_secs_f64();
+                Ok((setup, f(&*c)))
+            }
+        }
+    }
 }
 
 fn build(name: &str, tris: Vec<[Vec3; 3]>) -> Result<Box<dyn RayCaster>, String> {
@@ -91,72 +172,106 @@ fn build(name: &str, tris: Vec<[Vec3; 3]>) -> Result<Box<dyn RayCaster>, String>
         "bvh" => Box::new(BvhCaster::from_triangles(tris).with_traversal(Traversal::Fast)),
         "dacrt" => Box::new(Dacrt::from_triangles(tris, Default::default())),
         "pdacrt" => Box::new(Pdacrt::from_triangles(&tris, Default::default())),
-        other => return Err(format!("unknown caster {other} (known: bvh, dacrt, pdacrt)")),
+        #[cfg(feature = "embree")]
+        "embree" | "embree-fast" => {
+            use warpray::cast::embree::{EmbreeCaster, EmbreeParams};
+            let p = if name == "embree" { EmbreeParams::default() } else { EmbreeParams::fastest() };
+            Box::new(EmbreeCaster::from_triangles(tris, p).map_err(|e| e.to_string())?)
+        }
+        other => return Err(format!("unknown caster {other} (known: {})", KNOWN.join(", "))),
     })
 }
 
-fn run(a: Args) -> Result<(), String> {
-    if let Some(c) = a.casters.iter().find(|c| !["bvh", "dacrt", "pdacrt"].contains(&c.as_str())) {
-        return Err(format!("unknown caster {c} (known: bvh, dacrt, pdacrt)"));
+/// The median of a list (the mean of the middle two for an even count).
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
     }
+}
+
+fn run(a: Args) -> Result<(), String> {
+    if let Some(c) = a.casters.iter().find(|c| !KNOWN.contains(&c.as_str())) {
+        return Err(format!("unknown caster {c} (known: {})", KNOWN.join(", ")));
+    }
+    let diffuse = a.secondary == "diffuse";
     let n = ((a.triangles / 2) as f64).sqrt().round().max(1.0) as usize;
     let camera = Camera::look_at(Vec3::new(0.0, 1.3, -2.2), Vec3::new(0.0, -0.1, 0.0), Vec3::Y, 45.0);
     let primary = primary_rays(&camera, a.size, a.size);
-    // The frames' geometry and shadow rays (found with the BVH, outside the timings).
+    // The frames' geometry and secondary rays (found with the BVH, outside the timings).
+    let secondary = |tris: &[[Vec3; 3]], hits: &[Hit]| {
+        if diffuse { diffuse_rays(tris, &primary, hits) } else { shadow_rays(tris, &primary, hits) }
+    };
     let frames: Vec<(Vec<[Vec3; 3]>, Vec<Ray>)> = (0..a.frames)
         .map(|f| {
             let tris = grid(n, f as f32 * 0.25);
             let mut hits = vec![Hit::MISS; primary.len()];
             BvhCaster::from_triangles(tris.clone()).closest(&primary, &mut hits);
-            let shadow = shadow_rays(&tris, &primary, &hits);
-            (tris, shadow)
+            let rays = secondary(&tris, &hits);
+            (tris, rays)
         })
         .collect();
+    let machine = warpray::machine::Machine::this();
     eprintln!(
-        "grid {n}x{n}: {} triangles, {} primary rays, {} shadow rays",
+        "grid {n}x{n}: {} triangles, {} primary rays, {} {} rays\nmachine: {machine}",
         2 * n * n,
         primary.len(),
-        frames[0].1.len()
+        frames[0].1.len(),
+        a.secondary
     );
     let mut rows = Vec::new();
     for &t in &a.threads {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().map_err(|e| e.to_string())?;
-        for c in &a.casters {
-            for (f, (tris, shadow)) in frames.iter().enumerate() {
-                let row = pool.install(|| -> Result<Frame, String> {
-                    let start = Instant::now();
-                    let caster = build(c, tris.clone())?;
-                    let setup_ms = start.elapsed().as_secs_f64() * 1e3;
-                    let p = caster.closest(&primary, &mut vec![Hit::MISS; primary.len()]);
-                    let s = caster.occluded(shadow, &mut vec![false; shadow.len()]);
-                    Ok(Frame {
-                        caster: c.clone(),
-                        threads: t,
-                        frame: f as u32,
-                        setup_ms,
-                        primary_ms: p.seconds * 1e3,
-                        shadow_ms: s.seconds * 1e3,
-                        rays: p.rays + s.rays,
-                        tests: p.tests + s.tests,
+        let mut live: Vec<Live> = a.casters.iter().map(|c| Live::new(c)).collect();
+        // A refitted structure is built once, from the frame before the first.
+        pool.install(|| live.iter_mut().try_for_each(|l| l.frame(grid(n, -0.25), |_| ()).map(|_| ())))?;
+        for (f, (tris, rays)) in frames.iter().enumerate() {
+            for (c, l) in a.casters.iter().zip(&mut live) {
+                let (setup, (p, s)) = pool.install(|| {
+                    l.frame(tris.clone(), |caster| {
+                        let p = caster.closest(&primary, &mut vec![Hit::MISS; primary.len()]);
+                        let s = if diffuse {
+                            caster.closest(rays, &mut vec![Hit::MISS; rays.len()])
+                        } else {
+                            caster.occluded(rays, &mut vec![false; rays.len()])
+                        };
+                        (p, s)
                     })
                 })?;
-                rows.push(row);
+                rows.push(FrameRow {
+                    caster: c.clone(),
+                    threads: t,
+                    frame: f as u32,
+                    setup_ms: setup * 1e3,
+                    primary_ms: p.seconds * 1e3,
+                    secondary_ms: s.seconds * 1e3,
+                    rays: p.rays + s.rays,
+                    tests: p.tests + s.tests,
+                });
             }
-            eprintln!("  {c}, {t} threads done");
         }
+        eprintln!("  {t} threads done");
     }
+    let scene = if diffuse { "waving-grid-diffuse" } else { "waving-grid" };
     if a.json {
+        println!("{{\"machine\":{}}}", machine.json());
         for r in &rows {
             println!(
-                "{{\"scene\":\"waving-grid\",\"triangles\":{},\"caster\":\"{}\",\"threads\":{},\"frame\":{},\"setup_ms\":{:.3},\"primary_ms\":{:.3},\"shadow_ms\":{:.3},\"total_ms\":{:.3},\"rays\":{},\"tests\":{}}}",
+                "{{\"scene\":\"{scene}\",\"triangles\":{},\"caster\":\"{}\",\"threads\":{},\"frame\":{},\"setup_ms\":{:.3},\"primary_ms\":{:.3},\"secondary\":\"{}\",\"secondary_ms\":{:.3},\"total_ms\":{:.3},\"rays\":{},\"tests\":{}}}",
                 2 * n * n,
                 r.caster,
                 r.threads,
                 r.frame,
                 r.setup_ms,
                 r.primary_ms,
-                r.shadow_ms,
-                r.setup_ms + r.primary_ms + r.shadow_ms,
+                a.secondary,
+                r.secondary_ms,
+                r.setup_ms + r.primary_ms + r.secondary_ms,
                 r.rays,
                 r.tests
             );
@@ -164,26 +279,27 @@ fn run(a: Args) -> Result<(), String> {
         return Ok(());
     }
     println!(
-        "# Waving grid: {} triangles, {}x{} primary + shadow rays, mean over {} frames\n",
+        "# Waving grid: {} triangles, {}x{} primary + {} rays, medians over {} frames\n\nMachine: {machine}\n",
         2 * n * n,
         a.size,
         a.size,
+        a.secondary,
         a.frames
     );
-    println!("| threads | caster | set-up ms | primary ms | shadow ms | frame ms | tests/ray |");
+    println!("| threads | caster | set-up ms | primary ms | {} ms | frame ms | tests/ray |", a.secondary);
     println!("|---:|---|---:|---:|---:|---:|---:|");
     for &t in &a.threads {
         for c in &a.casters {
-            let mine: Vec<&Frame> = rows.iter().filter(|r| r.threads == t && &r.caster == c).collect();
-            let mean = |f: fn(&Frame) -> f64| mine.iter().map(|r| f(r)).sum::<f64>() / mine.len() as f64;
+            let mine: Vec<&FrameRow> = rows.iter().filter(|r| r.threads == t && &r.caster == c).collect();
+            let med = |f: fn(&FrameRow) -> f64| median(mine.iter().map(|r| f(r)).collect());
             let tests: u64 = mine.iter().map(|r| r.tests).sum();
             let rays: usize = mine.iter().map(|r| r.rays).sum();
             println!(
                 "| {t} | {c} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
-                mean(|r| r.setup_ms),
-                mean(|r| r.primary_ms),
-                mean(|r| r.shadow_ms),
-                mean(|r| r.setup_ms + r.primary_ms + r.shadow_ms),
+                med(|r| r.setup_ms),
+                med(|r| r.primary_ms),
+                med(|r| r.secondary_ms),
+                med(|r| r.setup_ms + r.primary_ms + r.secondary_ms),
                 tests as f64 / rays.max(1) as f64
             );
         }

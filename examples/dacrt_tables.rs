@@ -1,20 +1,28 @@
 //! The paper's tables for this machine: ray casting without a stored structure (DACRT,
-//! PDACRT) against the obvhs BVH (build and trace separately, and summed), on primary,
-//! shadow (one point light), specular (mirror) and ambient-occlusion batches (8 rays
-//! per primary hit), with peak memory and ray–triangle tests; and thread scaling.
+//! PDACRT) against the obvhs BVH and Embree (build and trace separately, and summed),
+//! on primary, shadow (one point light), specular (mirror) and ambient-occlusion
+//! batches (8 rays per primary hit), with peak memory and ray–triangle tests; and
+//! thread scaling.
 //!
 //! ```text
-//! WARPRAY_MODELS=../shared/models cargo run --release --example dacrt_tables -- \
-//!     [--size 1024] [--scenes bunny,conference,dragon] [--casters bvh,dacrt,pdacrt] \
+//! WARPRAY_MODELS=../shared/models cargo run --release --features embree --example dacrt_tables -- \
+//!     [--size 1024] [--scenes bunny,conference,dragon] \
+//!     [--casters bvh,dacrt,pdacrt,embree,embree-fast] [--rounds 5] \
 //!     [--threads N] [--scaling 1,2,4,8,16] [--ao 8] [--repeat 1] [--sweep] [--json] \
 //!     [--pdacrt-chunk RAYS] [--dacrt-top-cell TRIANGLES] [--dacrt-groups-per-thread N]
 //!     [--dacrt-packet RAYS]
 //! ```
 //!
-//! `--json` prints one object per measured row (keys `scene, batch, caster, threads,
-//! rays, build_ms, trace_ms, peak_bytes, tests`, plus `structure_bytes`, and for DACRT
-//! `phases`: the fastest call's ms by stage, `RayCaster::phase_seconds`) instead of
-//! the tables.
+//! `embree` is Embree's default build (medium quality) traced one ray at a time;
+//! `embree-fast` its fastest rebuild (low quality, dynamic scene) traced in 16-ray
+//! packets; both need the cargo feature `embree`. With `--rounds R` every caster is
+//! measured once per round, the casters interleaved within each round, and each cell
+//! is the median over the rounds (build, trace and their sum, each its own median).
+//!
+//! `--json` prints the machine (`{"machine":{...}}`), then one object per measured row
+//! (keys `scene, batch, caster, threads, rays, rounds, build_ms, trace_ms, total_ms,
+//! peak_bytes, tests`, plus `structure_bytes`, and for DACRT `phases`: the median
+//! call's ms by stage, `RayCaster::phase_seconds`) instead of the tables.
 
 use clap::Parser;
 use warpray::cast::batches::interior_camera;
@@ -45,6 +53,9 @@ struct Args {
     /// Runs per measurement; the fastest is kept.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100))]
     repeat: u32,
+    /// Interleaved rounds; each cell is the median over them.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    rounds: u32,
     /// Leaf-size sweep on primary rays.
     #[arg(long)]
     sweep: bool,
@@ -87,6 +98,9 @@ struct Row {
     rays: usize,
     build_ms: f64,
     trace_ms: f64,
+    /// Build + trace (with rounds: the median of the rounds' sums).
+    total_ms: f64,
+    rounds: u32,
     peak_bytes: usize,
     structure_bytes: usize,
     tests: u64,
@@ -97,14 +111,16 @@ struct Row {
 impl Row {
     fn json(&self) -> String {
         format!(
-            "{{\"scene\":\"{}\",\"batch\":\"{}\",\"caster\":\"{}\",\"threads\":{},\"rays\":{},\"build_ms\":{:.3},\"trace_ms\":{:.3},\"peak_bytes\":{},\"structure_bytes\":{},\"tests\":{}{}}}",
+            "{{\"scene\":\"{}\",\"batch\":\"{}\",\"caster\":\"{}\",\"threads\":{},\"rays\":{},\"rounds\":{},\"build_ms\":{:.3},\"trace_ms\":{:.3},\"total_ms\":{:.3},\"peak_bytes\":{},\"structure_bytes\":{},\"tests\":{}{}}}",
             self.scene,
             self.batch,
             self.caster,
             self.threads,
             self.rays,
+            self.rounds,
             self.build_ms,
             self.trace_ms,
+            self.total_ms,
             self.peak_bytes,
             self.structure_bytes,
             self.tests,
@@ -163,8 +179,62 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
             }
             Box::new(p)
         }
-        other => return Err(format!("unknown caster {other} (known: bvh, dacrt, pdacrt)")),
+        #[cfg(feature = "embree")]
+        "embree" | "embree-fast" => {
+            use warpray::cast::embree::{EmbreeCaster, EmbreeParams};
+            let p = if name == "embree" { EmbreeParams::default() } else { EmbreeParams::fastest() };
+            Box::new(EmbreeCaster::from_triangles(s.triangle_vertices(), p).map_err(|e| e.to_string())?)
+        }
+        other => return Err(format!("unknown caster {other} (known: {})", KNOWN.join(", "))),
     })
+}
+
+/// The casters this build can measure.
+#[cfg(feature = "embree")]
+const KNOWN: &[&str] = &["bvh", "dacrt", "pdacrt", "embree", "embree-fast"];
+#[cfg(not(feature = "embree"))]
+const KNOWN: &[&str] = &["bvh", "dacrt", "pdacrt"];
+
+/// The median of a list (the mean of the middle two for an even count).
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// One row per cell from the rounds' rows: build, trace and total each the median of
+/// its own values; the stages of the round whose trace was nearest the median.
+fn medians(rounds: Vec<Vec<Row>>) -> Vec<Row> {
+    let mut cells: Vec<Vec<Row>> = Vec::new();
+    for row in rounds.into_iter().flatten() {
+        let same = |r: &Row| {
+            r.scene == row.scene && r.batch == row.batch && r.caster == row.caster && r.threads == row.threads
+        };
+        match cells.iter_mut().find(|c| same(&c[0])) {
+            Some(c) => c.push(row),
+            None => cells.push(vec![row]),
+        }
+    }
+    cells
+        .into_iter()
+        .map(|mut c| {
+            let n = c.len() as u32;
+            let build = median(c.iter().map(|r| r.build_ms).collect());
+            let trace = median(c.iter().map(|r| r.trace_ms).collect());
+            let total = median(c.iter().map(|r| r.build_ms + r.trace_ms).collect());
+            let peak = c.iter().map(|r| r.peak_bytes).max().unwrap_or(0);
+            c.sort_by(|a, b| (a.trace_ms - trace).abs().total_cmp(&(b.trace_ms - trace).abs()));
+            let mut r = c.swap_remove(0);
+            (r.build_ms, r.trace_ms, r.total_ms, r.rounds, r.peak_bytes) = (build, trace, total, n, peak);
+            r
+        })
+        .collect()
 }
 
 /// The command line's tunables, set once before anything is measured.
@@ -201,6 +271,8 @@ fn measure(
                 rays: rays.len(),
                 build_ms: c.build_seconds() * 1e3,
                 trace_ms: st.seconds * 1e3,
+                total_ms: (c.build_seconds() + st.seconds) * 1e3,
+                rounds: 1,
                 peak_bytes: st.peak_working_bytes + c.memory_bytes(),
                 structure_bytes: c.memory_bytes(),
                 tests: st.tests,
@@ -209,6 +281,7 @@ fn measure(
             match rows.get_mut(k) {
                 Some(r) => {
                     r.build_ms = r.build_ms.min(row.build_ms);
+                    r.total_ms = r.build_ms + r.trace_ms.min(row.trace_ms);
                     if row.trace_ms < r.trace_ms {
                         r.trace_ms = row.trace_ms;
                         r.phases = row.phases;
@@ -265,7 +338,7 @@ fn print_tables(rows: &[Row]) {
                 "| {s} | {c} | {:.1} | {:.1} | {:.1} | {:.2} | {:.1} |",
                 r.build_ms,
                 r.trace_ms,
-                r.build_ms + r.trace_ms,
+                r.total_ms,
                 r.rays as f64 / r.trace_ms / 1e3,
                 r.tests as f64 / r.rays as f64
             );
@@ -318,16 +391,20 @@ fn run(a: Args) -> Result<(), String> {
     }
     let pool = pool.build().map_err(|e| e.to_string())?;
     // Check every name before any work starts.
-    if let Some(c) = a.casters.iter().find(|c| !["bvh", "dacrt", "pdacrt"].contains(&c.as_str())) {
-        return Err(format!("unknown caster {c} (known: bvh, dacrt, pdacrt)"));
+    if let Some(c) = a.casters.iter().find(|c| !KNOWN.contains(&c.as_str())) {
+        return Err(format!("unknown caster {c} (known: {})", KNOWN.join(", ")));
     }
-    if !a.json {
+    let machine = warpray::machine::Machine::this();
+    if a.json {
+        println!("{{\"machine\":{}}}", machine.json());
+    } else {
         println!(
-            "# DACRT tables: {}x{} primary rays, {} AO rays per hit, {} threads",
+            "# DACRT tables: {}x{} primary rays, {} AO rays per hit, {} threads, {} interleaved round(s)\n\nMachine: {machine}",
             a.size,
             a.size,
             a.ao,
-            pool.current_num_threads()
+            pool.current_num_threads(),
+            a.rounds
         );
     }
     let mut rows = Vec::new();
@@ -342,16 +419,23 @@ fn run(a: Args) -> Result<(), String> {
             s.triangle_count(),
             b.iter().map(|x| format!("{} {}", x.0, x.1.len())).collect::<Vec<_>>().join(", ")
         );
-        for c in &a.casters {
-            let new = pool.install(|| measure(c, &s, name, &b, a.repeat))?;
-            eprintln!("  {c} done");
-            rows.extend(new);
+        let mut rounds = Vec::new();
+        for round in 0..a.rounds {
+            for c in &a.casters {
+                rounds.push(pool.install(|| measure(c, &s, name, &b, a.repeat))?);
+            }
+            eprintln!("  round {} of {} done", round + 1, a.rounds);
         }
+        rows.extend(medians(rounds));
         for &t in &a.scaling {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().map_err(|e| e.to_string())?;
-            for c in &a.casters {
-                rows.extend(pool.install(|| measure(c, &s, name, &b[..2], a.repeat))?);
+            let mut rounds = Vec::new();
+            for _ in 0..a.rounds {
+                for c in &a.casters {
+                    rounds.push(pool.install(|| measure(c, &s, name, &b[..2], a.repeat))?);
+                }
             }
+            rows.extend(medians(rounds));
             eprintln!("  {t} threads done");
         }
         if !a.json && !a.scaling.is_empty() {

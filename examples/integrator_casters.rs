@@ -23,7 +23,7 @@ struct Args {
     spp: u32,
     #[arg(long, value_delimiter = ',', default_values_t = ["path".to_string(), "light".into(), "bdpt".into(), "lvc".into(), "cis".into()])]
     integrators: Vec<String>,
-    #[arg(long, value_delimiter = ',', default_values_t = [CasterKind::Bvh, CasterKind::Dacrt, CasterKind::Pdacrt].map(|c| format!("{c:?}").to_lowercase()))]
+    #[arg(long, value_delimiter = ',', default_values_t = CasterKind::all().iter().filter(|&&c| c != CasterKind::Brute).map(|c| format!("{c:?}").to_lowercase()))]
     casters: Vec<String>,
     /// Renders per cell; the fastest counts.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
@@ -52,7 +52,7 @@ fn run(a: Args) -> Result<()> {
     for integ in integrators {
         let mut bvh_ms = None;
         for &k in &kinds {
-            let caster = k.build(&scene);
+            let caster = k.build(&scene)?;
             let opts = RenderOptions {
                 width: a.size,
                 height: a.size,

@@ -69,6 +69,14 @@ pub enum Error {
         /// What failed.
         msg: String,
     },
+    /// The Embree library could not be loaded or a call into it failed.
+    #[error("Embree library {library}: {msg}")]
+    Embree {
+        /// The shared library (Debian's libembree3, or the file `WARPRAY_EMBREE` names).
+        library: PathBuf,
+        /// What failed.
+        msg: String,
+    },
     /// A line of an OBJ file is malformed.
     #[error("{at}: malformed OBJ: {msg}")]
     MalformedObj {

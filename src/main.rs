@@ -334,7 +334,7 @@ fn run_render(args: RenderArgs) -> Result<bool> {
     pool.install(|| {
         let caster: Box<dyn RayCaster> = match args.caster {
             CasterKind::Bvh => Box::new(BvhCaster::new(&desc.scene).with_traversal(args.bvh_traversal)),
-            kind => kind.build(&desc.scene),
+            kind => kind.build(&desc.scene)?,
         };
         let bar = if args.quiet { ProgressBar::hidden() } else { progress_bar(budget) };
         let start = std::time::Instant::now();

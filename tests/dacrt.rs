@@ -62,33 +62,11 @@ impl<C: RayCaster> RayCaster for InPool<C> {
 }
 
 fn compare_closest(oracle: &dyn RayCaster, scene: &Scene, rays: &[Ray], what: &str) {
-    let mut want = vec![Hit::MISS; rays.len()];
-    oracle.closest(rays, &mut want);
-    for c in casters_under_test(scene) {
-        let mut got = vec![Hit::MISS; rays.len()];
-        c.closest(rays, &mut got);
-        for (i, (w, g)) in want.iter().zip(&got).enumerate() {
-            assert_eq!(w.is_hit(), g.is_hit(), "{what}/{}: ray {i} {:?}: {w:?} vs {g:?}", c.name(), rays[i]);
-            if w.is_hit() {
-                let rel = (w.t - g.t).abs() / w.t.abs().max(1e-30);
-                assert!(rel <= 1e-5, "{what}/{}: ray {i}: t {} vs {}", c.name(), w.t, g.t);
-                if w.prim == g.prim {
-                    assert!((w.u - g.u).abs() < 1e-5 && (w.v - g.v).abs() < 1e-5);
-                }
-            }
-        }
-    }
+    assert_closest_agree(oracle, &casters_under_test(scene), rays, what);
 }
 
 fn compare_occluded(oracle: &dyn RayCaster, scene: &Scene, rays: &[Ray], what: &str) {
-    let mut want = vec![false; rays.len()];
-    oracle.occluded(rays, &mut want);
-    for c in casters_under_test(scene) {
-        let mut got = vec![false; rays.len()];
-        c.occluded(rays, &mut got);
-        let diff: Vec<usize> = (0..rays.len()).filter(|&i| want[i] != got[i]).collect();
-        assert!(diff.is_empty(), "{what}/{}: {} disagreements, first ray {:?}", c.name(), diff.len(), rays[diff[0]]);
-    }
+    assert_occluded_agree(oracle, &casters_under_test(scene), rays, what);
 }
 
 /// Primary rays, and from their hits: shadow rays to a point, mirror reflections, and
@@ -161,15 +139,8 @@ fn dacrt_matches_the_bvh_on_bunny_and_conference_room() {
 /// Random rays of every kind through a small scene, against brute force.
 fn fuzz(tris: &[[Vec3; 3]], extra_rays: &[Ray], what: &str) {
     let scene = scene_from_triangles(tris);
-    let b = scene.bounds();
-    let pad = b.extent().max(Vec3::splat(1.0)) * 0.5;
     let mut r = rng(17);
-    let mut rays: Vec<Ray> = (0..3000)
-        .map(|_| {
-            let o = random_in_box(&mut r, b.min - pad, b.max + pad);
-            Ray::new(o, (random_in_box(&mut r, b.min, b.max) - o).normalize_or(Vec3::X))
-        })
-        .collect();
+    let mut rays = rays_through(&scene, &mut r, 3000);
     rays.extend_from_slice(extra_rays);
     let brute = BruteForce::new(&scene);
     compare_closest(&brute, &scene, &rays, what);

@@ -21,7 +21,7 @@ fn every_integrator_counts_the_same_rays_and_makes_the_same_image_with_every_cas
         };
         let mut first: Option<(Vec<Vec3>, RenderStats)> = None;
         for kind in [CasterKind::Bvh, CasterKind::Dacrt, CasterKind::Pdacrt, CasterKind::Brute] {
-            let caster = kind.build(&scene);
+            let caster = kind.build(&scene).unwrap();
             let (film, stats) = render(&scene, caster.as_ref(), &opts, |_, _| true).unwrap();
             assert!(stats.rays > 0 && stats.tests > 0, "{} with {kind:?}: nothing counted", integrator.name());
             let img = film.mean();
@@ -47,7 +47,7 @@ fn one_device_holds_a_whole_render_of_pdacrt_and_cis() {
         seed: 5,
         ..Default::default()
     };
-    let caster = CasterKind::Pdacrt.build(&scene);
+    let caster = CasterKind::Pdacrt.build(&scene).unwrap();
     let dev = caster.device().expect("PDACRT runs on a device").clone();
     let mut renderer = Renderer::new(&scene, caster.as_ref(), &opts).unwrap();
     let mut film = renderer.film().unwrap();
@@ -61,7 +61,7 @@ fn one_device_holds_a_whole_render_of_pdacrt_and_cis() {
     // Its peak covers the scene's triangles and the integrator's pool together.
     assert!(dev.memory().peak > dev.memory().current);
     // Other casters have no device; the cis integrator then brings its own.
-    let bvh = CasterKind::Bvh.build(&scene);
+    let bvh = CasterKind::Bvh.build(&scene).unwrap();
     assert!(bvh.device().is_none());
     let r = Renderer::new(&scene, bvh.as_ref(), &opts).unwrap();
     assert!(r.device().is_some());

@@ -7,12 +7,15 @@
 //!
 //! Casters here: [`BruteForce`] (the test oracle), [`BvhCaster`] (obvhs' compressed
 //! wide BVH), [`Dacrt`] (divide-and-conquer, no stored structure) and
-//! [`pdacrt::Pdacrt`] (DACRT breadth-first on the `simt` emulator).
+//! [`pdacrt::Pdacrt`] (DACRT breadth-first on the `simt` emulator), and with the cargo
+//! feature `embree`, [`embree::EmbreeCaster`] (Intel's Embree, the CPU baseline).
 
 pub mod batches;
 mod brute;
 mod bvh;
 mod dacrt;
+#[cfg(feature = "embree")]
+pub mod embree;
 pub mod pdacrt;
 
 pub use brute::BruteForce;
@@ -108,17 +111,35 @@ pub enum CasterKind {
     Dacrt,
     /// Breadth-first parallel DACRT (Ravichandran & Narayanan 2013) on the simt emulator.
     Pdacrt,
+    /// Intel's Embree with its default build (cargo feature `embree`).
+    #[cfg(feature = "embree")]
+    Embree,
 }
 
 impl CasterKind {
-    /// Builds the caster of this kind for `scene`.
-    pub fn build(self, scene: &Scene) -> Box<dyn RayCaster> {
-        match self {
+    /// Builds the caster of this kind for `scene`. Only Embree can fail (its library
+    /// is opened at run time).
+    pub fn build(self, scene: &Scene) -> crate::error::Result<Box<dyn RayCaster>> {
+        Ok(match self {
             CasterKind::Bvh => Box::new(BvhCaster::new(scene)),
             CasterKind::Brute => Box::new(BruteForce::new(scene)),
             CasterKind::Dacrt => Box::new(Dacrt::new(scene)),
             CasterKind::Pdacrt => Box::new(crate::cast::pdacrt::Pdacrt::new(scene)),
-        }
+            #[cfg(feature = "embree")]
+            CasterKind::Embree => Box::new(embree::EmbreeCaster::new(scene)?),
+        })
+    }
+
+    /// Every kind this build offers.
+    pub fn all() -> &'static [CasterKind] {
+        &[
+            CasterKind::Bvh,
+            CasterKind::Brute,
+            CasterKind::Dacrt,
+            CasterKind::Pdacrt,
+            #[cfg(feature = "embree")]
+            CasterKind::Embree,
+        ]
     }
 }
 

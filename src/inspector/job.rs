@@ -36,7 +36,7 @@ impl Job {
         let (w, h) = (self.size, self.size);
         self.analyse(&scene, shared)?;
         let reference = self.reference(&scene, &desc.settings, shared, stop)?;
-        let caster = self.caster.build(&scene);
+        let caster = self.caster.build(&scene)?;
         // The scene file's depth and filter, as `warpray render` uses them.
         let mut opts = self.integrator.apply(RenderOptions::for_scene(
             &desc.settings,

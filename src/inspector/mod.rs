@@ -298,7 +298,7 @@ impl Inspector {
             egui::ComboBox::from_id_salt("caster")
                 .selected_text(format!("{:?}", self.caster).to_lowercase())
                 .show_ui(ui, |ui| {
-                    for k in [CasterKind::Bvh, CasterKind::Dacrt, CasterKind::Pdacrt, CasterKind::Brute] {
+                    for &k in CasterKind::all() {
                         ui.selectable_value(&mut self.caster, k, format!("{k:?}").to_lowercase());
                     }
                 })

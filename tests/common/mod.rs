@@ -2,6 +2,8 @@
 #![allow(dead_code)]
 
 use std::path::PathBuf;
+use warpray::cast::RayCaster;
+use warpray::geometry::{Hit, Ray};
 use warpray::glam::Vec3;
 use warpray::sampling::{Rng, uniform_sphere};
 use warpray::scene::{Coat, LayerBase, Layered, Material, Scene, cornell_box, find_model, metals, models_dir};
@@ -102,4 +104,51 @@ pub fn statistics(means: &[f64]) -> (f64, f64) {
     let mean = means.iter().sum::<f64>() / n;
     let var = means.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / (n - 1.0);
     (mean, (var / n).sqrt())
+}
+
+/// Every caster finds what the oracle finds on every ray: a hit or none, the same
+/// distance (relative 1e-5; ties at one distance may name different triangles), and
+/// the same barycentrics where the triangle is the same.
+pub fn assert_closest_agree(oracle: &dyn RayCaster, casters: &[Box<dyn RayCaster + '_>], rays: &[Ray], what: &str) {
+    let mut want = vec![Hit::MISS; rays.len()];
+    oracle.closest(rays, &mut want);
+    for c in casters {
+        let mut got = vec![Hit::MISS; rays.len()];
+        c.closest(rays, &mut got);
+        for (i, (w, g)) in want.iter().zip(&got).enumerate() {
+            assert_eq!(w.is_hit(), g.is_hit(), "{what}/{}: ray {i} {:?}: {w:?} vs {g:?}", c.name(), rays[i]);
+            if w.is_hit() {
+                let rel = (w.t - g.t).abs() / w.t.abs().max(1e-30);
+                assert!(rel <= 1e-5, "{what}/{}: ray {i}: t {} vs {}", c.name(), w.t, g.t);
+                if w.prim == g.prim {
+                    assert!((w.u - g.u).abs() < 1e-5 && (w.v - g.v).abs() < 1e-5);
+                }
+            }
+        }
+    }
+}
+
+/// Every caster answers every shadow ray as the oracle does.
+pub fn assert_occluded_agree(oracle: &dyn RayCaster, casters: &[Box<dyn RayCaster + '_>], rays: &[Ray], what: &str) {
+    let mut want = vec![false; rays.len()];
+    oracle.occluded(rays, &mut want);
+    for c in casters {
+        let mut got = vec![false; rays.len()];
+        c.occluded(rays, &mut got);
+        let diff: Vec<usize> = (0..rays.len()).filter(|&i| want[i] != got[i]).collect();
+        assert!(diff.is_empty(), "{what}/{}: {} disagreements, first ray {:?}", c.name(), diff.len(), rays[diff[0]]);
+    }
+}
+
+/// `n` rays from random points in the scene's box (padded by half its size) toward
+/// random points inside it.
+pub fn rays_through(scene: &Scene, r: &mut Rng, n: usize) -> Vec<Ray> {
+    let b = scene.bounds();
+    let pad = b.extent().max(Vec3::splat(1.0)) * 0.5;
+    (0..n)
+        .map(|_| {
+            let o = random_in_box(r, b.min - pad, b.max + pad);
+            Ray::new(o, (random_in_box(r, b.min, b.max) - o).normalize_or(Vec3::X))
+        })
+        .collect()
 }
