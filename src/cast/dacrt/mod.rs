@@ -43,9 +43,8 @@
 //! Every call counts its ray–triangle tests ([`CastStats::tests`]).
 
 use super::{CastStats, RayCaster, Triangles, triangles_bytes};
-use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir};
+use crate::geometry::{Aabb, Hit, Ray, RayShear, RaySlab, intersect_triangle};
 use crate::scene::Scene;
-use glam::Vec3;
 use packets::{ORIGIN_BITS, Packets};
 use rayon::prelude::*;
 use std::sync::Mutex;
@@ -53,6 +52,7 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::time::Instant;
 
 mod fork;
+mod leaf;
 mod packets;
 mod planes;
 mod stages;
@@ -62,7 +62,7 @@ use stages::{Stages, timed};
 use top::Scratch;
 
 /// Tunables of [`Dacrt`]. The defaults were chosen by measurement (see
-/// `docs/dacrt.md`).
+/// `docs/history/dacrt-runs.md`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DacrtParams {
     /// A node with at most this many rays is solved by brute force.
@@ -91,7 +91,7 @@ pub struct DacrtParams {
     pub fork_min_rays: usize,
     /// Rays per packet for packet filtering (rounded up to a power of two; 0: every
     /// ray is tested on its own). Off by default: on the 16-core machine it lost on the
-    /// dragon and gained on the bunny (`docs/dacrt.md`, run K).
+    /// dragon and gained on the bunny (`docs/history/dacrt-runs.md`, run K).
     pub packet_rays: usize,
 }
 
@@ -151,11 +151,12 @@ fn unpack_t(key: u64) -> f32 {
 }
 
 /// What one trace call shares between its recursive steps. Its rays are the batch's
-/// valid rays renumbered in coherence order: a ray's id indexes `rays`, `inv` and
+/// valid rays renumbered in coherence order: a ray's id indexes `rays`, `slabs` and
 /// `keys`.
 struct Trace {
     rays: Vec<Ray>,
-    inv: Vec<Vec3>,
+    /// Each ray packed for the box tests of the ray partitions.
+    slabs: Vec<RaySlab>,
     keys: Vec<AtomicU64>,
     packets: Option<Packets>,
     any_hit: bool,
@@ -171,12 +172,12 @@ struct Trace {
 impl Trace {
     /// A trace of `rays` (already renumbered) with no hits yet.
     fn new(rays: Vec<Ray>, any_hit: bool, packet_rays: usize, fork_min_rays: usize) -> Trace {
-        let inv: Vec<Vec3> = rays.par_iter().map(|r| inv_dir(r.dir)).collect();
+        let slabs: Vec<RaySlab> = rays.par_iter().map(RaySlab::new).collect();
         let keys: Vec<AtomicU64> = (0..rays.len()).into_par_iter().map(|_| AtomicU64::new(NONE)).collect();
-        let packets = Packets::new(&rays, &inv, packet_rays);
+        let packets = Packets::new(&rays, &slabs, packet_rays);
         Trace {
             rays,
-            inv,
+            slabs,
             keys,
             packets,
             any_hit,
@@ -214,8 +215,8 @@ impl Trace {
         if self.any_hit && k == BLOCKED {
             return false;
         }
-        let r = &self.rays[id as usize];
-        b.intersect(r.origin, self.inv[id as usize], r.t_min, self.t_far(id)).is_some()
+        let s = &self.slabs[id as usize];
+        s.enters(b, if k == NONE { s.t_max() } else { unpack_t(k).min(s.t_max()) })
     }
 }
 
@@ -248,49 +249,6 @@ impl Dacrt {
     pub fn with_params(mut self, params: DacrtParams) -> Self {
         self.params = params;
         self
-    }
-
-    fn leaf(&self, tr: &Trace, rays: &[u32], tris: &[u32]) {
-        let mut tests = 0u64;
-        for &r in rays {
-            let ray = &tr.rays[r as usize];
-            let key = &tr.keys[r as usize];
-            let shear = RayShear::new(ray.dir);
-            if tr.any_hit {
-                if key.load(Relaxed) == BLOCKED {
-                    continue;
-                }
-                let mut hit = false;
-                for &t in tris {
-                    tests += 1;
-                    let [a, b, c] = self.tris[t as usize];
-                    if intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, ray.t_max).is_some() {
-                        hit = true;
-                        break;
-                    }
-                }
-                if hit {
-                    key.store(BLOCKED, Relaxed);
-                }
-                continue;
-            }
-            let mut best = key.load(Relaxed);
-            let mut t_far = tr.t_far(r);
-            tests += tris.len() as u64;
-            for &t in tris {
-                let [a, b, c] = self.tris[t as usize];
-                // `<=` keeps a tie at equal distance so the smaller id wins below.
-                if let Some((th, _, _)) = intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, t_far.next_up()) {
-                    let k = pack(th, t);
-                    if k < best {
-                        best = k;
-                        t_far = th;
-                    }
-                }
-            }
-            key.fetch_min(best, Relaxed);
-        }
-        tr.tests.fetch_add(tests, Relaxed);
     }
 
     fn recurse(&self, tr: &Trace, bounds: Aabb, rays: &mut [u32], tris: &mut [u32], spare: &mut Vec<u32>, depth: u32) {
@@ -409,7 +367,10 @@ impl Dacrt {
         clock.note("prepare_top", top_s);
         clock.note("prepare_rays", sort_s);
         let m = order.len();
-        tr.alloc(m * (4 + 8 + 12 + std::mem::size_of::<Ray>() + 4) + tr.packets.as_ref().map_or(0, Packets::bytes));
+        tr.alloc(
+            m * (4 + 8 + std::mem::size_of::<RaySlab>() + std::mem::size_of::<Ray>() + 4)
+                + tr.packets.as_ref().map_or(0, Packets::bytes),
+        );
         tr.alloc(top.ids.len() * 4);
         let mut ray_ids: Vec<u32> = (0..m as u32).collect();
         // Each group's own time: their sum against the stage's wall time and threads

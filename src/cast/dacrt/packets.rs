@@ -19,13 +19,13 @@
 //! or on which the members' directions have both signs, gives no bound.
 
 use super::{Dacrt, Trace};
-use crate::geometry::{Aabb, Ray, SLAB_WIDEN, inv_dir};
+use crate::geometry::{Aabb, Ray, RaySlab, SLAB_WIDEN, inv_dir};
 use glam::Vec3;
 use rayon::prelude::*;
 
 /// A run of fewer of one packet's rays in a ray list is tested ray by ray: a packet
 /// test costs about two ray tests, and short runs are rarely rejected whole (32-ray
-/// packets, runs of 2, 4 and 8 measured on the VM: `docs/dacrt.md`).
+/// packets, runs of 2, 4 and 8 measured on the VM: `docs/history/dacrt-runs.md`).
 pub(super) const MIN_RUN: usize = 8;
 
 /// Bounds of one packet's rays (see the module docs).
@@ -105,10 +105,11 @@ pub(super) struct Packets {
 
 impl Packets {
     /// Packets of `size` rays (a power of two) over the trace's rays; `None` for size 0.
-    pub(super) fn new(rays: &[Ray], inv: &[Vec3], size: usize) -> Option<Packets> {
+    pub(super) fn new(rays: &[Ray], slabs: &[RaySlab], size: usize) -> Option<Packets> {
         if size == 0 {
             return None;
         }
+        let inv: Vec<Vec3> = slabs.par_iter().map(RaySlab::inv_dir).collect();
         let size = size.next_power_of_two();
         let bounds = rays.par_chunks(size).zip(inv.par_chunks(size)).map(|(r, i)| PacketBounds::of(r, i)).collect();
         Some(Packets { shift: size.trailing_zeros(), bounds })

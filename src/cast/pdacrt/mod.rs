@@ -48,7 +48,7 @@ mod tests;
 pub use kernels::BRUTE_FORCE_SHARED_BYTES;
 pub use record::{KernelTime, LevelRecord};
 
-/// Tunables of [`Pdacrt`] (defaults chosen by measurement, see `docs/dacrt.md`).
+/// Tunables of [`Pdacrt`] (defaults chosen by measurement, see `docs/history/dacrt-runs.md`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PdacrtParams {
     /// A child with at most this many rays is terminal.
@@ -63,7 +63,7 @@ pub struct PdacrtParams {
     pub measure: bool,
     /// Rays traced per pass of the pipeline (bounds the working set; 0: the whole
     /// batch at once). The default, 196,608, keeps the dragon's 1024² primary rays
-    /// under 100 MB including triangles (`docs/dacrt.md`): about 34 MB of triangle-side
+    /// under 100 MB including triangles (`docs/history/dacrt-runs.md`): about 34 MB of triangle-side
     /// buffers plus 140 bytes per ray of the chunk.
     pub chunk_rays: usize,
     /// Batches with fewer rays than this are tested against every triangle on the

@@ -1,0 +1,79 @@
+#!/usr/bin/env python3
+"""Tables of docs/dacrt.md from the JSON lines of casting-vs-embree.sh.
+
+    python3 docs/reproduce/casting-summary.py OUT_DIR
+
+Prints markdown: each batch's build + trace per caster and the ratios to Embree's
+default and fastest settings; DACRT's 1 -> 16 thread scaling; the animated grid.
+"""
+import json
+import statistics
+import sys
+from pathlib import Path
+
+out = Path(sys.argv[1])
+
+
+def rows(name):
+    p = out / name
+    if not p.exists():
+        return None, []
+    lines = [json.loads(l) for l in p.read_text().splitlines() if l.strip()]
+    machine = next((l["machine"] for l in lines if "machine" in l), None)
+    return machine, [l for l in lines if "machine" not in l]
+
+
+machine, t = rows("casting-1024-16t.jsonl")
+if machine:
+    print(f"Machine: {machine['cpu']}, {machine['cpus']} CPUs, vector extensions "
+          f"{' '.join(machine['extensions'])}; binary compiled for "
+          f"{' '.join(machine['compiled_for']) or 'baseline x86-64'}\n")
+cell = {(r["scene"], r["batch"], r["caster"]): r for r in t if r["threads"] == 16}
+casters = [c for c in ["embree", "embree-fast", "bvh", "dacrt", "pdacrt"] if any(k[2] == c for k in cell)]
+print("| scene | batch | rays | " + " | ".join(f"{c} ms" for c in casters)
+      + " | DACRT ÷ Embree | DACRT ÷ Embree fastest | BVH ÷ Embree | DACRT tests/ray | DACRT ns/test |")
+print("|---|---|---:|" + "---:|" * (len(casters) + 5))
+for scene in ["bunny", "conference", "dragon"]:
+    for batch in ["primary", "shadow", "specular", "ao"]:
+        if (scene, batch, "dacrt") not in cell:
+            continue
+        c = {k: cell[(scene, batch, k)] for k in casters if (scene, batch, k) in cell}
+        tot = {k: v["total_ms"] for k, v in c.items()}
+        d = c["dacrt"]
+        ratio = lambda a, b: f"{tot[a] / tot[b]:.2f}×" if a in tot and b in tot else "-"
+        # ns per ray-triangle test if the whole trace were tests, per thread (an upper bound).
+        ns = d["trace_ms"] * 1e6 * d["threads"] / max(d["tests"], 1)
+        print(f"| {scene} | {batch} | {d['rays']} | "
+              + " | ".join(f"{v['build_ms']:.1f} + {v['trace_ms']:.1f} = {v['total_ms']:.1f}" for v in c.values())
+              + f" | {ratio('dacrt', 'embree')} | {ratio('dacrt', 'embree-fast')} | {ratio('bvh', 'embree')}"
+              + f" | {d['tests'] / d['rays']:.1f} | {ns:.1f} |")
+
+_, s = rows("casting-dragon-1-vs-16t.jsonl")
+if s:
+    print("\nThread scaling, dragon (1 and 16 threads, medians of the rounds):\n")
+    print("| caster | batch | 1 thread ms | 16 threads ms | speed-up |")
+    print("|---|---|---:|---:|---:|")
+    for c in ["dacrt", "embree", "embree-fast"]:
+        for b in ["primary", "shadow"]:
+            one = [r for r in s if r["caster"] == c and r["batch"] == b and r["threads"] == 1]
+            six = [r for r in s if r["caster"] == c and r["batch"] == b and r["threads"] == 16]
+            if one and six:
+                print(f"| {c} | {b} | {one[0]['total_ms']:.1f} | {six[0]['total_ms']:.1f} | "
+                      f"{one[0]['total_ms'] / six[0]['total_ms']:.2f}× |")
+
+for sec in ["shadow", "diffuse"]:
+    a = rows(f"animated-{sec}-16t.jsonl")[1] + rows(f"animated-{sec}-1-4t.jsonl")[1]
+    if not a:
+        continue
+    print(f"\nAnimated grid (1M triangles, 1024² primary + {sec} rays), per frame, medians over frames:\n")
+    print("| threads | caster | set-up ms | primary ms | secondary ms | frame ms | DACRT ÷ this |")
+    print("|---:|---|---:|---:|---:|---:|---:|")
+    for th in sorted({r["threads"] for r in a}):
+        med = {}
+        for c in ["bvh", "dacrt", "pdacrt", "embree", "embree-fast", "embree-refit"]:
+            m = [r for r in a if r["threads"] == th and r["caster"] == c]
+            if m:
+                med[c] = {k: statistics.median(r[k] for r in m) for k in ["setup_ms", "primary_ms", "secondary_ms", "total_ms"]}
+        for c, v in med.items():
+            print(f"| {th} | {c} | {v['setup_ms']:.1f} | {v['primary_ms']:.1f} | {v['secondary_ms']:.1f} | "
+                  f"{v['total_ms']:.1f} | {med['dacrt']['total_ms'] / v['total_ms']:.2f}× |")

@@ -1,0 +1,30 @@
+#!/usr/bin/env sh
+# The casting tables of docs/dacrt.md: every caster against Embree on the same rays
+# (bunny, conference, dragon at 1024², 5 interleaved rounds), DACRT's thread scaling,
+# and the animated grid per frame (shadow and diffuse secondary rays).
+#
+#   cargo build --release --features embree --example dacrt_tables --example animated
+#   WARPRAY_MODELS=../shared/models [WARPRAY_EMBREE=/path/libembree4.so.4] \
+#       sh docs/reproduce/casting-vs-embree.sh OUT_DIR [BIN_DIR]
+#
+# BIN_DIR defaults to target/release/examples. Each step writes JSON lines (the first
+# line of each file is the machine) and can be run alone by copying its line.
+set -eu
+out=${1:?usage: casting-vs-embree.sh OUT_DIR [BIN_DIR]}
+bin=${2:-target/release/examples}
+mkdir -p "$out"
+step=${STEP:-all}
+if [ "$step" = all ] || [ "$step" = tables ]; then
+    "$bin/dacrt_tables" --size 1024 --scenes bunny,conference,dragon \
+        --casters bvh,dacrt,pdacrt,embree,embree-fast --rounds 5 --json > "$out/casting-1024-16t.jsonl"
+    "$bin/dacrt_tables" --size 1024 --scenes dragon --casters dacrt,embree,embree-fast --threads 16 \
+        --scaling 1 --rounds 5 --json > "$out/casting-dragon-1-vs-16t.jsonl"
+fi
+if [ "$step" = all ] || [ "$step" = animated ]; then
+    for s in shadow diffuse; do
+        "$bin/animated" --threads 16 --frames 7 --secondary $s \
+            --casters bvh,dacrt,pdacrt,embree,embree-fast,embree-refit --json > "$out/animated-$s-16t.jsonl"
+        "$bin/animated" --threads 1,4 --frames 3 --secondary $s \
+            --casters bvh,dacrt,pdacrt,embree,embree-fast,embree-refit --json > "$out/animated-$s-1-4t.jsonl"
+    done
+fi

@@ -1,0 +1,238 @@
+//! Layouts for the casters' SIMD lanes (SSE, part of x86-64's baseline, so no
+//! run-time dispatch is needed): [`RaySlab`], a ray packed for box tests, and
+//! [`Triangles4`], the watertight triangle test on four triangles at once.
+//!
+//! Every lane runs the scalar test's operations in the scalar test's order — the shear
+//! as glam's three-term dot product `(x·x' + y·y') + z·z'`, the edge functions, the
+//! determinant and the distance — and IEEE arithmetic is the same per lane as in
+//! scalar code (Rust never contracts to FMA), so each lane's answer is bit for bit
+//! the scalar [`triangle_test`]'s. A lane whose edge function is exactly zero takes
+//! the scalar test itself (its double-precision tie-break).
+
+use super::{Aabb, Ray, RayShear, SLAB_WIDEN, inv_dir, triangle_test};
+use glam::{Vec3, Vec3A, Vec4};
+
+/// A ray packed for repeated slab tests: origin with `t_min`, and reciprocal direction
+/// with `t_max`, in one 32-byte record (half a cache line, two SIMD registers). DACRT
+/// tests every ray of a node against each child's box; with this record a test reads
+/// one line instead of three arrays.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(32))]
+pub struct RaySlab {
+    origin_t_min: Vec4,
+    inv_t_max: Vec4,
+}
+
+impl RaySlab {
+    /// The record of a ray.
+    #[inline]
+    pub fn new(ray: &Ray) -> RaySlab {
+        RaySlab { origin_t_min: ray.origin.extend(ray.t_min), inv_t_max: inv_dir(ray.dir).extend(ray.t_max) }
+    }
+
+    /// The ray's `t_max`.
+    #[inline]
+    pub fn t_max(&self) -> f32 {
+        self.inv_t_max.w
+    }
+
+    /// The reciprocal direction.
+    #[inline]
+    pub fn inv_dir(&self) -> Vec3 {
+        self.inv_t_max.truncate()
+    }
+
+    /// Whether the ray, cut to `(t_min, t_far)`, enters the box: exactly
+    /// [`Aabb::intersect`]'s answer, computed on three lanes at once when no direction
+    /// component is zero (and by `intersect` itself when one is).
+    #[inline]
+    pub fn enters(&self, b: &Aabb, t_far: f32) -> bool {
+        let o = Vec3A::from_vec4(self.origin_t_min);
+        let inv = Vec3A::from_vec4(self.inv_t_max);
+        if !inv.is_finite() {
+            return b.intersect(o.into(), inv.into(), self.origin_t_min.w, t_far).is_some();
+        }
+        // Per axis as `intersect` computes it; the order of the max/min reductions
+        // does not change their values (no NaN can arise with finite reciprocals).
+        let t0 = (Vec3A::from(b.min) - o) * inv;
+        let t1 = (Vec3A::from(b.max) - o) * inv;
+        let near = t0.min(t1).max_element().max(self.origin_t_min.w);
+        let far = (t0.max(t1).min_element() * SLAB_WIDEN).min(t_far);
+        near <= far
+    }
+}
+
+/// Four triangles in structure-of-arrays form: `p[3 * corner + axis]` holds that
+/// coordinate of the four triangles' corner. Unused lanes repeat lane 0.
+#[derive(Clone, Copy, Debug)]
+pub struct Triangles4 {
+    p: [Vec4; 9],
+}
+
+impl Triangles4 {
+    /// A block of four triangles with all corners at the origin (hit by nothing).
+    pub const EMPTY: Triangles4 = Triangles4 { p: [Vec4::ZERO; 9] };
+
+    /// The block of up to four triangles (at least one).
+    #[inline]
+    pub fn new(tris: &[[Vec3; 3]]) -> Triangles4 {
+        debug_assert!(!tris.is_empty() && tris.len() <= 4);
+        let mut p = [[0.0f32; 4]; 9];
+        for k in 0..4 {
+            let t = &tris[if k < tris.len() { k } else { 0 }];
+            for (c, corner) in t.iter().enumerate() {
+                p[3 * c][k] = corner.x;
+                p[3 * c + 1][k] = corner.y;
+                p[3 * c + 2][k] = corner.z;
+            }
+        }
+        Triangles4 { p: p.map(Vec4::from_array) }
+    }
+
+    /// Triangle `k`'s corners.
+    fn triangle(&self, k: usize) -> [Vec3; 3] {
+        let c = |i: usize| Vec3::new(self.p[3 * i][k], self.p[3 * i + 1][k], self.p[3 * i + 2][k]);
+        [c(0), c(1), c(2)]
+    }
+
+    /// The scalar test's answer for each lane: bit `k` of [`Hits4::mask`] set for a
+    /// hit with `t_min < t < t_max`, at `(t[k], u[k], v[k])`.
+    #[inline]
+    pub fn test(&self, origin: Vec3, shear: &RayShear, t_min: f32, t_max: f32) -> Hits4 {
+        let o = Vec3A::from(origin);
+        let p = &self.p;
+        let (ox, oy, oz) = (Vec4::splat(o.x), Vec4::splat(o.y), Vec4::splat(o.z));
+        let row = |r: Vec3A| (Vec4::splat(r.x), Vec4::splat(r.y), Vec4::splat(r.z));
+        let (rx, ry, rz) = (row(shear.rx), row(shear.ry), row(shear.rz));
+        // A corner relative to the origin, sheared: `RayShear::apply`, lane-wise.
+        let corner = |c: usize| {
+            let (x, y, z) = (p[3 * c] - ox, p[3 * c + 1] - oy, p[3 * c + 2] - oz);
+            let dot = |r: (Vec4, Vec4, Vec4)| (r.0 * x + r.1 * y) + r.2 * z;
+            (dot(rx), dot(ry), dot(rz))
+        };
+        let (ax, ay, az) = corner(0);
+        let (bx, by, bz) = corner(1);
+        let (cx, cy, cz) = corner(2);
+        let e0 = cx * by - cy * bx;
+        let e1 = ax * cy - ay * cx;
+        let e2 = bx * ay - by * ax;
+        let det = e0 + e1 + e2;
+        let t_scaled = e0 * az + e1 * bz + e2 * cz;
+        let inv_det = Vec4::ONE / det;
+        let t = t_scaled * inv_det;
+        let zero = Vec4::ZERO;
+        let on_edge = (e0.cmpeq(zero) | e1.cmpeq(zero) | e2.cmpeq(zero)).bitmask();
+        let outside =
+            (e0.cmplt(zero) | e1.cmplt(zero) | e2.cmplt(zero)) & (e0.cmpgt(zero) | e1.cmpgt(zero) | e2.cmpgt(zero));
+        let valid = det.cmpne(zero) & det.abs().cmplt(Vec4::INFINITY);
+        let within = t.cmpgt(Vec4::splat(t_min)) & t.cmplt(Vec4::splat(t_max));
+        let mut hits = Hits4 {
+            mask: (valid & within).bitmask() & !outside.bitmask() & !on_edge,
+            t: t.to_array(),
+            u: (e1 * inv_det).to_array(),
+            v: (e2 * inv_det).to_array(),
+        };
+        if on_edge != 0 {
+            self.on_edge(&mut hits, on_edge, origin, shear, t_min, t_max);
+        }
+        hits
+    }
+
+    /// Lanes with an edge function exactly zero: the scalar test (its double-precision
+    /// tie-break) decides them.
+    #[cold]
+    #[inline(never)]
+    fn on_edge(&self, hits: &mut Hits4, lanes: u32, origin: Vec3, shear: &RayShear, t_min: f32, t_max: f32) {
+        for k in (0..4).filter(|k| lanes >> k & 1 == 1) {
+            if let (_, Some((t, u, v))) = triangle_test(origin, shear, self.triangle(k), t_min, t_max) {
+                hits.mask |= 1 << k;
+                (hits.t[k], hits.u[k], hits.v[k]) = (t, u, v);
+            }
+        }
+    }
+}
+
+/// What [`Triangles4::test`] found: a hit mask (bit `k` for lane `k`) and each lane's
+/// distance and barycentrics (meaningful where the bit is set).
+#[derive(Clone, Copy, Debug)]
+pub struct Hits4 {
+    /// Bit `k` set when lane `k` is hit.
+    pub mask: u32,
+    /// Distances.
+    pub t: [f32; 4],
+    /// Barycentric weights of the second corner.
+    pub u: [f32; 4],
+    /// Barycentric weights of the third corner.
+    pub v: [f32; 4],
+}
+
+impl Hits4 {
+    /// Lane `k`'s hit, if any.
+    #[inline]
+    pub fn get(&self, k: usize) -> Option<(f32, f32, f32)> {
+        (self.mask >> k & 1 == 1).then(|| (self.t[k], self.u[k], self.v[k]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Rng;
+
+    #[test]
+    fn packed_slab_test_answers_as_the_box_test() {
+        // Coordinates on a coarse grid, so that origins on faces, rays along faces,
+        // zero direction components and exact ties at `t_far` all occur.
+        let mut r = Rng::for_sample(11, 0, 0);
+        let mut grid = || (r.uniform() * 8.0).floor() * 0.25 - 1.0;
+        let (mut agree, mut entered) = (0, 0);
+        for _ in 0..200_000 {
+            let (a, b) = (Vec3::new(grid(), grid(), grid()), Vec3::new(grid(), grid(), grid()));
+            let bx = Aabb { min: a.min(b), max: a.max(b) };
+            let o = Vec3::new(grid(), grid(), grid());
+            let d = Vec3::new(grid(), grid(), grid());
+            if d == Vec3::ZERO {
+                continue;
+            }
+            let ray = Ray { origin: o, dir: d, t_min: grid().max(0.0), t_max: grid() * 4.0 + 4.0 };
+            let t_far = [ray.t_max, grid() + 1.0][agree % 2];
+            let want = bx.intersect(o, inv_dir(d), ray.t_min, t_far).is_some();
+            assert_eq!(RaySlab::new(&ray).enters(&bx, t_far), want, "{ray:?} {bx:?} t_far {t_far}");
+            agree += 1;
+            entered += want as usize;
+        }
+        // Both answers occur often (the check is not one-sided).
+        assert!(entered > agree / 10 && entered < agree * 9 / 10, "{entered} of {agree}");
+    }
+
+    #[test]
+    fn every_lane_answers_as_the_scalar_test_bit_for_bit() {
+        // Corners on a coarse grid (shared edges, vertices on the ray, zero edge
+        // functions, degenerate triangles) and random ones.
+        let mut r = Rng::for_sample(3, 0, 0);
+        let (mut hits, mut n) = (0, 0);
+        for trial in 0..40_000 {
+            let mut point = |coarse: bool| {
+                let v = Vec3::new(r.uniform(), r.uniform(), r.uniform()) * 4.0 - 2.0;
+                if coarse { (v * 2.0).round() * 0.5 } else { v }
+            };
+            let coarse = trial % 2 == 0;
+            let tris: Vec<[Vec3; 3]> =
+                (0..1 + trial % 4).map(|_| [point(coarse), point(coarse), point(coarse)]).collect();
+            let origin = point(coarse) + Vec3::Z * 3.0;
+            let dir = (point(coarse) - origin).normalize_or(Vec3::X);
+            let shear = RayShear::new(dir);
+            let t_max = if trial % 3 == 0 { 2.5 } else { f32::INFINITY };
+            let got = Triangles4::new(&tris).test(origin, &shear, 0.0, t_max);
+            let got: Vec<_> = (0..4).map(|k| got.get(k)).collect();
+            for (k, t) in tris.iter().enumerate() {
+                let want = triangle_test(origin, &shear, *t, 0.0, t_max).1;
+                let bits = |h: Option<(f32, f32, f32)>| h.map(|(t, u, v)| (t.to_bits(), u.to_bits(), v.to_bits()));
+                assert_eq!(bits(got[k]), bits(want), "trial {trial} lane {k}: {t:?} from {origin} along {dir}");
+                hits += want.is_some() as usize;
+                n += 1;
+            }
+        }
+        assert!(hits > n / 20 && hits < n / 2, "{hits} hits of {n}");
+    }
+}
