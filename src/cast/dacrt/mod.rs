@@ -240,8 +240,8 @@ impl Dacrt {
 
     /// A caster over a triangle list.
     pub fn from_triangles(tris: Triangles, params: DacrtParams) -> Self {
-        let boxes: Vec<Aabb> = tris.iter().map(|t| Aabb::from_points(t)).collect();
-        let scene_box = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(*b));
+        let boxes: Vec<Aabb> = tris.par_iter().map(|t| Aabb::from_points(t)).collect();
+        let scene_box = boxes.par_iter().copied().reduce(|| Aabb::EMPTY, Aabb::union);
         Dacrt { tris, boxes, scene_box, params, phases: Mutex::default() }
     }
 
