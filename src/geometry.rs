@@ -159,6 +159,14 @@ impl Aabb {
         Aabb { min: self.min.max(o.min), max: self.max.min(o.max) }
     }
 
+    /// The six coordinates in memory order: `min.x, min.y, min.z, max.x, max.y, max.z`.
+    #[inline]
+    pub fn as_floats(&self) -> &[f32; 6] {
+        // SAFETY: `Aabb` is `repr(C)` of two `Vec3`, each `repr(C)` of three `f32`: six
+        // `f32` in this order, with `f32`'s alignment and no padding.
+        unsafe { &*(self as *const Aabb as *const [f32; 6]) }
+    }
+
     /// True when the closed boxes share at least one point.
     #[inline]
     pub fn overlaps(&self, o: &Aabb) -> bool {

@@ -42,10 +42,9 @@ impl Dacrt {
         spare: &mut Vec<u32>,
         depth: u32,
     ) {
-        let mut union = Aabb::EMPTY;
-        let mut far_tris: Vec<u32> =
-            tris.iter().copied().filter(|&t| self.overlaps_growing(t, &far, &mut union)).collect();
-        let tight = far.intersection(union);
+        let mut grow = super::planes::Grower::new(&far);
+        let mut far_tris: Vec<u32> = tris.iter().copied().filter(|&t| grow.test(&self.boxes[t as usize])).collect();
+        let tight = far.intersection(grow.union());
         let far_rays: Vec<u32> = if far_tris.is_empty() {
             Vec::new()
         } else {

@@ -136,6 +136,8 @@ const BLOCKED: u64 = 0;
 /// A node with few rays is a leaf only while it has at most this many times
 /// `leaf_rays · leaf_triangles` ray–triangle pairs.
 pub(crate) const LEAF_PAIRS_FACTOR: u64 = 4;
+/// Rays whose directions choose which child is near (`Trace::toward_hi`).
+const NEAR_SAMPLES: usize = 32;
 /// SAH bins per axis, and triangles sampled per SAH decision.
 const SAH_BINS: usize = 16;
 const SAH_SAMPLES: usize = 2048;
@@ -209,6 +211,15 @@ impl Trace {
         if k == NONE { self.rays[id as usize].t_max } else { unpack_t(k).min(self.rays[id as usize].t_max) }
     }
 
+    /// Whether most of the rays travel toward `+axis`, judged on at most
+    /// [`NEAR_SAMPLES`] of them spread over the list (the near child is visited first;
+    /// the choice changes the order of work, never the hits).
+    fn toward_hi(&self, rays: &[u32], axis: usize) -> bool {
+        let step = rays.len().div_ceil(NEAR_SAMPLES).max(1);
+        let sum: f32 = rays.iter().step_by(step).map(|&r| self.rays[r as usize].dir[axis].signum()).sum();
+        sum >= 0.0
+    }
+
     #[inline]
     fn enters(&self, id: u32, b: &Aabb) -> bool {
         let k = self.keys[id as usize].load(Relaxed);
@@ -221,13 +232,16 @@ impl Trace {
 }
 
 /// Moves the elements satisfying `keep` to the front; returns how many there are.
+/// The order is that of swapping each kept element to the front, written without a
+/// branch on `keep` (its answer is as good as random for the partitions here).
 fn partition(ids: &mut [u32], mut keep: impl FnMut(u32) -> bool) -> usize {
     let mut n = 0;
     for i in 0..ids.len() {
-        if keep(ids[i]) {
-            ids.swap(n, i);
-            n += 1;
-        }
+        let (id, front) = (ids[i], ids[n]);
+        let k = keep(id);
+        ids[i] = if k { front } else { id };
+        ids[n] = if k { id } else { front };
+        n += k as usize;
     }
     n
 }
@@ -263,8 +277,7 @@ impl Dacrt {
         };
         let (lo, hi) = bounds.split(axis, pos);
         // Near child first, judged by the rays' mean direction along the split axis.
-        let toward_hi: f32 = rays.iter().map(|&r| tr.rays[r as usize].dir[axis].signum()).sum();
-        let (near, far) = if toward_hi >= 0.0 { (lo, hi) } else { (hi, lo) };
+        let (near, far) = if tr.toward_hi(rays, axis) { (lo, hi) } else { (hi, lo) };
         if tr.forks(rays.len()) {
             return self.fork(tr, near, far, rays, tris, spare, depth);
         }
@@ -321,8 +334,7 @@ impl Dacrt {
     /// Partitions the parent's lists for `child`, shrinks its box to its triangles,
     /// and recurses.
     fn child(&self, tr: &Trace, child: Aabb, rays: &mut [u32], tris: &mut [u32], spare: &mut Vec<u32>, depth: u32) {
-        let mut union = Aabb::EMPTY;
-        let nt = partition(tris, |t| self.overlaps_growing(t, &child, &mut union));
+        let (nt, union) = self.partition_triangles(tris, &child);
         if nt == 0 {
             return;
         }

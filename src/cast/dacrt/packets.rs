@@ -236,19 +236,23 @@ impl Trace {
     /// parts (so ids stay ascending and a packet's rays adjacent); returns how many
     /// enter. A run of one packet's rays is rejected at once when the packet misses.
     pub(super) fn partition_rays(&self, ids: &mut [u32], b: &Aabb, rejected: &mut Vec<u32>) -> usize {
-        rejected.clear();
-        let mut n = 0;
-        let keep = |ids: &mut [u32], k: usize, n: &mut usize, rejected: &mut Vec<u32>| {
+        // Kept rays move down to `n` (never past the ray being read); rejected ones go
+        // to `rejected[m]`, which holds room for every ray. Both writes happen for
+        // every ray and only the counts depend on the test: no branch on its answer.
+        if rejected.len() < ids.len() {
+            rejected.resize(ids.len(), 0);
+        }
+        let (mut n, mut m) = (0, 0);
+        let keep = |ids: &mut [u32], rejected: &mut [u32], k: usize, n: &mut usize, m: &mut usize| {
             let r = ids[k];
-            if self.enters(r, b) {
-                ids[*n] = r;
-                *n += 1;
-            } else {
-                rejected.push(r);
-            }
+            let enters = self.enters(r, b);
+            ids[*n] = r;
+            rejected[*m] = r;
+            *n += enters as usize;
+            *m += !enters as usize;
         };
         match &self.packets {
-            None => (0..ids.len()).for_each(|k| keep(ids, k, &mut n, rejected)),
+            None => (0..ids.len()).for_each(|k| keep(ids, rejected, k, &mut n, &mut m)),
             Some(packets) => {
                 let mut i = 0;
                 while i < ids.len() {
@@ -258,15 +262,19 @@ impl Trace {
                         j += 1;
                     }
                     if j - i >= MIN_RUN && packets.misses(p, b) {
-                        rejected.extend_from_slice(&ids[i..j]);
+                        for k in i..j {
+                            let r = ids[k];
+                            rejected[m] = r;
+                            m += 1;
+                        }
                     } else {
-                        (i..j).for_each(|k| keep(ids, k, &mut n, rejected));
+                        (i..j).for_each(|k| keep(ids, rejected, k, &mut n, &mut m));
                     }
                     i = j;
                 }
             }
         }
-        ids[n..].copy_from_slice(rejected);
+        ids[n..].copy_from_slice(&rejected[..m]);
         n
     }
 }

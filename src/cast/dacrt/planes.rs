@@ -3,18 +3,65 @@
 
 use super::{Dacrt, SAH_BINS, SAH_SAMPLES};
 use crate::geometry::Aabb;
+use glam::{BVec4A, Vec4};
+
+/// The triangle test of a child's partition: which triangles' boxes overlap the child,
+/// and the union of those boxes (a child's tight box is the child clipped to it).
+///
+/// A box's six floats are read as two overlapping 4-lane loads, `(min.x, min.y, min.z,
+/// max.x)` and `(min.z, max.x, max.y, max.z)`, each compared with the child's far or
+/// near corner padded by an infinity in the lane that belongs to the other corner: one
+/// comparison per load, no branch. The answer is `Aabb::overlaps`'s (NaN in any
+/// coordinate fails both), and the union the same minima and maxima.
+pub(super) struct Grower {
+    /// The child's far corner against each box's `min` lanes (last lane +∞).
+    far: Vec4,
+    /// The child's near corner against each box's `max` lanes (first lane −∞).
+    near: Vec4,
+    lo: Vec4,
+    hi: Vec4,
+}
+
+impl Grower {
+    pub(super) fn new(child: &Aabb) -> Grower {
+        Grower {
+            far: child.max.extend(f32::INFINITY),
+            near: Vec4::new(f32::NEG_INFINITY, child.min.x, child.min.y, child.min.z),
+            lo: Vec4::INFINITY,
+            hi: Vec4::NEG_INFINITY,
+        }
+    }
+
+    /// Whether the box overlaps the child; a box that does joins the union.
+    #[inline(always)]
+    pub(super) fn test(&mut self, b: &Aabb) -> bool {
+        let f = b.as_floats();
+        let (lo, hi) = (Vec4::from_slice(&f[0..4]), Vec4::from_slice(&f[2..6]));
+        let keep = (lo.cmple(self.far) & hi.cmpge(self.near)).all();
+        let m = BVec4A::splat(keep);
+        self.lo = Vec4::select(m, self.lo.min(lo), self.lo);
+        self.hi = Vec4::select(m, self.hi.max(hi), self.hi);
+        keep
+    }
+
+    /// The union of the boxes kept so far (empty if none: a kept box has `min.x <=
+    /// max.x`, lanes 0 of `lo` and 1 of `hi`).
+    pub(super) fn union(&self) -> Aabb {
+        if self.lo.x > self.hi.y {
+            return Aabb::EMPTY;
+        }
+        Aabb { min: self.lo.truncate(), max: glam::Vec3::new(self.hi.y, self.hi.z, self.hi.w) }
+    }
+}
 
 impl Dacrt {
-    /// True when triangle `t`'s box overlaps `child`; such a box is added to `union`
-    /// (a child's tight box is the child clipped to that union).
+    /// Partitions `tris` so those whose boxes overlap `child` come first; returns their
+    /// count and the union of their boxes.
     #[inline]
-    pub(super) fn overlaps_growing(&self, t: u32, child: &Aabb, union: &mut Aabb) -> bool {
-        let b = &self.boxes[t as usize];
-        let keep = b.overlaps(child);
-        if keep {
-            *union = union.union(*b);
-        }
-        keep
+    pub(super) fn partition_triangles(&self, tris: &mut [u32], child: &Aabb) -> (usize, Aabb) {
+        let mut g = Grower::new(child);
+        let n = super::partition(tris, |t| g.test(&self.boxes[t as usize]));
+        (n, g.union())
     }
 }
 

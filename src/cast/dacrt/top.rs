@@ -330,8 +330,7 @@ impl Dacrt {
                 tr.free(range.len() * 4);
             }
             Top::Split { axis, kids, .. } => {
-                let toward_hi: f32 = rays.iter().map(|&r| tr.rays[r as usize].dir[*axis].signum()).sum();
-                let order = if toward_hi >= 0.0 { [0, 1] } else { [1, 0] };
+                let order = if tr.toward_hi(rays, *axis) { [0, 1] } else { [1, 0] };
                 if tr.forks(rays.len()) {
                     return self.fork_top(tr, top, order.map(|k| &kids[k]), rays, scratch, depth);
                 }
