@@ -26,7 +26,7 @@
 
 use clap::Parser;
 use warpray::cast::batches::interior_camera;
-use warpray::cast::{BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster, Traversal};
+use warpray::cast::{BvhBuild, BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster, Traversal};
 use warpray::geometry::{Hit, Ray};
 use warpray::pdacrt::{Pdacrt, PdacrtParams};
 use warpray::scene::{ObjOptions, Scene, find_model, load_obj, models_dir};
@@ -163,6 +163,14 @@ fn batches(s: &Scene, size: u32, ao: usize) -> Vec<(&'static str, Vec<Ray>, bool
 fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
     Ok(match name {
         "bvh" => Box::new(BvhCaster::new(s).with_traversal(Traversal::Fast)),
+        "bvh-fast" | "bvh-very-fast" | "bvh-fastest" => {
+            let b = match name {
+                "bvh-fast" => BvhBuild::Fast,
+                "bvh-very-fast" => BvhBuild::VeryFast,
+                _ => BvhBuild::Fastest,
+            };
+            Box::new(BvhCaster::with_build(s.triangle_vertices(), b).with_traversal(Traversal::Fast))
+        }
         "dacrt" => {
             let mut d = Dacrt::new(s);
             let t = TUNABLES.get().copied().unwrap_or_default();
@@ -191,9 +199,9 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
 
 /// The casters this build can measure.
 #[cfg(feature = "embree")]
-const KNOWN: &[&str] = &["bvh", "dacrt", "pdacrt", "embree", "embree-fast"];
+const KNOWN: &[&str] = &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "dacrt", "pdacrt", "embree", "embree-fast"];
 #[cfg(not(feature = "embree"))]
-const KNOWN: &[&str] = &["bvh", "dacrt", "pdacrt"];
+const KNOWN: &[&str] = &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "dacrt", "pdacrt"];
 
 /// The median of a list (the mean of the middle two for an even count).
 fn median(mut v: Vec<f64>) -> f64 {
@@ -266,7 +274,7 @@ fn measure(
             let row = Row {
                 scene: scene_name.into(),
                 batch: name,
-                caster: c.name(),
+                caster: KNOWN.iter().copied().find(|k| *k == caster).unwrap_or(c.name()),
                 threads,
                 rays: rays.len(),
                 build_ms: c.build_seconds() * 1e3,

@@ -54,8 +54,13 @@ impl BvhCaster {
         Self::from_triangles(scene.triangle_vertices())
     }
 
-    /// Builds the BVH of a triangle list.
+    /// Builds the BVH of a triangle list (obvhs' medium preset).
     pub fn from_triangles(tris: Triangles) -> Self {
+        Self::with_build(tris, BvhBuild::default())
+    }
+
+    /// Builds the BVH of a triangle list with one of obvhs' build presets.
+    pub fn with_build(tris: Triangles, build: BvhBuild) -> Self {
         let start = Instant::now();
         let regular = |t: &[Vec3; 3]| t.iter().all(|v| v.is_finite() && v.abs().max_element() <= OUTLIER_COORDINATE);
         let outliers: Vec<u32> =
@@ -64,7 +69,7 @@ impl BvhCaster {
         let padding = NodePadding::of(ids.iter().map(|&i| &tris[i as usize]));
         let bvh = (!ids.is_empty()).then(|| {
             let boxes: Vec<PaddedBox> = ids.iter().map(|&i| padding.pad(&tris[i as usize])).collect();
-            build_cwbvh(&boxes, BvhBuildParams::medium_build(), &mut Duration::default())
+            build_cwbvh(&boxes, build.params(), &mut Duration::default())
         });
         BvhCaster {
             traversal: Traversal::default(),
@@ -131,6 +136,33 @@ impl BvhCaster {
             }
         });
         (best, tests)
+    }
+}
+
+/// obvhs' build presets, by what they trade (obvhs 0.4's `BvhBuildParams`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum BvhBuild {
+    /// PLOC with the smallest search radius, one primitive per leaf, no reinsertion:
+    /// the quickest build, the slowest traversal.
+    Fastest,
+    /// As `Fastest` with up to 8 primitives per leaf and 1 % reinsertion.
+    VeryFast,
+    /// A wider PLOC search and 2 % reinsertion.
+    Fast,
+    /// obvhs' default for a static scene: a medium PLOC search and 5 % reinsertion.
+    #[default]
+    Medium,
+}
+
+impl BvhBuild {
+    fn params(self) -> BvhBuildParams {
+        match self {
+            BvhBuild::Fastest => BvhBuildParams::fastest_build(),
+            BvhBuild::VeryFast => BvhBuildParams::very_fast_build(),
+            BvhBuild::Fast => BvhBuildParams::fast_build(),
+            BvhBuild::Medium => BvhBuildParams::medium_build(),
+        }
     }
 }
 

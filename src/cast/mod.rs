@@ -19,7 +19,7 @@ pub mod embree;
 pub mod pdacrt;
 
 pub use brute::BruteForce;
-pub use bvh::{BvhCaster, Traversal};
+pub use bvh::{BvhBuild, BvhCaster, Traversal};
 pub(crate) use dacrt::LEAF_PAIRS_FACTOR;
 pub use dacrt::{Dacrt, DacrtParams};
 
