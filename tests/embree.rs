@@ -236,3 +236,43 @@ fn reports_its_structure_and_build_time() {
     assert_eq!(c.name(), "embree");
     assert_eq!(EmbreeParams::fastest().robust().label(), "embree-fast-robust");
 }
+
+#[test]
+fn renders_with_embree_match_the_bvh_at_any_thread_count() {
+    use warpray::prelude::{Budget, BvhCaster, IntegratorKind, RenderOptions, render};
+    let scene = cornell_box();
+    for integrator in [IntegratorKind::Path, IntegratorKind::Bdpt, IntegratorKind::Cis] {
+        let opts = RenderOptions {
+            width: 12,
+            height: 12,
+            budget: Budget::Samples(2),
+            integrator,
+            seed: 3,
+            ..Default::default()
+        };
+        let bvh = render(&scene, &BvhCaster::new(&scene), &opts, |_, _| true).unwrap();
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let (film, stats) = pool.install(|| {
+                let e = EmbreeCaster::new(&scene).expect("Embree");
+                render(&scene, &e, &opts, |_, _| true).unwrap()
+            });
+            assert_eq!(stats.rays, bvh.1.rays, "{} with Embree, {threads} threads: ray count", integrator.name());
+            assert!(film.mean() == bvh.0.mean(), "{} with Embree, {threads} threads: image differs", integrator.name());
+        }
+    }
+}
+
+#[test]
+fn a_missing_embree_library_is_an_error_naming_it() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_warpray"))
+        .args(["render", "--caster", "embree", "--size", "8x8", "--spp", "1", "-q", "-o"])
+        .arg(std::env::temp_dir().join("warpray-no-embree.png"))
+        .env("WARPRAY_EMBREE", "/nonexistent/libembree4.so.4")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("Embree library /nonexistent/libembree4.so.4") && err.contains("cannot open"), "{err}");
+    assert!(!std::env::temp_dir().join("warpray-no-embree.png").exists(), "no output is written");
+}
