@@ -24,6 +24,7 @@ use warpray::cast::batches::primary_rays;
 use warpray::cast::{BvhCaster, Dacrt, RayCaster, Traversal};
 use warpray::geometry::{Hit, Ray, offset_ray_origin};
 use warpray::glam::Vec3;
+use warpray::machine::median;
 use warpray::pdacrt::Pdacrt;
 use warpray::scene::Camera;
 
@@ -175,24 +176,11 @@ fn build(name: &str, tris: Vec<[Vec3; 3]>) -> Result<Box<dyn RayCaster>, String>
         #[cfg(feature = "embree")]
         "embree" | "embree-fast" => {
             use warpray::cast::embree::{EmbreeCaster, EmbreeParams};
-            let p = if name == "embree" { EmbreeParams::default() } else { EmbreeParams::fastest() };
+            let p = EmbreeParams::by_label(name).expect("a label of EmbreeParams");
             Box::new(EmbreeCaster::from_triangles(tris, p).map_err(|e| e.to_string())?)
         }
         other => return Err(format!("unknown caster {other} (known: {})", KNOWN.join(", "))),
     })
-}
-
-/// The median of a list (the mean of the middle two for an even count).
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n == 0 {
-        f64::NAN
-    } else if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 fn run(a: Args) -> Result<(), String> {

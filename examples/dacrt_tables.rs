@@ -28,6 +28,7 @@ use clap::Parser;
 use warpray::cast::batches::interior_camera;
 use warpray::cast::{BvhBuild, BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster, Traversal};
 use warpray::geometry::{Hit, Ray};
+use warpray::machine::median;
 use warpray::pdacrt::{Pdacrt, PdacrtParams};
 use warpray::scene::{ObjOptions, Scene, find_model, load_obj, models_dir};
 
@@ -190,7 +191,7 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
         #[cfg(feature = "embree")]
         "embree" | "embree-fast" => {
             use warpray::cast::embree::{EmbreeCaster, EmbreeParams};
-            let p = if name == "embree" { EmbreeParams::default() } else { EmbreeParams::fastest() };
+            let p = EmbreeParams::by_label(name).expect("a label of EmbreeParams");
             Box::new(EmbreeCaster::from_triangles(s.triangle_vertices(), p).map_err(|e| e.to_string())?)
         }
         other => return Err(format!("unknown caster {other} (known: {})", KNOWN.join(", "))),
@@ -202,19 +203,6 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
 const KNOWN: &[&str] = &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "dacrt", "pdacrt", "embree", "embree-fast"];
 #[cfg(not(feature = "embree"))]
 const KNOWN: &[&str] = &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "dacrt", "pdacrt"];
-
-/// The median of a list (the mean of the middle two for an even count).
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n == 0 {
-        f64::NAN
-    } else if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
 
 /// One row per cell from the rounds' rows: build, trace and total each the median of
 /// its own values; the stages of the round whose trace was nearest the median.
@@ -274,7 +262,7 @@ fn measure(
             let row = Row {
                 scene: scene_name.into(),
                 batch: name,
-                caster: KNOWN.iter().copied().find(|k| *k == caster).unwrap_or(c.name()),
+                caster: c.name(),
                 threads,
                 rays: rays.len(),
                 build_ms: c.build_seconds() * 1e3,

@@ -1,7 +1,7 @@
-//! What machine a measurement ran on: the CPU's model, the vector extensions it has,
-//! the ones this binary was compiled to use, and the worker threads. Benchmarks print
-//! it beside their tables (`dacrt_tables`, `animated`), so that every figure carries
-//! its machine.
+//! What a benchmark reports beside its figures: the machine a measurement ran on (the
+//! CPU's model, the vector extensions it has, the ones this binary was compiled to use)
+//! and the median of interleaved rounds. Benchmarks print the machine beside their
+//! tables (`dacrt_tables`, `animated`), so that every figure carries it.
 
 /// The machine a benchmark runs on.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -59,6 +59,20 @@ impl std::fmt::Display for Machine {
     }
 }
 
+/// The median of a list of measurements (the mean of the middle two for an even
+/// count; NaN for none).
+pub fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 fn detected() -> Vec<&'static str> {
     let mut v = Vec::new();
@@ -96,5 +110,12 @@ mod tests {
         let j = m.json();
         assert!(j.starts_with("{\"cpu\":\"") && j.ends_with("]}"), "{j}");
         assert!(m.to_string().contains("CPUs"));
+    }
+
+    #[test]
+    fn median_of_odd_even_and_empty_lists() {
+        assert_eq!(median(vec![5.0, 1.0, 3.0]), 3.0);
+        assert_eq!(median(vec![4.0, 1.0, 3.0, 2.0]), 2.5);
+        assert!(median(Vec::new()).is_nan());
     }
 }

@@ -239,17 +239,10 @@ fn reports_its_structure_and_build_time() {
 
 #[test]
 fn renders_with_embree_match_the_bvh_at_any_thread_count() {
-    use warpray::prelude::{Budget, BvhCaster, IntegratorKind, RenderOptions, render};
+    use warpray::prelude::{BvhCaster, IntegratorKind, render};
     let scene = cornell_box();
     for integrator in [IntegratorKind::Path, IntegratorKind::Bdpt, IntegratorKind::Cis] {
-        let opts = RenderOptions {
-            width: 12,
-            height: 12,
-            budget: Budget::Samples(2),
-            integrator,
-            seed: 3,
-            ..Default::default()
-        };
+        let opts = small_render(integrator);
         let bvh = render(&scene, &BvhCaster::new(&scene), &opts, |_, _| true).unwrap();
         for threads in [1, 3] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();

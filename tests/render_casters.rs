@@ -2,6 +2,9 @@
 //! caster answers them, and since every caster returns the same hits (distance,
 //! triangle, barycentrics), the images and ray counts are identical.
 
+mod common;
+
+use common::small_render;
 use warpray::prelude::*;
 use warpray::render::Renderer;
 
@@ -11,14 +14,7 @@ fn every_integrator_counts_the_same_rays_and_makes_the_same_image_with_every_cas
     for integrator in
         [IntegratorKind::Path, IntegratorKind::Light, IntegratorKind::Bdpt, IntegratorKind::Lvc, IntegratorKind::Cis]
     {
-        let opts = RenderOptions {
-            width: 12,
-            height: 12,
-            budget: Budget::Samples(2),
-            integrator,
-            seed: 3,
-            ..Default::default()
-        };
+        let opts = small_render(integrator);
         let mut first: Option<(Vec<Vec3>, RenderStats)> = None;
         for kind in [CasterKind::Bvh, CasterKind::Dacrt, CasterKind::Pdacrt, CasterKind::Brute] {
             let caster = kind.build(&scene).unwrap();

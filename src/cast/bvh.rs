@@ -45,6 +45,7 @@ pub struct BvhCaster {
     /// Where a ray's origin must lie for obvhs' node test to be conservative on the
     /// padded boxes (see [`NodePadding`]); rays from elsewhere take the robust traversal.
     region: Aabb,
+    build: BvhBuild,
     build_seconds: f64,
 }
 
@@ -78,6 +79,7 @@ impl BvhCaster {
             outliers,
             bvh,
             region: padding.region,
+            build,
             build_seconds: start.elapsed().as_secs_f64(),
         }
     }
@@ -368,7 +370,12 @@ impl BvhCaster {
 
 impl RayCaster for BvhCaster {
     fn name(&self) -> &'static str {
-        "bvh"
+        match self.build {
+            BvhBuild::Medium => "bvh",
+            BvhBuild::Fast => "bvh-fast",
+            BvhBuild::VeryFast => "bvh-very-fast",
+            BvhBuild::Fastest => "bvh-fastest",
+        }
     }
 
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {

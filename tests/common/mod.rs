@@ -152,3 +152,15 @@ pub fn rays_through(scene: &Scene, r: &mut Rng, n: usize) -> Vec<Ray> {
         })
         .collect()
 }
+
+/// The small render on which casters are compared: 12×12 pixels, 2 samples, seed 3.
+pub fn small_render(integrator: warpray::render::IntegratorKind) -> warpray::render::RenderOptions {
+    warpray::render::RenderOptions {
+        width: 12,
+        height: 12,
+        budget: warpray::render::Budget::Samples(2),
+        integrator,
+        seed: 3,
+        ..Default::default()
+    }
+}

@@ -88,6 +88,21 @@ impl EmbreeParams {
         EmbreeParams { robust: true, ..self }
     }
 
+    /// The setting a [`label`](Self::label) names (`None` for any other text).
+    pub fn by_label(label: &str) -> Option<EmbreeParams> {
+        let (base, robust) = match label.strip_suffix("-robust") {
+            Some(b) => (b, true),
+            None => (label, false),
+        };
+        let p = match base {
+            "embree" => EmbreeParams::default(),
+            "embree-fast" => EmbreeParams::fastest(),
+            "embree-refit" => EmbreeParams::refit(),
+            _ => return None,
+        };
+        Some(if robust { p.robust() } else { p })
+    }
+
     /// A short label for tables: `embree`, `embree-fast`, `embree-refit`, plus `-robust`.
     pub fn label(&self) -> &'static str {
         match (self.refit, self.quality == BuildQuality::Low && self.dynamic, self.robust) {
@@ -250,16 +265,21 @@ impl EmbreeCaster {
         if n == 0 {
             v.fill(0.0);
         }
-        v.par_chunks_mut(9).zip(tris.par_iter()).for_each(|(dst, t)| {
-            // Embree skips a triangle with any coordinate it cannot take; such
-            // triangles are collapsed to the origin's point and tested apart.
-            let keep = regular(t);
-            for (k, p) in t.iter().enumerate() {
-                let p = if keep { *p } else { glam::Vec3::ZERO };
-                dst[3 * k..3 * k + 3].copy_from_slice(&p.to_array());
-            }
-        });
-        self.outliers = (0..n as u32).into_par_iter().filter(|&i| !regular(&tris[i as usize])).collect();
+        // Embree skips a triangle with any coordinate it cannot take; such triangles
+        // are collapsed to the origin's point and listed, to be tested apart.
+        self.outliers = v
+            .par_chunks_mut(9)
+            .zip(tris.par_iter())
+            .enumerate()
+            .filter_map(|(i, (dst, t))| {
+                let keep = regular(t);
+                for (k, p) in t.iter().enumerate() {
+                    let p = if keep { *p } else { glam::Vec3::ZERO };
+                    dst[3 * k..3 * k + 3].copy_from_slice(&p.to_array());
+                }
+                (!keep).then_some(i as u32)
+            })
+            .collect();
         let lib = self.lib;
         // SAFETY: live handles; the buffer was written above.
         unsafe {
