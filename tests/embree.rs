@@ -235,8 +235,10 @@ fn reports_its_structure_and_build_time() {
     assert!(c.version() >= 30000, "version {}", c.version());
     assert_eq!(c.name(), "embree");
     assert_eq!(EmbreeParams::fastest().robust().label(), "embree-fast-robust");
-    for p in presets() {
-        assert_eq!(EmbreeParams::by_label(p.label()), Some(p), "{}", p.label());
+    for p in [EmbreeParams::default(), EmbreeParams::fastest(), EmbreeParams::refit()] {
+        for p in [p, p.robust()] {
+            assert_eq!(EmbreeParams::by_label(p.label()), Some(p), "{}", p.label());
+        }
     }
     assert_eq!(EmbreeParams::by_label("embree-slow"), None);
 }
