@@ -6,7 +6,8 @@
 #   WARPRAY_MODELS=... BIN=target/release/examples OUT=gpu-out sh cuda/check.sh [model] [size]
 #
 # BIN holds gpu_check (cargo build --release --features cuda --example gpu_check) and,
-# optionally, gpu_tests (the test binary of tests/gpu.rs). Results go to $OUT.
+# optionally, gpu_tests (the suite's test binary, `cargo test --release --features cuda
+# --test suite --no-run`; its `gpu::` tests run). Results go to $OUT.
 set -eu
 cd "$(dirname "$0")/.."
 BIN=${BIN:-target/release/examples}
@@ -17,7 +18,7 @@ BATCHES=${BATCHES:-primary,shadow}
 mkdir -p "$OUT"
 [ -f target/cuda/libwarpray_cuda.so ] || sh cuda/build.sh
 if [ -x "$BIN/gpu_tests" ]; then
-    "$BIN/gpu_tests" --include-ignored >"$OUT/tests.txt" 2>&1 || true
+    "$BIN/gpu_tests" gpu:: --include-ignored >"$OUT/tests.txt" 2>&1 || true
     tail -5 "$OUT/tests.txt"
 fi
 "$BIN/gpu_check" simt --model "$MODEL" --batch "$BATCHES" --size "$SIZE" --out "$OUT/simt_$MODEL.tsv"

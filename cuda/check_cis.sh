@@ -6,7 +6,8 @@
 #   BIN=target/release/examples OUT=gpu-out sh cuda/check_cis.sh [scenes] [size]
 #
 # BIN holds gpu_check (cargo build --release --features cuda --example gpu_check) and,
-# optionally, cis_tests (the test binary of tests/cis_twin.rs). Results go to $OUT.
+# optionally, cis_tests (the suite's test binary, `cargo test --release --features cuda
+# --test suite --no-run`; its `cis_twin::` tests run). Results go to $OUT.
 set -eu
 cd "$(dirname "$0")/.."
 BIN=${BIN:-target/release/examples}
@@ -16,7 +17,7 @@ SIZE=${2:-128}
 mkdir -p "$OUT"
 [ -f target/cuda/libwarpray_cuda.so ] || sh cuda/build.sh
 if [ -x "$BIN/cis_tests" ]; then
-    "$BIN/cis_tests" --include-ignored >"$OUT/cis_tests.txt" 2>&1 || true
+    "$BIN/cis_tests" cis_twin:: --include-ignored >"$OUT/cis_tests.txt" 2>&1 || true
     tail -5 "$OUT/cis_tests.txt"
 fi
 "$BIN/gpu_check" cis --scene "$SCENES" --size "$SIZE" --simt "$OUT/simt_cis.tsv"

@@ -131,7 +131,7 @@ mod tests {
 
     /// A camera's batch (one origin) is cut into many groups and never forks; an
     /// ambient-occlusion batch (rays from every hit point) gets one group per thread
-    /// and forks. Hits of both are checked against brute force in `tests/dacrt.rs`.
+    /// and forks. Hits of both are checked against brute force in `tests/suite/dacrt.rs`.
     #[test]
     fn batches_from_one_origin_are_grouped_and_the_others_fork() {
         let scene = crate::scene::cornell_box();

@@ -94,6 +94,13 @@ impl RayHit1 {
     }
 }
 
+/// The valid mask of a 16-ray packet: -1 for each lane to trace, 0 for the others.
+/// Embree reads it with an aligned 64-byte load, so it is 64-byte aligned (a plain
+/// `[i32; 16]` is only 4-byte aligned, and crashed where the compiler placed it so).
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Valid16(pub [i32; 16]);
+
 /// Sixteen rays and hits in SoA layout (`RTCRayHit16`), 64-byte aligned, with room
 /// after the hit as in [`RayHit1`].
 #[repr(C, align(64))]
@@ -312,18 +319,13 @@ impl Library {
     ///
     /// # Safety
     /// As [`Library::query1`].
-    pub unsafe fn query16(
-        &self,
-        q: Query,
-        valid: &[i32; 16],
-        scene: Handle,
-        rays: &mut RayHit16,
-        args: &mut QueryArgs,
-    ) {
+    pub unsafe fn query16(&self, q: Query, valid: &Valid16, scene: Handle, rays: &mut RayHit16, args: &mut QueryArgs) {
         let f = if q == Query::Intersect { self.intersect16 } else { self.occluded16 };
         let (r, a) = (rays as *mut RayHit16 as *mut c_void, args as *mut QueryArgs as *mut c_void);
-        // SAFETY: as in `query1`; the packet is 64-byte aligned as Embree requires.
-        unsafe { if self.major >= 4 { f(valid.as_ptr(), scene, r, a) } else { f(valid.as_ptr(), scene, a, r) } }
+        // SAFETY: as in `query1`; the packet and the mask are 64-byte aligned as Embree
+        // requires (it loads both with aligned vector loads).
+        let v = valid.0.as_ptr();
+        unsafe { if self.major >= 4 { f(v, scene, r, a) } else { f(v, scene, a, r) } }
     }
 
     /// The device's pending error, as text (`None` when there is none).

@@ -31,7 +31,7 @@ use crate::cast::bvh::OUTLIER_COORDINATE;
 use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray, RayShear, intersect_triangle};
 use crate::scene::Scene;
-use ffi::{Handle, Library, Query, RayHit1, RayHit16};
+use ffi::{Handle, Library, Query, RayHit1, RayHit16, Valid16};
 use rayon::prelude::*;
 use std::ffi::c_void;
 use std::sync::atomic::{AtomicIsize, Ordering::Relaxed};
@@ -156,12 +156,12 @@ fn tnear(r: &Ray) -> f32 {
 }
 
 /// A packet of up to 16 rays and its valid mask (-1 for each valid ray).
-fn packet(rays: &[Ray]) -> (RayHit16, [i32; 16]) {
+fn packet(rays: &[Ray]) -> (RayHit16, Valid16) {
     let mut p = RayHit16::empty();
-    let mut valid = [0i32; 16];
+    let mut valid = Valid16::default();
     for (i, r) in rays.iter().enumerate().filter(|(_, r)| r.is_valid()) {
         p.set(i, r.origin.to_array(), r.dir.to_array(), tnear(r), r.t_max);
-        valid[i] = -1;
+        valid.0[i] = -1;
     }
     (p, valid)
 }
@@ -322,7 +322,7 @@ impl EmbreeCaster {
             unsafe { lib.query16(Query::Intersect, &valid, self.scene, &mut p, &mut args) };
             for (i, (r, h)) in rays.iter().zip(hits.iter_mut()).enumerate() {
                 *h = Hit::MISS;
-                if valid[i] != 0 && p.geom_id[i] != ffi::INVALID_ID {
+                if valid.0[i] != 0 && p.geom_id[i] != ffi::INVALID_ID {
                     *h = self.hit(r, &RayShear::new(r.dir), p.prim_id[i], p.tfar[i], p.u[i], p.v[i]);
                 }
             }
@@ -358,7 +358,7 @@ impl EmbreeCaster {
             // SAFETY: a committed scene; `RayHit16` starts with `RTCRay16`.
             unsafe { lib.query16(Query::Occluded, &valid, self.scene, &mut p, &mut args) };
             for (i, o) in out.iter_mut().enumerate() {
-                *o = valid[i] != 0 && p.tfar[i] == f32::NEG_INFINITY;
+                *o = valid.0[i] != 0 && p.tfar[i] == f32::NEG_INFINITY;
             }
         } else {
             for (r, o) in rays.iter().zip(out.iter_mut()) {

@@ -3,9 +3,7 @@
 //! leaves (a child no smaller than its parent became a leaf at once). Hits must match
 //! brute force, and the ray–triangle test counts must stay far below brute force's.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use warpray::cast::{BruteForce, CastStats, Dacrt, DacrtParams, RayCaster};
 use warpray::geometry::{Hit, Ray};
 use warpray::glam::Vec3;

@@ -128,6 +128,27 @@ pub fn assert_closest_agree(oracle: &dyn RayCaster, casters: &[Box<dyn RayCaster
     }
 }
 
+/// The rays of a batch that an oracle too slow for the whole batch is asked about, in
+/// order: every ray on which two of `results` disagree (a hit against a miss, another
+/// triangle, or distances apart by more than 1e-6 relative), every ray whose first
+/// result lies within 1e-3 of a triangle edge in barycentrics (where ties and the
+/// edge rules decide), and every `stride`-th ray, a uniform sample.
+pub fn rays_worth_an_oracle(results: &[&[Hit]], stride: usize) -> Vec<usize> {
+    let n = results[0].len();
+    (0..n)
+        .filter(|&i| {
+            let first = results[0][i];
+            let disagree = results[1..].iter().any(|r| {
+                let h = r[i];
+                h.is_hit() != first.is_hit()
+                    || (h.is_hit() && (h.prim != first.prim || (h.t - first.t).abs() > 1e-6 * first.t.abs()))
+            });
+            let near_edge = first.is_hit() && first.u.min(first.v).min(1.0 - first.u - first.v) < 1e-3;
+            disagree || near_edge || i % stride == 0
+        })
+        .collect()
+}
+
 /// Every caster answers every shadow ray as the oracle does.
 pub fn assert_occluded_agree(oracle: &dyn RayCaster, casters: &[Box<dyn RayCaster + '_>], rays: &[Ray], what: &str) {
     let mut want = vec![false; rays.len()];

@@ -1,9 +1,7 @@
 //! End-to-end rendering: determinism across thread counts, an analytic direct-lighting
 //! case, and the example scene files.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use warpray::cast::{BruteForce, BvhCaster, RayCaster};
 use warpray::film::Film;
 use warpray::glam::Vec3;

@@ -8,8 +8,6 @@
 //! There, a missing library or GPU fails the test rather than skipping it.
 #![cfg(feature = "cuda")]
 
-mod common;
-
 use glam::Vec3;
 use warpray::cast::{BruteForce, RayCaster};
 use warpray::error::Error;
@@ -52,11 +50,11 @@ fn gpu(scene: &Scene, params: PdacrtParams) -> GpuPdacrt {
 fn rays(scene: &Scene, n: usize, seed: u64) -> Vec<Ray> {
     let b = scene.bounds();
     let (lo, hi) = (b.min - 0.2 * b.extent(), b.max + 0.2 * b.extent());
-    let mut rng = common::rng(seed);
+    let mut rng = crate::common::rng(seed);
     let mut out: Vec<Ray> = (0..n)
         .map(|_| {
-            let o = common::random_in_box(&mut rng, lo, hi);
-            Ray::new(o, common::random_in_box(&mut rng, b.min, b.max) - o)
+            let o = crate::common::random_in_box(&mut rng, lo, hi);
+            Ray::new(o, crate::common::random_in_box(&mut rng, b.min, b.max) - o)
         })
         .collect();
     out.push(Ray::new(b.center(), Vec3::ZERO));
@@ -107,7 +105,7 @@ fn gpu_keys_equal_the_emulators_and_brute_force_on_the_cornell_box() {
 #[test]
 #[ignore = "needs an NVIDIA GPU, target/cuda/libwarpray_cuda.so and the bunny model; run with --include-ignored"]
 fn gpu_keys_equal_the_emulators_on_the_bunny() {
-    let scene = load_obj(common::require_model("bunny"), &ObjOptions::default()).unwrap();
+    let scene = load_obj(crate::common::require_model("bunny"), &ObjOptions::default()).unwrap();
     let b = warpray::cast::batches::batches(&scene, 128, 128, 1, 1);
     let mut rays = b.primary;
     rays.extend(b.ambient);

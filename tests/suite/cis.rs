@@ -1,9 +1,7 @@
 //! CIS-LBDPT: convergence to the BDPT reference with every idea on and each switched off,
 //! its relation to uniform LVC, determinism, and what sorting does to SIMD efficiency.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use warpray::cast::BvhCaster;
 use warpray::cis::CisParams;
 use warpray::film::Film;

@@ -1,8 +1,6 @@
 //! Every kind of bad input gets its own typed error naming the file (and line where
 //! known): no panic, no hang, no half-written output.
 
-mod common;
-
 use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};

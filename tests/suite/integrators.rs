@@ -1,8 +1,6 @@
 //! The integrators against an analytic case and against each other.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use warpray::cast::BvhCaster;
 use warpray::film::Film;
 use warpray::glam::{Vec2, Vec3};

@@ -2,9 +2,7 @@
 //! caster answers them, and since every caster returns the same hits (distance,
 //! triangle, barycentrics), the images and ray counts are identical.
 
-mod common;
-
-use common::small_render;
+use crate::common::small_render;
 use warpray::prelude::*;
 use warpray::render::Renderer;
 

@@ -4,9 +4,7 @@
 //! library these tests fail and say how to install it; they never pass silently.
 #![cfg(feature = "embree")]
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use warpray::cast::embree::{EmbreeCaster, EmbreeParams};
 use warpray::cast::{BruteForce, RayCaster, Triangles};
 use warpray::geometry::{Hit, Ray};

@@ -4,9 +4,7 @@
 //! light projects: the bidirectional integrators used to connect the point light's
 //! own vertex to the camera, a pixel of about 3,700 on a 0.1 image.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use warpray::cast::BvhCaster;
 use warpray::glam::{Vec2, Vec3};
 use warpray::render::{Budget, IntegratorKind, RenderOptions, render};

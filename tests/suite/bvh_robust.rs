@@ -2,9 +2,7 @@
 //! origins on node faces, rays from inside closed meshes, extreme coordinates and
 //! coincident triangles (each a case that obvhs 0.4's own traversal or build got wrong).
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use warpray::cast::{BruteForce, BvhCaster, RayCaster};
 use warpray::geometry::{Hit, Ray};
 use warpray::glam::Vec3;

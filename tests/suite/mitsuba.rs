@@ -3,8 +3,6 @@
 //! PLY shapes, and an error naming the element and line for what is not supported.
 //! The image comparison with Mitsuba itself is in docs/mitsuba.md (it needs Mitsuba).
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use warpray::cast::BvhCaster;
 use warpray::filter::Filter;
@@ -269,9 +267,9 @@ fn unsupported_or_bad_input_is_an_error_naming_the_element_and_line() {
 /// and light tracing and BDPT's light-tracing strategy must splat there as well.
 #[test]
 fn gaussian_filtered_images_are_unbiased_up_to_the_border() {
-    let (v, f) = common::icosphere(2);
+    let (v, f) = crate::common::icosphere(2);
     let tris: Vec<[Vec3; 3]> = f.iter().map(|t| [v[t[0] as usize], v[t[2] as usize], v[t[1] as usize]]).collect();
-    let mut scene = common::scene_from_triangles(&tris);
+    let mut scene = crate::common::scene_from_triangles(&tris);
     scene.materials[0] = warpray::scene::Material::Diffuse { albedo: Vec3::ZERO };
     scene.emission[0] = Vec3::ONE;
     scene.camera = warpray::scene::Camera::look_at(Vec3::ZERO, Vec3::Z, Vec3::Y, 60.0);
@@ -302,7 +300,7 @@ fn gaussian_filtered_images_are_unbiased_up_to_the_border() {
             all.push(film.image_mean().y as f64);
         }
         for (what, m) in [("border", &border), ("image", &all)] {
-            let (mean, se) = common::statistics(m);
+            let (mean, se) = crate::common::statistics(m);
             let z = (mean - 1.0) / se.max(1e-9);
             assert!(z.abs() < 5.0 && se < 0.005, "{integrator:?} {what}: {mean:.5} ± {se:.5} (z = {z:.1})");
         }
@@ -374,7 +372,7 @@ mod mangled {
     use super::*;
     use proptest::prelude::*;
 
-    const CBOX: &str = include_str!("../assets/scenes/mitsuba-cbox.xml");
+    const CBOX: &str = include_str!("../../assets/scenes/mitsuba-cbox.xml");
 
     proptest! {
         #![proptest_config(ProptestConfig { cases: 256, failure_persistence: None, ..ProptestConfig::default() })]

@@ -1,8 +1,6 @@
 //! LVC-BDPT against the BDPT reference, and its determinism.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use warpray::cast::BvhCaster;
 use warpray::film::Film;
 use warpray::glam::Vec3;

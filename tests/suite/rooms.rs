@@ -1,9 +1,7 @@
 //! The two interior scenes of `assets/scenes/` (a white room lit through a window, a
 //! bedroom with layered materials): every integrator converges to the same image.
 
-mod common;
-
-use common::statistics;
+use crate::common::statistics;
 use warpray::cast::BvhCaster;
 use warpray::converge::{Variant, relmse};
 use warpray::glam::Vec3;

@@ -2,9 +2,7 @@
 //! Mitsuba 3's film) against filter importance sampling (`FilterMode::Sample`) and
 //! against images known without the renderer.
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use warpray::cast::BvhCaster;
 use warpray::film::Film;
 use warpray::filter::{Filter, FilterMode, pixel_offset};

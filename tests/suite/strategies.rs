@@ -17,10 +17,8 @@
 //! 0.6 % for the light-tracing strategies t = 1), so that the test has the power to see
 //! errors of 1–3 %; docs/light-transport.md lists the mutations tried.
 
-mod common;
-
+use crate::common::*;
 use IntegratorKind::{Bdpt, Cis, Lvc};
-use common::*;
 use warpray::cast::BvhCaster;
 use warpray::glam::Vec3;
 use warpray::render::{Budget, IntegratorKind, RenderOptions, Strategy, render};

@@ -1,0 +1,32 @@
+//! The integration tests, as one test binary with a module per subject: after a
+//! change the suite links once instead of once per file, and all its tests share the
+//! machine's cores instead of waiting for each file's slowest test. Run one subject
+//! with a filter on its module: `cargo test --profile suite --test suite dacrt::`.
+
+mod common;
+
+mod bad_input;
+mod bsdf;
+mod bvh_robust;
+mod bvh_vs_brute;
+mod cis;
+mod cis_twin;
+mod cli;
+mod dacrt;
+mod dacrt_leaf;
+mod embree;
+mod filter_mode;
+mod gpu;
+mod hygiene;
+mod inspector;
+mod integrators;
+mod lvc;
+mod mitsuba;
+mod outputs;
+mod pdacrt_weights;
+mod point_light;
+mod render;
+mod render_casters;
+mod rooms;
+mod shared_arithmetic;
+mod strategies;
