@@ -21,7 +21,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 use warpray::prelude::*;
-use warpray::render::cis::CisParams;
+use warpray::render::CisParams;
 use warpray::render::{LvcParams, Renderer};
 
 #[derive(Parser)]
@@ -73,8 +73,8 @@ fn options(size: u32, spp: u32, megakernel: bool, measure: bool) -> RenderOption
         height: size,
         budget: Budget::Samples(spp),
         max_depth: 8,
-        integrator: if megakernel { IntegratorKind::Lvc } else { IntegratorKind::Cis },
-        lvc: LvcParams { megakernel, measure, ..Default::default() },
+        integrator: if megakernel { IntegratorKind::LvcMegakernel } else { IntegratorKind::Cis },
+        lvc: LvcParams { measure, ..Default::default() },
         cis: CisParams { measure, ..Default::default() },
         ..Default::default()
     }

@@ -163,8 +163,9 @@ struct RenderArgs {
     /// Ray caster.
     #[arg(long, value_enum, default_value = "bvh")]
     caster: CasterKind,
-    /// With `--integrator lvc`: run LVC-BDPT as megakernels on the simt device (one
-    /// thread per subpath, rays traced one at a time); the image is the same.
+    /// With `--integrator lvc`: the same as `--integrator lvc-mk`, LVC-BDPT as
+    /// megakernels on the simt device (one thread per subpath, rays traced one at a
+    /// time); the image is the same.
     #[arg(long)]
     megakernel: bool,
     /// How the BVH caster traverses: `fast` is obvhs' traversal over boxes padded so

@@ -97,6 +97,12 @@ pub trait RayCaster: Send + Sync {
     fn device(&self) -> Option<&simt::Device> {
         None
     }
+    /// Whether the caster suits rays cast one at a time (the LVC megakernel's): true
+    /// for casters with a stored structure, false for the divide-and-conquer casters,
+    /// which build their work from the batch.
+    fn casts_single_rays(&self) -> bool {
+        true
+    }
 }
 
 /// Which caster to build; parsed from the command line.
@@ -233,6 +239,9 @@ impl RayCaster for CountingCaster<'_> {
     }
     fn build_seconds(&self) -> f64 {
         self.inner.build_seconds()
+    }
+    fn casts_single_rays(&self) -> bool {
+        self.inner.casts_single_rays()
     }
 }
 

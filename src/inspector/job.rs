@@ -6,7 +6,7 @@ use crate::cast::pdacrt::{Pdacrt, PdacrtParams};
 use crate::cast::{BvhCaster, CasterKind, RayCaster};
 use crate::converge::rmse;
 use crate::geometry::Hit;
-use crate::render::cis::CisParams;
+use crate::render::CisParams;
 use crate::render::{Budget, IntegratorKind, RenderOptions, Renderer, Variant};
 use crate::scene::{Scene, load_scene};
 use glam::Vec3;

@@ -15,7 +15,7 @@
 //!
 //! Light and camera connections need a pinhole camera (`aperture_radius = 0`).
 
-use super::Context;
+use super::context::Context;
 use crate::bsdf::TransportMode;
 use crate::cost::declare;
 use crate::cost::{BRANCH, DIV, DOT, NORMALIZE, SIN_COS, SQRT, V3, V3_DIV, VERTEX_COPY};

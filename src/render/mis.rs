@@ -3,8 +3,8 @@
 //! path, and the weight of one strategy among all that could have made the path. Shared
 //! by BDPT, LVC-BDPT and CIS-LBDPT; the vertices and strategies are in `bidir.rs`.
 
-use super::Context;
 use super::bidir::{MAX_PATH, Vertex, VertexKind, camera_importance, cos_at};
+use super::context::Context;
 use crate::cost::{BRANCH, DIV, DOT, NORMALIZE, SQRT, V3, V3_DIV, declare};
 use crate::sampling::Frame;
 use glam::Vec3;

@@ -2,8 +2,8 @@
 //! --integrator`, a scene file's `render.integrator`, `warpray converge --integrators`
 //! and the inspector's menu all read, so a label means the same settings everywhere.
 
-use super::cis::CisParams;
-use super::{IntegratorKind, LvcParams, RenderOptions};
+use super::options::CisParams;
+use super::options::{IntegratorKind, LvcParams, RenderOptions};
 use crate::error::{Error, Result};
 
 /// An integrator with its settings, under a label: `path`, `light`, `bdpt`, `lvc`,
@@ -59,13 +59,14 @@ impl Variant {
             "path" => (IntegratorKind::Path, d),
             "light" => (IntegratorKind::Light, d),
             "bdpt" => (IntegratorKind::Bdpt, d),
-            "lvc" | "lvc-mk" => (IntegratorKind::Lvc, d),
+            "lvc" => (IntegratorKind::Lvc, d),
+            "lvc-mk" => (IntegratorKind::LvcMegakernel, d),
             "cis" => (IntegratorKind::Cis, d),
             "cis-nosort" => (IntegratorKind::Cis, CisParams { sort: false, ..d }),
             "cis-nois" => (IntegratorKind::Cis, CisParams { importance: false, ..d }),
             _ => (IntegratorKind::Cis, CisParams { regenerate: false, ..d }),
         };
-        let lvc = LvcParams { megakernel: label == "lvc-mk", ..Default::default() };
+        let lvc = LvcParams::default();
         Ok(Variant { label, summary, kind, cis, lvc })
     }
 
@@ -100,7 +101,7 @@ mod tests {
         assert_eq!(all.len(), TABLE.len());
         for v in &all {
             assert_eq!(Variant::parse(&v.label.to_uppercase()).unwrap(), *v);
-            assert_eq!(v.lvc.megakernel, v.label == "lvc-mk");
+            assert_eq!(v.kind == IntegratorKind::LvcMegakernel, v.label == "lvc-mk");
         }
         // Labels are distinct, and distinct labels mean distinct settings.
         for (i, a) in all.iter().enumerate() {

@@ -13,8 +13,8 @@
 //! from it in the same order a one-path-at-a-time walk would, so images do not depend
 //! on the wave size, the thread count or the caster.
 
-use super::Context;
 use super::bidir::{Pending, Vertex, VertexKind, camera_vertex, light_vertex};
+use super::context::{Context, Passes, WAVE};
 use crate::bsdf::TransportMode;
 use crate::cast::CastStats;
 use crate::geometry::{Hit, Ray, offset_ray_origin};
@@ -24,57 +24,10 @@ use rayon::prelude::*;
 use std::f32::consts::{FRAC_1_PI, PI};
 use std::ops::Range;
 
-/// Most samples (or light paths) in one wave: bounds the vertex and pending buffers
-/// (about 64 bytes per vertex) whatever the image size.
-pub(crate) const WAVE: u32 = 1 << 16;
-
-/// The waves of up to `size` covering `0..n`, in order.
-pub(crate) fn waves(n: u32, size: u32) -> impl Iterator<Item = Range<u32>> {
-    let size = size.max(1);
-    (0..n.div_ceil(size)).map(move |k| k * size..((k + 1) * size).min(n))
-}
-
-/// Consecutive passes rendered together, their samples numbered pass-major: sample
-/// `k` is pixel (or light path) `k % per_pass` of pass `first + k / per_pass`. Waves
-/// run over this numbering, so one wave may hold several passes of a small image
-/// (fewer, larger caster batches), and every sample keeps the stream of its pixel and
-/// pass: the image is the same however the passes are grouped.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct Passes {
-    pub first: u32,
-    pub count: u32,
-    pub per_pass: u32,
-}
-
-impl Passes {
-    /// Samples in all the passes. Callers keep this within `u32` (see
-    /// [`super::Renderer::passes`]: several passes are grouped only below one wave).
-    pub fn total(&self) -> u32 {
-        self.per_pass * self.count
-    }
-
-    /// Sample `k`'s index within its pass, and its pass number.
-    #[inline]
-    pub fn at(&self, k: u32) -> (u32, u32) {
-        (k % self.per_pass, self.first + k / self.per_pass)
-    }
-
-    /// The pass numbers.
-    pub fn numbers(&self) -> Range<u32> {
-        self.first..self.first + self.count
-    }
-
-    /// Whether sample `k` is the last of its pass.
-    #[inline]
-    pub fn ends_pass(&self, k: u32) -> bool {
-        (k + 1).is_multiple_of(self.per_pass)
-    }
-
-    /// The waves of up to `size` samples over all the passes, in order.
-    pub fn waves(&self, size: u32) -> impl Iterator<Item = Range<u32>> + use<> {
-        waves(self.total(), size)
-    }
-}
+/// Region 0 of the statistics of every kernel that shades a hit (CIS's camera and
+/// light shading, the LVC megakernel): one branch arm per material kind
+/// ([`crate::scene::MaterialKind::index`]).
+pub(crate) const SHADE_REGION: usize = 0;
 
 /// Adds a wave's resolved samples to the film in sample order: each sample's splats,
 /// then, at the end of each pass, `before_close(film, pass)` (LVC adds the pass's

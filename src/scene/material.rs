@@ -94,21 +94,66 @@ pub enum Material {
     Layered(Layered),
 }
 
+/// The kinds of [`Material`], in the order of their typed index ([`MaterialKind::index`]):
+/// the branch arm a shading kernel's lane takes, for the emulator's SIMD accounting.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum MaterialKind {
+    /// [`Material::Diffuse`].
+    Diffuse,
+    /// [`Material::Glossy`].
+    Glossy,
+    /// [`Material::Mirror`].
+    Mirror,
+    /// [`Material::Glass`].
+    Glass,
+    /// [`Material::Conductor`].
+    Conductor,
+    /// [`Material::RoughGlass`].
+    RoughGlass,
+    /// [`Material::Layered`].
+    Layered,
+}
+
+impl MaterialKind {
+    /// The kind's index, 0 to 6.
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    /// Its short name.
+    pub fn name(self) -> &'static str {
+        match self {
+            MaterialKind::Diffuse => "diffuse",
+            MaterialKind::Glossy => "glossy",
+            MaterialKind::Mirror => "mirror",
+            MaterialKind::Glass => "glass",
+            MaterialKind::Conductor => "conductor",
+            MaterialKind::RoughGlass => "roughglass",
+            MaterialKind::Layered => "layered",
+        }
+    }
+}
+
 impl Material {
     /// What surfaces without a material get: 0.8 grey Lambertian.
     pub const DEFAULT: Material = Material::Diffuse { albedo: Vec3::splat(0.8) };
 
+    /// Its kind: the branch a shading kernel takes for it.
+    pub fn kind(&self) -> MaterialKind {
+        match self {
+            Material::Diffuse { .. } => MaterialKind::Diffuse,
+            Material::Glossy { .. } => MaterialKind::Glossy,
+            Material::Mirror { .. } => MaterialKind::Mirror,
+            Material::Glass { .. } => MaterialKind::Glass,
+            Material::Conductor { .. } => MaterialKind::Conductor,
+            Material::RoughGlass { .. } => MaterialKind::RoughGlass,
+            Material::Layered(_) => MaterialKind::Layered,
+        }
+    }
+
     /// Short kind name, for statistics and the inspector's material queues.
     pub fn kind_name(&self) -> &'static str {
-        match self {
-            Material::Diffuse { .. } => "diffuse",
-            Material::Glossy { .. } => "glossy",
-            Material::Mirror { .. } => "mirror",
-            Material::Glass { .. } => "glass",
-            Material::Conductor { .. } => "conductor",
-            Material::RoughGlass { .. } => "roughglass",
-            Material::Layered(_) => "layered",
-        }
+        self.kind().name()
     }
 
     /// Checks every number (finite and in range).

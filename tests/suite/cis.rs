@@ -3,9 +3,9 @@
 
 use crate::common::*;
 use warpray::cast::BvhCaster;
-use warpray::cis::CisParams;
 use warpray::film::Film;
 use warpray::glam::Vec3;
+use warpray::render::CisParams;
 use warpray::render::{Budget, IntegratorKind, LvcParams, RenderOptions, Renderer, render};
 use warpray::scene::{Scene, cornell_box};
 

@@ -18,6 +18,7 @@ mod embree;
 mod filter_mode;
 mod gpu;
 mod hygiene;
+mod import_graph;
 mod inspector;
 mod integrators;
 mod lvc;

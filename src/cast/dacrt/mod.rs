@@ -425,6 +425,10 @@ impl RayCaster for Dacrt {
         "dacrt"
     }
 
+    fn casts_single_rays(&self) -> bool {
+        false
+    }
+
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
         assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
         let start = Instant::now();

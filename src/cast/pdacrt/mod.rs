@@ -429,6 +429,9 @@ impl RayCaster for Pdacrt {
         "pdacrt"
     }
 
+    fn casts_single_rays(&self) -> bool {
+        false
+    }
     fn device(&self) -> Option<&Device> {
         Some(&self.dev)
     }

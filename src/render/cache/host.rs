@@ -1,50 +1,21 @@
-//! LVC-BDPT (Davidovič et al. 2014), the megakernel baseline: one task per path.
-//!
-//! Each iteration first traces `N_L` light subpaths and stores their connectible surface
-//! vertices in a light vertex cache; every light vertex is also splatted to the camera.
-//! Then each camera subpath, at each vertex, takes the emitter it hit (s = 0), a fresh
-//! light sample (s = 1), and `n_c` connections to cache vertices drawn uniformly. A
-//! connection stands for all `|cache|` vertices, each used `n_c · N_L / |cache|` times
-//! per camera sample on average, so its contribution is divided by that count and the
-//! balance heuristic counts connection strategies with that many samples (light-tracing
-//! splats with `N_L / pixels`).
+//! The light vertex cache on the host: the vertices of one iteration's light subpaths,
+//! their MIS sample counts, the wavefront light pass that fills it (`build_caches`),
+//! and the strategies a camera vertex evaluates against it (uniform draws for LVC-BDPT,
+//! resampled ones for CIS-LBDPT), shared with the device kernels.
 
-use super::Context;
-use super::bidir::{
+use crate::cast::CastStats;
+use crate::cost::{BRANCH, DIV, LUMINANCE, V3};
+use crate::film::luminance;
+use crate::render::bidir::{
     Pending, Vertex, VertexKind, VertexList, camera_vertex, connect_contribution, connect_to_camera, connectible,
     full_path, strategy_connect, strategy_emitter, strategy_light_sample,
 };
-use super::mis::mis_weight_counts;
-use super::walk::WaveBuffers;
-use super::walk::{Passes, Subpaths, extend_together, flush_wave, resolve_wave, start_camera_wave, start_light_wave};
-use crate::cast::CastStats;
-use crate::cost::{BRANCH, DIV, LUMINANCE, V3};
-use crate::film::Film;
-use crate::film::luminance;
+use crate::render::context::{Context, Passes};
+use crate::render::mis::mis_weight_counts;
+use crate::render::walk::{Subpaths, extend_together, resolve_wave, start_light_wave};
 use crate::sampling::Rng;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-
-/// Parameters of [`LvcBdpt`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LvcParams {
-    /// Light subpaths per iteration (0: one per pixel).
-    pub light_paths: u32,
-    /// Cache connections per camera vertex (`n_c`).
-    pub connections: u32,
-    /// Run as megakernels on the `simt` device (one thread per subpath, rays traced
-    /// one at a time; `render::megakernel`) instead of as wavefronts on the host.
-    /// The image is the same bit for bit.
-    pub megakernel: bool,
-    /// With `megakernel`: measure the kernels' SIMD efficiency and memory traffic.
-    pub measure: bool,
-}
-
-impl Default for LvcParams {
-    fn default() -> Self {
-        LvcParams { light_paths: 0, connections: 3, megakernel: false, measure: false }
-    }
-}
 
 /// The light vertices of one iteration.
 #[derive(Clone, Debug, Default)]
@@ -208,76 +179,6 @@ pub(crate) fn light_splats(
             continue;
         };
         sink(ray, l * w * scale, px);
-    }
-}
-
-/// LVC-BDPT: every pixel sample's camera subpath connects to a shared light vertex
-/// cache. The megakernel baseline: all strategies of a sample are evaluated together.
-pub struct LvcBdpt {
-    /// Its settings.
-    pub params: LvcParams,
-    /// The cache of the last iteration (for the inspector and tests).
-    pub last_cache: LightVertexCache,
-    pub(crate) buffers: WaveBuffers,
-    pub(crate) dev: Option<simt::Device>,
-}
-
-impl LvcBdpt {
-    /// An LVC-BDPT integrator with `params`.
-    pub fn new(params: LvcParams) -> Self {
-        let dev = params
-            .megakernel
-            .then(|| simt::Device::new(simt::DeviceConfig { measure: params.measure, ..Default::default() }));
-        LvcBdpt { params, last_cache: LightVertexCache::default(), buffers: WaveBuffers::default(), dev }
-    }
-
-    /// The device the megakernels run on (with `megakernel`).
-    pub fn device(&self) -> Option<&simt::Device> {
-        self.dev.as_ref()
-    }
-
-    /// Renders the passes of `span` (one camera path per pixel and pass): first every
-    /// iteration's light pass, traced together ([`build_caches`]), then the camera
-    /// paths in waves that may hold several passes, each connecting to its own
-    /// iteration's cache. The megakernel form renders one pass at a time.
-    pub(crate) fn render_passes(&mut self, ctx: &Context, span: Passes, film: &mut Film) -> CastStats {
-        let (w, h) = (ctx.opts.width, ctx.opts.height);
-        let n_light = if self.params.light_paths == 0 { w * h } else { self.params.light_paths };
-        let n_c = self.params.connections;
-        if let Some(dev) = &self.dev {
-            return span.numbers().fold(CastStats::default(), |stats, pass| {
-                stats.merge(super::megakernel::render_pass(dev, ctx, pass, (n_light, n_c), film))
-            });
-        }
-        let light_span = Passes { per_pass: n_light, ..span };
-        let (mut light, mut stats) = build_caches(ctx, light_span, n_c, self.buffers.wave);
-        let b = &mut self.buffers;
-        let mut estimates = Vec::with_capacity(span.per_pass as usize);
-        for wave in span.waves(b.wave) {
-            let camera = start_camera_wave(ctx, span, wave.clone(), &mut b.camera, &mut b.camera_walkers);
-            stats = stats.merge(extend_together(ctx, &mut [camera]));
-            let (camera, walkers) = (&b.camera, &b.camera_walkers);
-            let caches = &light;
-            let pending: Vec<Vec<Pending>> = (0..camera.len())
-                .into_par_iter()
-                .map_init(VertexList::default, |path, i| {
-                    let mut rng = walkers[i].rng;
-                    let it = &caches[(span.at(wave.start + i as u32).1 - span.first) as usize];
-                    let connections = Connections::Uniform { n: n_c };
-                    camera_strategies(ctx, camera.get(i), &it.cache, it.counts, connections, &mut rng, path)
-                })
-                .collect();
-            let (resolved, shadow) = resolve_wave(ctx, &pending);
-            stats = stats.merge(shadow);
-            // A pass's light splats reach the film just before its camera estimates.
-            flush_wave(film, span, wave, resolved, Some(&mut estimates), |film, pass| {
-                film.add_splats(std::mem::take(&mut light[(pass - span.first) as usize].splats))
-            });
-        }
-        if let Some(last) = light.pop() {
-            self.last_cache = last.cache;
-        }
-        stats
     }
 }
 

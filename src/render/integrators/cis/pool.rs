@@ -2,9 +2,9 @@
 //! the active list and its compaction, each bounce's batch of rays, and the implicit
 //! material queues. Host stages: each is a few launches and primitives.
 
+use super::kernels::material_key;
 use crate::geometry::{Hit, Ray};
-use crate::render::Context;
-use crate::render::cis::kernels::material_key;
+use crate::render::context::Context;
 use simt::{Device, DeviceBuffer, DeviceCopy};
 
 /// The indices of the elements of `items` that `pred` accepts, in order (`copy_if`):

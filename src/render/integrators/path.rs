@@ -3,12 +3,12 @@
 //! bounce casts the whole batch of live paths through the caster, shades them in
 //! parallel, casts the batch of shadow rays, and drops finished paths.
 
-use super::Context;
-use super::compact::compact_into;
 use crate::bsdf::TransportMode;
 use crate::cast::CastStats;
 use crate::film::Film;
 use crate::geometry::{Hit, Ray, offset_ray_origin};
+use crate::render::compact::compact_into;
+use crate::render::context::{Context, Passes};
 use crate::sampling::{Frame, Rng, power_heuristic};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -62,8 +62,13 @@ impl PathTracer {
         }
     }
 
+    /// Adds the passes of `span` to `film`, one at a time.
+    pub(crate) fn render_passes(&mut self, ctx: &Context, span: Passes, film: &mut Film) -> CastStats {
+        span.numbers().fold(CastStats::default(), |stats, pass| stats.merge(self.render_pass(ctx, pass, film)))
+    }
+
     /// One sample per pixel, added to `film`. Returns the caster statistics of the pass.
-    pub(crate) fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
+    fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let (w, h) = (ctx.opts.width, ctx.opts.height);
         let cam = &ctx.scene.camera;
         let seed = ctx.opts.seed;

@@ -6,7 +6,7 @@
 use super::kernels::{PendingData, Slot};
 use crate::geometry::Hit;
 use crate::render::bidir::Vertex;
-use crate::render::lvc::{Connections, StrategyCounts};
+use crate::render::cache::host::{Connections, StrategyCounts};
 
 /// One bounce of one pass, as `cis::shade` and the compaction saw it. The fields are
 /// the stream's own records; outside the crate only their sizes and the bounce's place

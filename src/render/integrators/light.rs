@@ -3,11 +3,11 @@
 //! caster as one batch; visible contributions land on the film as splats. These are
 //! BDPT's t = 1 strategies alone, unweighted.
 
-use super::Context;
-use super::bidir::{Pending, camera_vertex, connect_to_camera};
-use super::walk::{Passes, WaveBuffers, extend_together, flush_wave, resolve_wave, start_light_wave};
 use crate::cast::CastStats;
 use crate::film::Film;
+use crate::render::bidir::{Pending, camera_vertex, connect_to_camera};
+use crate::render::context::{Context, Passes};
+use crate::render::walk::{WaveBuffers, extend_together, flush_wave, resolve_wave, start_light_wave};
 use crate::sampling::Rng;
 use rayon::prelude::*;
 

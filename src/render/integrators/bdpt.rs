@@ -12,21 +12,21 @@
 //! 4. *resolve*: all shadow rays of the wave as one batch; visible contributions go to
 //!    the sample's pixel or, for camera connections (t = 1), onto the film as splats.
 //!
-//! Light tracing (`render/light.rs`) is the t = 1 strategies alone, unweighted. The
-//! strategies and their weights live in [`super::bidir`], the wavefront walks in
+//! Light tracing (`integrators/light.rs`) is the t = 1 strategies alone, unweighted. The
+//! strategies and their weights live in [`crate::render::bidir`], the wavefront walks in
 //! `render/walk.rs`.
 
-use super::Context;
-use super::bidir::{
+use crate::cast::CastStats;
+use crate::film::Film;
+use crate::render::bidir::{
     Pending, Vertex, VertexList, camera_vertex, connect_to_camera, full_path, strategy_connect, strategy_emitter,
     strategy_light_sample,
 };
-use super::mis::mis_weight;
-use super::walk::{
-    Passes, Walker, WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave, start_light_wave,
+use crate::render::context::{Context, Passes};
+use crate::render::mis::mis_weight;
+use crate::render::walk::{
+    Walker, WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave, start_light_wave,
 };
-use crate::cast::CastStats;
-use crate::film::Film;
 use crate::sampling::Rng;
 use rayon::prelude::*;
 

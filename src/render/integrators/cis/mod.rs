@@ -31,48 +31,15 @@ pub use capture::{ShadeCapture, ShadeObserver};
 use crate::cast::CastStats;
 use crate::film::Film;
 use crate::geometry::{Hit, Ray};
-use crate::render::Context;
 use crate::render::bidir::Vertex;
-use crate::render::lvc::{Connections, LightVertexCache, StrategyCounts};
+use crate::render::cache::device::DeviceCache;
+use crate::render::cache::host::{Connections, LightVertexCache, StrategyCounts};
+use crate::render::cache::kernels::CacheRead;
+use crate::render::context::{Context, Passes};
+use crate::render::options::CisParams;
 use kernels::*;
 use pool::{append_active, extend, indices_where, material_queues, survivors};
 use simt::{Device, DeviceBuffer, DeviceConfig};
-
-/// Parameters and switches of [`CisLbdpt`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CisParams {
-    /// Camera samples in flight.
-    pub pool: u32,
-    /// Light subpaths per iteration (0: one per pixel).
-    pub light_paths: u32,
-    /// Candidates drawn uniformly from the cache per camera vertex (N).
-    pub candidates: u32,
-    /// Connections made per camera vertex (M), at most 8.
-    pub draws: u32,
-    /// Sort samples by material before shading.
-    pub sort: bool,
-    /// Resample the candidates by contribution (off: `draws` uniform connections).
-    pub importance: bool,
-    /// Compact dead samples and regenerate their slots at once.
-    pub regenerate: bool,
-    /// Record SIMD efficiency and memory traffic of the kernels (slower).
-    pub measure: bool,
-}
-
-impl Default for CisParams {
-    fn default() -> Self {
-        CisParams {
-            pool: 1 << 16,
-            light_paths: 0,
-            candidates: 8,
-            draws: 2,
-            sort: true,
-            importance: true,
-            regenerate: true,
-            measure: false,
-        }
-    }
-}
 
 /// What one bounce of one iteration did: the inspector's queue panel.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -102,7 +69,7 @@ pub struct CisLbdpt {
     dev: Device,
     /// One record per wavefront iteration of the last pass (the inspector's queue panel).
     pub records: Vec<QueueRecord>,
-    cache: Option<light::DeviceCache>,
+    cache: Option<DeviceCache>,
     observer: Option<ShadeObserver>,
 }
 
@@ -134,10 +101,15 @@ impl CisLbdpt {
         &self.dev
     }
 
+    /// Adds the passes of `span` to `film`, one at a time.
+    pub(crate) fn render_passes(&mut self, ctx: &Context, span: Passes, film: &mut Film) -> CastStats {
+        span.numbers().fold(CastStats::default(), |stats, pass| stats.merge(self.render_pass(ctx, pass, film)))
+    }
+
     /// Renders one pass into `film`: the light pass streams the iteration's light
     /// subpaths into the cache (`light`), then the camera pass streams one sample per
     /// pixel through the pool, bounce by bounce.
-    pub(crate) fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
+    fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let dev = &self.dev;
         let p = self.params;
         let pixels = ctx.opts.width * ctx.opts.height;
@@ -219,7 +191,7 @@ impl CisLbdpt {
     /// The light vertex cache of the last pass, copied to the host with its subpaths in
     /// the order of their numbers (the host light pass's order).
     pub fn light_cache(&self) -> Option<LightVertexCache> {
-        self.cache.as_ref().map(light::DeviceCache::to_host)
+        self.cache.as_ref().map(DeviceCache::to_host)
     }
 }
 
@@ -270,7 +242,7 @@ impl<'d> CameraPool<'d> {
         ctx: &Context,
         order: &DeviceBuffer<u32>,
         hits: &DeviceBuffer<Hit>,
-        cache: &light::DeviceCache,
+        cache: &DeviceCache,
         counts: StrategyCounts,
         connections: Connections,
     ) -> simt::LaunchRecord {
@@ -282,12 +254,7 @@ impl<'d> CameraPool<'d> {
             slots: self.slots.view_mut(),
             vertices: self.vertices.view_mut(),
             pending: self.pending.view_mut(),
-            cache: kernels::CacheRead {
-                vertices: cache.vertices.view(),
-                entries: cache.entries.view(),
-                counts,
-                connections,
-            },
+            cache: CacheRead { vertices: cache.vertices.view(), entries: cache.entries.view(), counts, connections },
         };
         let cfg = simt::LaunchConfig::linear(n, 128).with_regions(kernels::SHADE_REGIONS);
         self.dev

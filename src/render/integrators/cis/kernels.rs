@@ -4,13 +4,14 @@
 
 use crate::filter::{Filter, FilterMode};
 use crate::geometry::{Hit, Ray, offset_ray_origin};
-use crate::render::Context;
 use crate::render::bidir::{MAX_PATH, Pending, Vertex, VertexKind, VertexList};
-use crate::render::lvc::{Connections, StrategyCounts, vertex_strategies};
+use crate::render::cache::kernels::CacheRead;
+use crate::render::context::Context;
+use crate::render::walk::SHADE_REGION;
 use crate::sampling::{Frame, Rng};
 use crate::scene::Camera;
 use glam::{Vec2, Vec3};
-use simt::{DeviceCopy, Global, GlobalMut, Readable, Thread};
+use simt::{DeviceCopy, Global, GlobalMut, Thread};
 
 /// Camera vertices kept per pool slot (`max_depth + 2` at most).
 pub const MAX_CAMERA_VERTICES: usize = MAX_PATH / 2;
@@ -60,19 +61,6 @@ unsafe impl DeviceCopy for PendingData {}
 impl Default for Ray {
     fn default() -> Self {
         Ray { origin: Vec3::ZERO, dir: Vec3::ZERO, t_min: 0.0, t_max: 0.0 }
-    }
-}
-
-/// Index of a material kind, the branch arm a shading lane takes (SIMD accounting).
-pub fn kind_index(kind: &str) -> usize {
-    match kind {
-        "diffuse" => 0,
-        "glossy" => 1,
-        "mirror" => 2,
-        "glass" => 3,
-        "conductor" => 4,
-        "roughglass" => 5,
-        _ => 6,
     }
 }
 
@@ -140,54 +128,6 @@ pub struct ShadeArgs<'a> {
     pub cache: CacheRead<'a>,
 }
 
-/// The light vertex cache as camera-side kernels read it: CIS's `cis::shade` and the
-/// LVC megakernel's `lvc::camera_path`.
-#[derive(Clone, Copy)]
-pub struct CacheRead<'a> {
-    /// Vertices, subpath after subpath.
-    pub vertices: Global<'a, Vertex>,
-    /// Per cache entry: its subpath's first vertex and `s`.
-    pub entries: Global<'a, [u32; 2]>,
-    /// Light subpaths per vertex count, for the MIS weights.
-    pub counts: StrategyCounts,
-    /// How camera vertices pick cache vertices.
-    pub connections: Connections,
-}
-
-impl CacheRead<'_> {
-    /// Cache entry `e`'s light subpath up to its vertex, loaded into `light` (with
-    /// `tail`, only its last two vertices); returns `s`.
-    pub fn subpath(&self, t: &Thread, e: usize, light: &mut VertexList, tail: bool) -> usize {
-        let [start, s] = t.load(&self.entries, e);
-        light.clear();
-        let from = if tail { (s as usize).saturating_sub(2) } else { 0 };
-        for k in from..s as usize {
-            light.push(t.load(&self.vertices, start as usize + k));
-        }
-        s as usize
-    }
-
-    /// Every strategy at vertex `t_len` of the camera subpath `cam`, with its cache
-    /// connections, into `sink` (LVC's `vertex_strategies` over this cache).
-    #[allow(clippy::too_many_arguments)]
-    pub fn strategies(
-        &self,
-        t: &Thread,
-        ctx: &Context,
-        cam: &[Vertex],
-        t_len: usize,
-        rng: &mut Rng,
-        path: &mut VertexList,
-        sink: &mut dyn FnMut(Pending),
-    ) {
-        let subpath = |e: usize, light: &mut VertexList, tail: bool| self.subpath(t, e, light, tail);
-        let n = self.entries.len();
-        vertex_strategies(ctx, cam, t_len, n, &subpath, self.counts, self.connections, rng, path, sink);
-    }
-}
-
-/// Region of the shading kernel's SIMD accounting: one step per material kind.
-pub const SHADE_REGION: usize = 0;
 /// Region of the arithmetic the shading kernel runs in code it shares with the CPU
 /// integrators (BSDFs, sampling, MIS weights, connections), declared there through
 /// `simt::declare!` with the weights of [`crate::cost`]; its parts of the code follow in
@@ -231,7 +171,7 @@ fn shade_lane(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
     }
     let scene = ctx.scene;
     let material = scene.material(hit.prim);
-    t.work(SHADE_REGION, kind_index(material.kind_name()), 1);
+    t.work(SHADE_REGION, material.kind().index(), 1);
     crate::cost::declare!(2 * V3 + CROSS + NORMALIZE_OR_ZERO + 4);
     let [p0, p1, p2] = scene.vertices(hit.prim);
     let n = (p1 - p0).cross(p2 - p0).normalize_or_zero();

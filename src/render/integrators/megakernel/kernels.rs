@@ -7,12 +7,11 @@
 
 use crate::bsdf::TransportMode;
 use crate::geometry::{Hit, Ray};
-use crate::render::Context;
 use crate::render::bidir::{Vertex, VertexList, camera_vertex};
-use crate::render::cis::kernels::{CacheRead, SHADE_REGION, kind_index};
-use crate::render::cis::light::kernels::{SplatData, splat_entries};
-use crate::render::lvc::{StrategyCounts, light_path_rng};
-use crate::render::walk::{Walker, start_light_subpath, step};
+use crate::render::cache::host::{StrategyCounts, light_path_rng};
+use crate::render::cache::kernels::{CacheRead, SplatData, splat_entries};
+use crate::render::context::Context;
+use crate::render::walk::{SHADE_REGION, Walker, start_light_subpath, step};
 use crate::sampling::Rng;
 use glam::{Vec2, Vec3};
 use simt::{Global, GlobalMut, Thread};
@@ -44,7 +43,7 @@ fn walk(t: &Thread, ctx: &Context, w: &mut Walker, verts: &mut VertexList, mode:
     while w.live {
         let hit = trace(t, ctx, w.ray);
         if hit.is_hit() {
-            t.work(SHADE_REGION, kind_index(ctx.scene.material(hit.prim).kind_name()), 1);
+            t.work(SHADE_REGION, ctx.scene.material(hit.prim).kind().index(), 1);
         }
         if let Some(v) = step(ctx, w, &hit, verts.len(), mode, max_vertices) {
             verts.push(v);

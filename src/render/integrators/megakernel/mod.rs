@@ -1,11 +1,11 @@
-//! The LVC-BDPT megakernel on the `simt` device (`--integrator lvc --megakernel`): the
+//! The LVC-BDPT megakernel on the `simt` device (`--integrator lvc-mk`): the
 //! baseline that CIS-LBDPT's stream is measured against, run the way a GPU megakernel
 //! runs it, one thread per subpath doing the whole subpath, so that the device measures
 //! its divergence.
 //!
 //! Each iteration:
 //! 1. `lvc::light_path`: one thread per light subpath traces it whole (a wave of up to
-//!    [`WAVE`] at a time) and stages its vertices; the wave is appended to the device
+//!    `WAVE` at a time) and stages its vertices; the wave is appended to the device
 //!    light vertex cache in subpath order (`cis::cache_counts`, scans, `cis::cache_store`,
 //!    shared with the stream);
 //! 2. `lvc::splat`: one thread per cached subpath connects each vertex to the camera,
@@ -23,15 +23,43 @@ pub(crate) mod kernels;
 
 use crate::cast::CastStats;
 use crate::film::Film;
-use crate::render::Context;
 use crate::render::bidir::Vertex;
-use crate::render::cis::kernels::CacheRead;
-use crate::render::cis::light::kernels::SplatData;
-use crate::render::cis::light::{DeviceCache, append_paths, visible_splats};
-use crate::render::lvc::Connections;
-use crate::render::walk::{WAVE, waves};
+use crate::render::cache::device::{DeviceCache, append_paths, visible_splats};
+use crate::render::cache::host::Connections;
+use crate::render::cache::kernels::{CacheRead, SplatData};
+use crate::render::context::{Context, Passes, WAVE, waves};
+use crate::render::options::LvcParams;
 use kernels::*;
-use simt::{Device, LaunchConfig};
+use simt::{Device, DeviceConfig, LaunchConfig};
+
+/// LVC-BDPT as megakernels: its settings and the device its kernels run on.
+pub struct LvcMegakernel {
+    /// Its settings.
+    pub params: LvcParams,
+    dev: Device,
+}
+
+impl LvcMegakernel {
+    /// The megakernel integrator with `params`, on a device of its own (measured when
+    /// `params.measure`).
+    pub fn new(params: LvcParams) -> Self {
+        LvcMegakernel { params, dev: Device::new(DeviceConfig { measure: params.measure, ..Default::default() }) }
+    }
+
+    /// The device the megakernels run on.
+    pub fn device(&self) -> &Device {
+        &self.dev
+    }
+
+    /// Renders the passes of `span`, one at a time.
+    pub(crate) fn render_passes(&mut self, ctx: &Context, span: Passes, film: &mut Film) -> CastStats {
+        let n_light = self.params.light_paths_for(ctx.opts.width * ctx.opts.height);
+        let n_c = self.params.connections;
+        span.numbers().fold(CastStats::default(), |stats, pass| {
+            stats.merge(render_pass(&self.dev, ctx, pass, (n_light, n_c), film))
+        })
+    }
+}
 
 /// Threads per block of the megakernel launches.
 const BLOCK: u32 = 128;
@@ -53,13 +81,7 @@ fn launch_per_item(dev: &Device, name: &'static str, n: usize, kernel: impl Fn(&
 
 /// One pass of LVC-BDPT as megakernels on `dev`: `n_light` light subpaths, `n_c`
 /// uniform cache connections per camera vertex.
-pub(crate) fn render_pass(
-    dev: &Device,
-    ctx: &Context,
-    pass: u32,
-    (n_light, n_c): (u32, u32),
-    film: &mut Film,
-) -> CastStats {
+fn render_pass(dev: &Device, ctx: &Context, pass: u32, (n_light, n_c): (u32, u32), film: &mut Film) -> CastStats {
     let stride = ctx.opts.max_depth as usize + 1;
     let cache = light_paths(dev, ctx, pass, n_light, stride);
     let counts = cache.counts(ctx, n_c);
@@ -109,7 +131,7 @@ fn light_paths(dev: &Device, ctx: &Context, pass: u32, n_light: u32, stride: usi
 #[cfg(test)]
 mod tests {
     use crate::cast::BvhCaster;
-    use crate::render::{IntegratorKind, LvcParams, RenderOptions, Renderer};
+    use crate::render::{IntegratorKind, RenderOptions, Renderer};
     use crate::scene::cornell_box;
 
     /// The megakernel schedules LVC-BDPT differently and computes the same thing: its
@@ -120,16 +142,8 @@ mod tests {
         let scene = cornell_box();
         let caster = BvhCaster::new(&scene);
         let image = |megakernel: bool| {
-            let lvc = LvcParams { megakernel, ..Default::default() };
-            let opts = RenderOptions {
-                width: 40,
-                height: 30,
-                integrator: IntegratorKind::Lvc,
-                seed: 9,
-                max_depth: 6,
-                lvc,
-                ..Default::default()
-            };
+            let integrator = if megakernel { IntegratorKind::LvcMegakernel } else { IntegratorKind::Lvc };
+            let opts = RenderOptions { width: 40, height: 30, integrator, seed: 9, max_depth: 6, ..Default::default() };
             let mut r = Renderer::new(&scene, &caster, &opts).unwrap();
             let mut film = r.film().unwrap();
             for pass in 0..2 {

@@ -1,0 +1,81 @@
+//! What every integrator's pass sees: the scene, its lights, the caster and the
+//! settings ([`Context`]), and the passes a call renders together ([`Passes`]).
+
+use super::options::RenderOptions;
+use crate::cast::RayCaster;
+use crate::lights::Lights;
+use crate::scene::Scene;
+use std::ops::Range;
+
+/// Everything one pass needs.
+pub(crate) struct Context<'a> {
+    /// The scene.
+    pub scene: &'a Scene,
+    /// Its lights.
+    pub lights: &'a Lights,
+    /// The caster every ray goes through.
+    pub caster: &'a dyn RayCaster,
+    /// The render's settings.
+    pub opts: &'a RenderOptions,
+}
+
+impl Context<'_> {
+    /// Camera sample `pass` of `pixel`: its film position and weight.
+    #[inline]
+    pub(crate) fn camera_sample(&self, pixel: u32, pass: u32) -> (glam::Vec2, f32) {
+        let (o, w) = (self.opts, self.opts.width);
+        o.filter.camera_sample(o.filter_mode, o.seed, (pixel % w, pixel / w), w, pass)
+    }
+}
+
+/// Most samples (or light paths) in one wave: bounds the vertex and pending buffers
+/// (about 64 bytes per vertex) whatever the image size.
+pub(crate) const WAVE: u32 = 1 << 16;
+
+/// The waves of up to `size` covering `0..n`, in order.
+pub(crate) fn waves(n: u32, size: u32) -> impl Iterator<Item = Range<u32>> {
+    let size = size.max(1);
+    (0..n.div_ceil(size)).map(move |k| k * size..((k + 1) * size).min(n))
+}
+
+/// Consecutive passes rendered together, their samples numbered pass-major: sample
+/// `k` is pixel (or light path) `k % per_pass` of pass `first + k / per_pass`. Waves
+/// run over this numbering, so one wave may hold several passes of a small image
+/// (fewer, larger caster batches), and every sample keeps the stream of its pixel and
+/// pass: the image is the same however the passes are grouped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Passes {
+    pub first: u32,
+    pub count: u32,
+    pub per_pass: u32,
+}
+
+impl Passes {
+    /// Samples in all the passes. Callers keep this within `u32` (see
+    /// [`super::Renderer::passes`]: several passes are grouped only below one wave).
+    pub fn total(&self) -> u32 {
+        self.per_pass * self.count
+    }
+
+    /// Sample `k`'s index within its pass, and its pass number.
+    #[inline]
+    pub fn at(&self, k: u32) -> (u32, u32) {
+        (k % self.per_pass, self.first + k / self.per_pass)
+    }
+
+    /// The pass numbers.
+    pub fn numbers(&self) -> Range<u32> {
+        self.first..self.first + self.count
+    }
+
+    /// Whether sample `k` is the last of its pass.
+    #[inline]
+    pub fn ends_pass(&self, k: u32) -> bool {
+        (k + 1).is_multiple_of(self.per_pass)
+    }
+
+    /// The waves of up to `size` samples over all the passes, in order.
+    pub fn waves(&self, size: u32) -> impl Iterator<Item = Range<u32>> + use<> {
+        waves(self.total(), size)
+    }
+}

@@ -1,0 +1,77 @@
+//! LVC-BDPT (Davidovič et al. 2014) as wavefronts on the host: the baseline whose
+//! camera paths evaluate every strategy of a sample together.
+//!
+//! Each iteration first traces `N_L` light subpaths and stores their connectible surface
+//! vertices in a light vertex cache; every light vertex is also splatted to the camera.
+//! Then each camera subpath, at each vertex, takes the emitter it hit (s = 0), a fresh
+//! light sample (s = 1), and `n_c` connections to cache vertices drawn uniformly. A
+//! connection stands for all `|cache|` vertices, each used `n_c · N_L / |cache|` times
+//! per camera sample on average, so its contribution is divided by that count and the
+//! balance heuristic counts connection strategies with that many samples (light-tracing
+//! splats with `N_L / pixels`). The cache and the strategies live in
+//! [`crate::render::cache`]; the same algorithm as megakernels on the device is
+//! [`super::megakernel`].
+
+use crate::cast::CastStats;
+use crate::film::Film;
+use crate::render::bidir::{Pending, VertexList};
+use crate::render::cache::host::{Connections, LightVertexCache, build_caches, camera_strategies};
+use crate::render::context::{Context, Passes};
+use crate::render::options::LvcParams;
+use crate::render::walk::{WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave};
+use rayon::prelude::*;
+
+/// LVC-BDPT: every pixel sample's camera subpath connects to a shared light vertex
+/// cache. The megakernel baseline: all strategies of a sample are evaluated together.
+pub struct LvcBdpt {
+    /// Its settings.
+    pub params: LvcParams,
+    /// The cache of the last iteration (for the inspector and tests).
+    pub last_cache: LightVertexCache,
+    pub(crate) buffers: WaveBuffers,
+}
+
+impl LvcBdpt {
+    /// An LVC-BDPT integrator with `params`.
+    pub fn new(params: LvcParams) -> Self {
+        LvcBdpt { params, last_cache: LightVertexCache::default(), buffers: WaveBuffers::default() }
+    }
+
+    /// Renders the passes of `span` (one camera path per pixel and pass): first every
+    /// iteration's light pass, traced together ([`build_caches`]), then the camera
+    /// paths in waves that may hold several passes, each connecting to its own
+    /// iteration's cache.
+    pub(crate) fn render_passes(&mut self, ctx: &Context, span: Passes, film: &mut Film) -> CastStats {
+        let n_light = self.params.light_paths_for(ctx.opts.width * ctx.opts.height);
+        let n_c = self.params.connections;
+        let light_span = Passes { per_pass: n_light, ..span };
+        let (mut light, mut stats) = build_caches(ctx, light_span, n_c, self.buffers.wave);
+        let b = &mut self.buffers;
+        let mut estimates = Vec::with_capacity(span.per_pass as usize);
+        for wave in span.waves(b.wave) {
+            let camera = start_camera_wave(ctx, span, wave.clone(), &mut b.camera, &mut b.camera_walkers);
+            stats = stats.merge(extend_together(ctx, &mut [camera]));
+            let (camera, walkers) = (&b.camera, &b.camera_walkers);
+            let caches = &light;
+            let pending: Vec<Vec<Pending>> = (0..camera.len())
+                .into_par_iter()
+                .map_init(VertexList::default, |path, i| {
+                    let mut rng = walkers[i].rng;
+                    let it = &caches[(span.at(wave.start + i as u32).1 - span.first) as usize];
+                    let connections = Connections::Uniform { n: n_c };
+                    camera_strategies(ctx, camera.get(i), &it.cache, it.counts, connections, &mut rng, path)
+                })
+                .collect();
+            let (resolved, shadow) = resolve_wave(ctx, &pending);
+            stats = stats.merge(shadow);
+            // A pass's light splats reach the film just before its camera estimates.
+            flush_wave(film, span, wave, resolved, Some(&mut estimates), |film, pass| {
+                film.add_splats(std::mem::take(&mut light[(pass - span.first) as usize].splats))
+            });
+        }
+        if let Some(last) = light.pop() {
+            self.last_cache = last.cache;
+        }
+        stats
+    }
+}

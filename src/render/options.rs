@@ -1,0 +1,264 @@
+//! What to render and how: the integrator, the budget, every integrator's settings,
+//! and what a render reports. The floor every integrator and front end reads.
+
+use crate::error::{Error, Result};
+
+/// Light-transport algorithms selectable from the command line and the library.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
+pub enum IntegratorKind {
+    /// Unidirectional path tracing with next-event estimation and MIS.
+    Path,
+    /// Light tracing: paths from the lights, splatted onto the film through the camera.
+    Light,
+    /// Bidirectional path tracing with MIS over all strategies.
+    Bdpt,
+    /// BDPT with a light vertex cache (LVC-BDPT), as wavefronts on the host.
+    Lvc,
+    /// LVC-BDPT as megakernels on the simt device: one thread per subpath, rays
+    /// traced one at a time (the same image as `Lvc`, bit for bit).
+    #[cfg_attr(feature = "cli", value(name = "lvc-mk"))]
+    LvcMegakernel,
+    /// CIS-LBDPT: LVC-BDPT streamed on the simt emulator, sorted by material, with
+    /// importance-sampled connections.
+    Cis,
+}
+
+impl IntegratorKind {
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            IntegratorKind::Path => "path",
+            IntegratorKind::Light => "light",
+            IntegratorKind::Bdpt => "bdpt",
+            IntegratorKind::Lvc => "lvc",
+            IntegratorKind::LvcMegakernel => "lvc-mk",
+            IntegratorKind::Cis => "cis",
+        }
+    }
+
+    /// The unidirectional and bidirectional references (the light-transport core).
+    pub const CORE: [IntegratorKind; 3] = [IntegratorKind::Path, IntegratorKind::Light, IntegratorKind::Bdpt];
+    /// Every integrator.
+    pub const ALL: [IntegratorKind; 6] = [
+        IntegratorKind::Path,
+        IntegratorKind::Light,
+        IntegratorKind::Bdpt,
+        IntegratorKind::Lvc,
+        IntegratorKind::LvcMegakernel,
+        IntegratorKind::Cis,
+    ];
+}
+
+impl std::str::FromStr for IntegratorKind {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        IntegratorKind::ALL.into_iter().find(|k| k.name().eq_ignore_ascii_case(s)).ok_or_else(|| {
+            Error::BadSetting(format!("unknown integrator '{s}' (known: path, light, bdpt, lvc, lvc-mk, cis)"))
+        })
+    }
+}
+
+/// How long to render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    /// This many samples per pixel.
+    Samples(u32),
+    /// Passes until this much wall time has gone (at least one pass). The clock is
+    /// read between groups of passes ([`crate::render::Renderer::pass_group`]), each sized to about an
+    /// eighth of the time left, so a render overshoots by at most about that much.
+    Seconds(f64),
+}
+
+#[derive(Clone, Debug)]
+/// What to render and how.
+pub struct RenderOptions {
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Samples per pixel or a time budget.
+    pub budget: Budget,
+    /// Largest number of bounces (0: emitters only, 1: direct light).
+    pub max_depth: u32,
+    /// Random seed: the same seed gives the same image at any thread count.
+    pub seed: u64,
+    /// The light-transport algorithm.
+    pub integrator: IntegratorKind,
+    /// Light-vertex-cache settings (LVC-BDPT).
+    pub lvc: LvcParams,
+    /// CIS-LBDPT settings and switches.
+    pub cis: CisParams,
+    /// BDPT, LVC-BDPT and CIS-LBDPT: keep one strategy's contributions and drop the
+    /// rest (pbrt-v4's strategy images), for tests that check each strategy on its own.
+    /// The random streams stay those of the full render in LVC and CIS (dropped
+    /// strategies are still sampled, so resampled connections choose among the same
+    /// candidates); BDPT skips dropped strategies outright.
+    pub strategy: Option<Strategy>,
+    /// Pixel reconstruction filter (box by default; Mitsuba scenes ask for a Gaussian).
+    pub filter: crate::filter::Filter,
+    /// How camera samples meet the filter: drawn from it (default, pbrt-v4) or splatted
+    /// and normalised (Mitsuba scenes, Mitsuba 3's way).
+    pub filter_mode: crate::filter::FilterMode,
+}
+
+/// One bidirectional strategy: `s` light-subpath vertices joined to `t` camera-subpath
+/// vertices. Unweighted, its image alone estimates all light of path depth `s + t − 2`
+/// that the strategy can sample; weighted (MIS), the strategies of one depth sum to it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Strategy {
+    /// Light-subpath vertices.
+    pub s: u32,
+    /// Camera-subpath vertices.
+    pub t: u32,
+    /// Whether its MIS weight is applied.
+    pub weighted: bool,
+}
+
+impl RenderOptions {
+    /// Whether strategy (s, t) contributes: every strategy does, unless a strategy
+    /// image keeps only one.
+    #[inline]
+    pub(crate) fn keeps(&self, s: usize, t: usize) -> bool {
+        self.strategy.is_none_or(|o| (o.s as usize, o.t as usize) == (s, t))
+    }
+
+    /// The weight strategy (s, t) carries: `None` when a strategy image drops it,
+    /// 1 when the kept strategy is unweighted, its MIS weight `mis()` otherwise.
+    #[inline]
+    pub(crate) fn strategy_weight(&self, s: usize, t: usize, mis: impl FnOnce() -> f32) -> Option<f32> {
+        match self.strategy {
+            _ if !self.keeps(s, t) => None,
+            Some(o) if !o.weighted => Some(1.0),
+            _ => Some(mis()),
+        }
+    }
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            width: 512,
+            height: 512,
+            budget: Budget::Samples(64),
+            max_depth: 8,
+            seed: 0,
+            integrator: IntegratorKind::Path,
+            lvc: LvcParams::default(),
+            cis: CisParams::default(),
+            strategy: None,
+            filter: crate::filter::Filter::Box,
+            filter_mode: crate::filter::FilterMode::Sample,
+        }
+    }
+}
+
+/// What a render did.
+#[derive(Clone, Debug, Default)]
+pub struct RenderStats {
+    /// Passes (samples per pixel) done.
+    pub passes: u32,
+    /// Wall time of the render, seconds.
+    pub seconds: f64,
+    /// Rays cast (closest and shadow).
+    pub rays: u64,
+    /// Seconds spent inside the caster, summed over calls (calls made in parallel
+    /// each count their own wall time).
+    pub cast_seconds: f64,
+    /// Ray–triangle tests the caster made.
+    pub tests: u64,
+    /// Of `rays`, those cast by `occluded` (shadow and connection rays); the others
+    /// were closest-hit rays (camera, bounce and light-path rays).
+    pub shadow_rays: u64,
+    /// Caster calls: `rays / cast_calls` is the mean batch.
+    pub cast_calls: u64,
+    /// Largest working memory of any caster call, bytes (beyond its structure).
+    pub peak_working_bytes: usize,
+    /// The emulated device's kernel table when the render ran anything on one
+    /// (PDACRT casting, CIS-LBDPT), with its peak device memory in bytes.
+    pub device: Option<(Vec<simt::KernelSummary>, usize)>,
+}
+
+impl RenderStats {
+    /// Rays cast per second of wall time.
+    pub fn rays_per_second(&self) -> f64 {
+        if self.seconds > 0.0 { self.rays as f64 / self.seconds } else { 0.0 }
+    }
+}
+
+pub use crate::limits::MAX_SECONDS;
+
+impl RenderOptions {
+    /// `opts` with a scene file's choices of what the image means (path depth, pixel
+    /// filter and filter mode) wherever the file makes them: every front end (render,
+    /// converge, the inspector) applies these, so a scene gives the same image in each.
+    pub fn for_scene(settings: &crate::scene::RenderSettings, opts: RenderOptions) -> RenderOptions {
+        RenderOptions {
+            max_depth: settings.max_depth.unwrap_or(opts.max_depth),
+            filter: settings.filter.unwrap_or(opts.filter),
+            filter_mode: settings.filter_mode.unwrap_or(opts.filter_mode),
+            ..opts
+        }
+    }
+}
+
+/// Parameters of LVC-BDPT, on the host ([`IntegratorKind::Lvc`]) and as megakernels on
+/// the device ([`IntegratorKind::LvcMegakernel`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LvcParams {
+    /// Light subpaths per iteration (0: one per pixel).
+    pub light_paths: u32,
+    /// Cache connections per camera vertex (`n_c`).
+    pub connections: u32,
+    /// The megakernel: measure the kernels' SIMD efficiency and memory traffic.
+    pub measure: bool,
+}
+
+impl Default for LvcParams {
+    fn default() -> Self {
+        LvcParams { light_paths: 0, connections: 3, measure: false }
+    }
+}
+
+impl LvcParams {
+    /// Light subpaths per iteration of an image of `pixels` pixels.
+    pub fn light_paths_for(&self, pixels: u32) -> u32 {
+        if self.light_paths == 0 { pixels } else { self.light_paths }
+    }
+}
+
+/// Parameters and switches of CIS-LBDPT ([`IntegratorKind::Cis`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CisParams {
+    /// Camera samples in flight.
+    pub pool: u32,
+    /// Light subpaths per iteration (0: one per pixel).
+    pub light_paths: u32,
+    /// Candidates drawn uniformly from the cache per camera vertex (N).
+    pub candidates: u32,
+    /// Connections made per camera vertex (M), at most 8.
+    pub draws: u32,
+    /// Sort samples by material before shading.
+    pub sort: bool,
+    /// Resample the candidates by contribution (off: `draws` uniform connections).
+    pub importance: bool,
+    /// Compact dead samples and regenerate their slots at once.
+    pub regenerate: bool,
+    /// Record SIMD efficiency and memory traffic of the kernels (slower).
+    pub measure: bool,
+}
+
+impl Default for CisParams {
+    fn default() -> Self {
+        CisParams {
+            pool: 1 << 16,
+            light_paths: 0,
+            candidates: 8,
+            draws: 2,
+            sort: true,
+            importance: true,
+            regenerate: true,
+            measure: false,
+        }
+    }
+}
