@@ -35,6 +35,8 @@ pub struct Diff {
     /// Pixels with a NaN or infinite channel (reference, test); they are left out of
     /// every figure.
     pub non_finite: (usize, usize),
+    /// Pixels compared: finite in both images.
+    pub compared: usize,
 }
 
 /// Linear RGB pixels of an EXR or PNG file, with its size.
@@ -58,6 +60,15 @@ pub fn read_image(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
     }
 }
 
+/// Checks a gate's RMSE limit (`--fail-above`): finite and not negative.
+pub fn check_limit(limit: f64) -> Result<()> {
+    if limit.is_finite() && limit >= 0.0 {
+        Ok(())
+    } else {
+        Err(Error::BadSetting(format!("--fail-above must be a finite RMSE of 0 or more, not {limit}")))
+    }
+}
+
 /// Compares `test` against `reference` (same size) with relMSE offset `epsilon`.
 pub fn diff(reference: &Path, test: &Path, epsilon: f64) -> Result<Diff> {
     if !(epsilon > 0.0 && epsilon.is_finite()) {
@@ -75,41 +86,58 @@ pub fn diff(reference: &Path, test: &Path, epsilon: f64) -> Result<Diff> {
     let finite = |p: &Vec3| p.is_finite();
     let non_finite = (r.iter().filter(|p| !finite(p)).count(), t.iter().filter(|p| !finite(p)).count());
     let (r, t): (Vec<Vec3>, Vec<Vec3>) = r.into_iter().zip(t).filter(|(a, b)| finite(a) && finite(b)).unzip();
+    // With no pixel finite in both, every figure is undefined (NaN: `null` in JSON).
+    let undefined = r.is_empty();
+    let figure = |x: f64| if undefined { f64::NAN } else { x };
     let mean = |v: &[Vec3]| {
         let s: DVec3 = v.iter().map(|p| p.as_dvec3()).sum();
-        (s / v.len().max(1) as f64).to_array()
+        (s / v.len().max(1) as f64).to_array().map(figure)
     };
     Ok(Diff {
         width: w,
         height: h,
         mean_reference: mean(&r),
         mean_test: mean(&t),
-        rmse: rmse(&t, &r),
-        relmse: relmse_eps(&t, &r, epsilon),
+        rmse: figure(rmse(&t, &r)),
+        relmse: figure(relmse_eps(&t, &r, epsilon)),
         epsilon,
-        max_abs: r.iter().zip(&t).map(|(a, b)| (*a - *b).abs().max_element() as f64).fold(0.0, f64::max),
+        max_abs: figure(
+            r.iter().zip(&t).map(|(a, b)| (a.as_dvec3() - b.as_dvec3()).abs().max_element()).fold(0.0, f64::max),
+        ),
         differing_pixels: r.iter().zip(&t).filter(|(a, b)| a != b).count(),
         non_finite,
+        compared: r.len(),
     })
 }
 
 impl Diff {
-    /// One JSON object.
+    /// Whether the test image fails a gate of RMSE `limit` (`--fail-above`): its RMSE
+    /// is above `limit`, or it has a NaN or infinite pixel (a render that produced one
+    /// is broken whatever its other pixels say), or no pixel could be compared. A limit
+    /// that is negative, infinite or NaN is an error: such a gate could never fail.
+    pub fn fails(&self, limit: f64) -> Result<bool> {
+        check_limit(limit)?;
+        Ok(!(self.rmse <= limit) || self.non_finite.1 > 0 || self.compared == 0)
+    }
+
+    /// One JSON object; figures that are not finite (an RMSE of no pixels) are `null`.
     pub fn to_json(&self) -> String {
-        let a = |v: [f64; 3]| format!("[{:e},{:e},{:e}]", v[0], v[1], v[2]);
+        let n = |x: f64| if x.is_finite() { format!("{x:e}") } else { "null".into() };
+        let a = |v: [f64; 3]| format!("[{},{},{}]", n(v[0]), n(v[1]), n(v[2]));
         format!(
-            "{{\"width\":{},\"height\":{},\"mean_reference\":{},\"mean_test\":{},\"rmse\":{:e},\"relmse\":{:e},\"epsilon\":{:e},\"max_abs\":{:e},\"differing_pixels\":{},\"non_finite_reference\":{},\"non_finite_test\":{}}}",
+            "{{\"width\":{},\"height\":{},\"mean_reference\":{},\"mean_test\":{},\"rmse\":{},\"relmse\":{},\"epsilon\":{},\"max_abs\":{},\"differing_pixels\":{},\"non_finite_reference\":{},\"non_finite_test\":{},\"compared_pixels\":{}}}",
             self.width,
             self.height,
             a(self.mean_reference),
             a(self.mean_test),
-            self.rmse,
-            self.relmse,
-            self.epsilon,
-            self.max_abs,
+            n(self.rmse),
+            n(self.relmse),
+            n(self.epsilon),
+            n(self.max_abs),
             self.differing_pixels,
             self.non_finite.0,
-            self.non_finite.1
+            self.non_finite.1,
+            self.compared
         )
     }
 }

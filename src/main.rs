@@ -51,13 +51,17 @@ struct DiffArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
-    /// Exit with status 1 when the RMSE is above this.
+    /// Exit with status 1 when the RMSE is above this, or when the test image has a
+    /// NaN or infinite pixel, or no pixel could be compared.
     #[arg(long)]
     fail_above: Option<f64>,
 }
 
 /// `warpray diff`; `Ok(true)` when `--fail-above` was exceeded.
 fn run_diff(args: DiffArgs) -> Result<bool> {
+    if let Some(limit) = args.fail_above {
+        warpray::diff::check_limit(limit)?;
+    }
     let d = warpray::diff::diff(&args.reference, &args.test, args.epsilon)?;
     if args.json {
         println!("{}", d.to_json());
@@ -71,8 +75,14 @@ fn run_diff(args: DiffArgs) -> Result<bool> {
         if d.non_finite != (0, 0) {
             println!("NaN/Inf   {} in the reference, {} in the test (left out)", d.non_finite.0, d.non_finite.1);
         }
+        if d.compared == 0 {
+            println!("no pixel is finite in both images: nothing was compared");
+        }
     }
-    Ok(args.fail_above.is_some_and(|limit| d.rmse > limit || d.rmse.is_nan()))
+    match args.fail_above {
+        Some(limit) => d.fails(limit),
+        None => Ok(false),
+    }
 }
 
 #[derive(Args)]

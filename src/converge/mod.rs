@@ -19,7 +19,8 @@ pub use chart::write_chart;
 
 /// Root-mean-square error over all pixels and channels.
 pub fn rmse(image: &[Vec3], reference: &[Vec3]) -> f64 {
-    let sum: f64 = image.iter().zip(reference).map(|(a, b)| (*a - *b).length_squared() as f64).sum();
+    // In f64: the difference of two large f32 values (3e38) overflows f32 when squared.
+    let sum: f64 = image.iter().zip(reference).map(|(a, b)| (a.as_dvec3() - b.as_dvec3()).length_squared()).sum();
     (sum / (3 * image.len().max(1)) as f64).sqrt()
 }
 

@@ -340,3 +340,48 @@ fn diff_reports_known_differences() {
     let out = run(&[&a, &dir.join("t.exr")], &[]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("t.exr"));
 }
+
+/// A `w`×`h` EXR whose pixel `i` (row by row) has every channel `value(i)`, written
+/// as it is (NaN and infinities included, which a film would refuse).
+fn raw_exr(path: &std::path::Path, w: usize, h: usize, value: impl Fn(usize) -> f32 + Sync) {
+    exr::prelude::write_rgb_file(path, w, h, |x, y| {
+        let v = value(y * w + x);
+        (v, v, v)
+    })
+    .unwrap();
+}
+
+#[test]
+fn diff_gates_fail_on_broken_images_and_say_so_in_valid_json() {
+    let dir = scratch("diff-gate");
+    let (good, nan, inf, huge) = (dir.join("g.exr"), dir.join("n.exr"), dir.join("i.exr"), dir.join("h.exr"));
+    raw_exr(&good, 4, 2, |_| 0.5);
+    raw_exr(&nan, 4, 2, |_| f32::NAN);
+    raw_exr(&inf, 4, 2, |i| if i % 2 == 0 { f32::INFINITY } else { 0.5 });
+    raw_exr(&huge, 4, 2, |i| if i == 0 { 3e38 } else { 0.5 });
+    let run = |test: &std::path::Path, extra: &[&str]| {
+        warpray().arg("diff").arg(&good).arg(test).args(extra).output().unwrap()
+    };
+    // An all-NaN image and a half-infinite one fail the gate, however small their
+    // RMSE over the pixels left (none, or the identical half).
+    for broken in [&nan, &inf] {
+        assert_eq!(run(broken, &["--fail-above", "0.001"]).status.code(), Some(1), "{}", broken.display());
+    }
+    assert_eq!(run(&good, &["--fail-above", "0.001"]).status.code(), Some(0));
+    // The JSON stays JSON: an RMSE of no pixels is null, not `inf` or `NaN`.
+    let j = String::from_utf8_lossy(&run(&nan, &["--json"]).stdout).to_string();
+    let parsed: serde_json::Value = serde_json::from_str(&j).unwrap_or_else(|e| panic!("{e}: {j}"));
+    assert!(parsed["rmse"].is_null() && parsed["compared_pixels"] == 0 && parsed["non_finite_test"] == 8, "{j}");
+    // A pixel of 3e38 against 0.5: its squared difference overflows f32, not f64.
+    let j = String::from_utf8_lossy(&run(&huge, &["--json"]).stdout).to_string();
+    let parsed: serde_json::Value = serde_json::from_str(&j).unwrap_or_else(|e| panic!("{e}: {j}"));
+    let rmse = parsed["rmse"].as_f64().unwrap_or_else(|| panic!("{j}"));
+    let want = (3e38f32 as f64 - 0.5) / 8f64.sqrt(); // one pixel of 8 off by d in all 3 channels
+    assert!((rmse - want).abs() < 1e-6 * want, "{rmse} against {want}");
+    // A limit no RMSE can exceed is refused before any image is read.
+    for limit in ["nan", "inf", "-1"] {
+        let out = run(&good, &[&format!("--fail-above={limit}")]);
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && e.contains("--fail-above must be a finite RMSE"), "{limit}: {e}");
+    }
+}
