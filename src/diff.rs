@@ -113,11 +113,13 @@ pub fn diff(reference: &Path, test: &Path, epsilon: f64) -> Result<Diff> {
 impl Diff {
     /// Whether the test image fails a gate of RMSE `limit` (`--fail-above`): its RMSE
     /// is above `limit`, or it has a NaN or infinite pixel (a render that produced one
-    /// is broken whatever its other pixels say), or no pixel could be compared. A limit
-    /// that is negative, infinite or NaN is an error: such a gate could never fail.
-    pub fn fails(&self, limit: f64) -> Result<bool> {
+    /// is broken whatever its other pixels say; `ignore_nonfinite` lets it pass on its
+    /// finite pixels), or no pixel could be compared. A limit that is negative,
+    /// infinite or NaN is an error: such a gate could never fail.
+    pub fn fails(&self, limit: f64, ignore_nonfinite: bool) -> Result<bool> {
         check_limit(limit)?;
-        Ok(!(self.rmse <= limit) || self.non_finite.1 > 0 || self.compared == 0)
+        let broken = self.non_finite.1 > 0 && !ignore_nonfinite;
+        Ok(!(self.rmse <= limit) || broken || self.compared == 0)
     }
 
     /// One JSON object; figures that are not finite (an RMSE of no pixels) are `null`.

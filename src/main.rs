@@ -52,9 +52,14 @@ struct DiffArgs {
     #[arg(long)]
     json: bool,
     /// Exit with status 1 when the RMSE is above this, or when the test image has a
-    /// NaN or infinite pixel, or no pixel could be compared.
+    /// NaN or infinite pixel (unless --ignore-nonfinite), or no pixel could be
+    /// compared; status 2 means the images could not be compared at all.
     #[arg(long)]
     fail_above: Option<f64>,
+    /// With --fail-above: NaN and infinite pixels of the test image (still counted
+    /// and reported) do not fail the gate by themselves.
+    #[arg(long, requires = "fail_above")]
+    ignore_nonfinite: bool,
 }
 
 /// `warpray diff`; `Ok(true)` when `--fail-above` was exceeded.
@@ -80,7 +85,7 @@ fn run_diff(args: DiffArgs) -> Result<bool> {
         }
     }
     match args.fail_above {
-        Some(limit) => d.fails(limit),
+        Some(limit) => d.fails(limit, args.ignore_nonfinite),
         None => Ok(false),
     }
 }
@@ -682,7 +687,7 @@ fn main() -> ExitCode {
                 shown = text;
                 cause = c.source();
             }
-            ExitCode::FAILURE
+            ExitCode::from(2)
         }
     }
 }

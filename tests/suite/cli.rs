@@ -339,6 +339,8 @@ fn diff_reports_known_differences() {
     std::fs::write(dir.join("t.exr"), b"text").unwrap();
     let out = run(&[&a, &dir.join("t.exr")], &[]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("t.exr"));
+    // Could not compare (status 2) is not "differs" (status 1), even under a gate.
+    assert_eq!(run(&[&a, &small], &["--fail-above", "0.1"]).status.code(), Some(2));
 }
 
 /// A `w`×`h` EXR whose pixel `i` (row by row) has every channel `value(i)`, written
@@ -368,6 +370,9 @@ fn diff_gates_fail_on_broken_images_and_say_so_in_valid_json() {
         assert_eq!(run(broken, &["--fail-above", "0.001"]).status.code(), Some(1), "{}", broken.display());
     }
     assert_eq!(run(&good, &["--fail-above", "0.001"]).status.code(), Some(0));
+    // Unless told to judge the finite pixels alone; an image with none still fails.
+    assert_eq!(run(&inf, &["--fail-above", "0.001", "--ignore-nonfinite"]).status.code(), Some(0));
+    assert_eq!(run(&nan, &["--fail-above", "0.001", "--ignore-nonfinite"]).status.code(), Some(1));
     // The JSON stays JSON: an RMSE of no pixels is null, not `inf` or `NaN`.
     let j = String::from_utf8_lossy(&run(&nan, &["--json"]).stdout).to_string();
     let parsed: serde_json::Value = serde_json::from_str(&j).unwrap_or_else(|e| panic!("{e}: {j}"));
@@ -382,6 +387,6 @@ fn diff_gates_fail_on_broken_images_and_say_so_in_valid_json() {
     for limit in ["nan", "inf", "-1"] {
         let out = run(&good, &[&format!("--fail-above={limit}")]);
         let e = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && e.contains("--fail-above must be a finite RMSE"), "{limit}: {e}");
+        assert!(out.status.code() == Some(2) && e.contains("--fail-above must be a finite RMSE"), "{limit}: {e}");
     }
 }
