@@ -431,3 +431,38 @@ mod mangled {
         }
     }
 }
+
+#[test]
+fn deeply_nested_twosided_bsdfs_are_an_error_not_a_crash() {
+    // 30,000 nested twosided wrappers overflowed the stack (the parser recursed once per
+    // level); now the second level is an error naming the element's line.
+    for depth in [2, 30_000] {
+        let bsdf = format!(
+            "{}<bsdf type=\"diffuse\"/>{}",
+            "<bsdf type=\"twosided\">\n".repeat(depth),
+            "</bsdf>".repeat(depth)
+        );
+        let xml = format!(r#"<scene version="3.0.0"><shape type="rectangle">{bsdf}</shape></scene>"#);
+        let e = parse(&xml).err().unwrap_or_else(|| panic!("depth {depth} accepted")).to_string();
+        assert!(e.contains("twosided <bsdf> inside a twosided") && e.contains("test.xml:2"), "{e}");
+    }
+}
+
+#[test]
+fn dielectrics_take_mitsubas_ior_names_as_documented() {
+    // docs/scene-format.md: `int_ior`, `ext_ior` are numbers or Mitsuba's names.
+    let glass = |ior: &str| {
+        let xml = format!(
+            r#"<scene version="3.0.0"><shape type="rectangle"><bsdf type="dielectric">{ior}</bsdf></shape></scene>"#
+        );
+        parse(&xml).map(|d| d.scene.materials[0])
+    };
+    let by_name = glass(r#"<string name="int_ior" value="bk7"/><string name="ext_ior" value="air"/>"#).unwrap();
+    let by_number = glass(r#"<float name="int_ior" value="1.5046"/><float name="ext_ior" value="1.00028"/>"#).unwrap();
+    assert_eq!(by_name, by_number);
+    assert!(matches!(by_name, warpray::scene::Material::Glass { ior, .. } if (ior - 1.5046 / 1.00028).abs() < 1e-6));
+    let e = glass(r#"<string name="int_ior" value="unobtainium"/>"#).unwrap_err().to_string();
+    assert!(e.contains("unknown material 'unobtainium'") && e.contains("bk7"), "{e}");
+    let e = glass(r#"<boolean name="int_ior" value="true"/>"#).unwrap_err().to_string();
+    assert!(e.contains("a number or a <string> name"), "{e}");
+}

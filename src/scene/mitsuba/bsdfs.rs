@@ -41,12 +41,11 @@ const IORS: &[(&str, f64)] = &[
 
 impl Builder<'_, '_> {
     pub(super) fn ior(&self, p: &mut Props, node: Node, name: &str, default: f64) -> Result<f64> {
-        if let Some(v) = p.number(name)? {
-            return if v > 0.0 { Ok(v) } else { Err(self.doc.err(node, format!("{name} {v} must be positive"))) };
-        }
-        match p.text(name)? {
+        match p.number_or_name(name)? {
             None => Ok(default),
-            Some(s) => IORS.iter().find(|(n, _)| n.eq_ignore_ascii_case(&s)).map(|(_, v)| *v).ok_or_else(|| {
+            Some(Ok(v)) if v > 0.0 => Ok(v),
+            Some(Ok(v)) => Err(self.doc.err(node, format!("{name} {v} must be positive"))),
+            Some(Err(s)) => IORS.iter().find(|(n, _)| n.eq_ignore_ascii_case(&s)).map(|(_, v)| *v).ok_or_else(|| {
                 self.doc.err(node, format!("{name}: unknown material '{s}' (give a number, or one of {})", names(IORS)))
             }),
         }
@@ -85,6 +84,12 @@ impl Builder<'_, '_> {
                 );
             };
             let b = match inner.tag_name().name() {
+                // One level only: a twosided inside a twosided means nothing more, and
+                // refusing it keeps the parse from recursing once per nesting level
+                // (30,000 of them overflowed the stack).
+                "bsdf" if inner.attribute("type") == Some("twosided") => {
+                    return Err(doc.err(*inner, "a twosided <bsdf> inside a twosided <bsdf> (one is enough)"));
+                }
                 "bsdf" => self.bsdf(*inner)?,
                 "ref" => self.reference(*inner)?,
                 _ => return Err(doc.err(*inner, "expected a <bsdf> or <ref>")),

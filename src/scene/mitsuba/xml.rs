@@ -269,6 +269,16 @@ impl<'d, 'a, 'input> Props<'d, 'a, 'input> {
         Ok(b.unwrap_or(default))
     }
 
+    /// A property given as a number or by name (`int_ior`: `<float value="1.5"/>` or
+    /// `<string value="bk7"/>`): `Ok(number)` or `Err(name)`.
+    pub fn number_or_name(&mut self, name: &str) -> Result<Option<std::result::Result<f64, String>>> {
+        self.typed(name, "a number or a <string> name", |v| match v {
+            Value::Number(x) => Some(Ok(x)),
+            Value::Text(s) => Some(Err(s)),
+            _ => None,
+        })
+    }
+
     /// A string property.
     pub fn text(&mut self, name: &str) -> Result<Option<String>> {
         self.typed(name, "a <string>", |v| if let Value::Text(x) = v { Some(x) } else { None })
