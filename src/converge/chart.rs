@@ -56,7 +56,10 @@ fn chart<DB: plotters::prelude::DrawingBackend>(
     ];
     for (panel, (label, metric)) in panels.iter().zip([("RMSE", 0), ("relMSE", 1)]) {
         let value = |r: &Checkpoint| if metric == 0 { r.rmse } else { r.relmse };
-        let pos: Vec<&Checkpoint> = rows.iter().filter(|r| value(r) > 0.0 && r.seconds > 0.0).collect();
+        // Only points a log axis can place: positive and finite (an infinite error
+        // made the axis, and the chart, never finish).
+        let placeable = |x: f64| x > 0.0 && x.is_finite();
+        let pos: Vec<&Checkpoint> = rows.iter().filter(|r| placeable(value(r)) && placeable(r.seconds)).collect();
         if pos.is_empty() {
             continue;
         }
@@ -66,7 +69,7 @@ fn chart<DB: plotters::prelude::DrawingBackend>(
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(70)
-            .build_cartesian_2d((t0 * 0.9..t1 * 1.1).log_scale(), (e0 * 0.8..e1 * 1.25).log_scale())
+            .build_cartesian_2d(log_range(t0, t1).log_scale(), log_range(e0, e1).log_scale())
             .map_err(|e| err(&e))?;
         c.configure_mesh()
             .x_desc("seconds")
@@ -87,6 +90,16 @@ fn chart<DB: plotters::prelude::DrawingBackend>(
         c.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))
+}
+
+/// A log axis over `lo..=hi` (positive, finite), padded a little, with its ends kept
+/// finite and at most 200 decades apart (the top 200 decades when the values span
+/// more): plotters' log axis never finished on a range of more than about 1e308.
+fn log_range(lo: f64, hi: f64) -> std::ops::Range<f64> {
+    let top = (hi * 1.25).min(f64::MAX);
+    let bottom = (lo * 0.8).max(top / 1e200).max(f64::MIN_POSITIVE);
+    let bottom = if bottom < top { bottom } else { top / 10.0 };
+    bottom..top
 }
 
 /// An axis label with three significant digits and no trailing zeros (log axes put

@@ -100,6 +100,19 @@ pub fn run(
             opts.height
         )));
     }
+    // Errors against a broken reference are nonsense: refuse it before rendering.
+    let bad = reference.iter().filter(|p| !p.is_finite()).count();
+    if bad > 0 {
+        return Err(Error::BadSetting(format!(
+            "the reference has {bad} NaN or infinite pixel(s) of {}: errors against it would mean nothing",
+            reference.len()
+        )));
+    }
+    if reference.iter().all(|p| *p == Vec3::ZERO) {
+        return Err(Error::BadSetting(
+            "the reference is black in every pixel: errors against it would mean nothing".into(),
+        ));
+    }
     let n = opts.checkpoints.max(2);
     let times: Vec<f64> = (0..n).map(|i| opts.seconds / 200.0 * 200f64.powf(i as f64 / (n - 1) as f64)).collect();
     let mut rows = Vec::new();

@@ -390,3 +390,51 @@ fn diff_gates_fail_on_broken_images_and_say_so_in_valid_json() {
         assert!(out.status.code() == Some(2) && e.contains("--fail-above must be a finite RMSE"), "{limit}: {e}");
     }
 }
+
+/// Runs `cmd`, failing the test if it takes more than `limit` (a hang).
+fn output_within(mut cmd: Command, limit: std::time::Duration) -> std::process::Output {
+    let mut child = cmd.stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped()).spawn().unwrap();
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > limit {
+            child.kill().unwrap();
+            panic!("still running after {limit:?}: {cmd:?}");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn converge_refuses_broken_references_and_charts_any_range() {
+    let dir = scratch("converge-hostile");
+    let limit = std::time::Duration::from_secs(60);
+    // A reference with one +Inf pixel rendered, wrote the CSV, then never finished the
+    // chart; an all-black one measured against nothing. Both are refused up front.
+    let (inf, black) = (dir.join("inf.exr"), dir.join("black.exr"));
+    raw_exr(&inf, 24, 16, |i| if i == 5 { f32::INFINITY } else { 0.5 });
+    raw_exr(&black, 24, 16, |_| 0.0);
+    for (reference, says) in [(&inf, "1 NaN or infinite pixel(s) of 384"), (&black, "black in every pixel")] {
+        let mut cmd = warpray();
+        cmd.args(["converge", "--seconds", "0.1", "--size", "24x16", "--integrators", "path", "--reference"])
+            .arg(reference)
+            .arg("-o")
+            .arg(dir.join("x"));
+        let out = output_within(cmd, limit);
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.code() == Some(2) && e.contains(says), "{}: {e}", reference.display());
+        assert!(!dir.join("x.csv").exists(), "nothing is written for a refused reference");
+    }
+    // A CSV whose errors span more than 1e308 (never finished before): the charts finish.
+    let csv = dir.join("wide.csv");
+    std::fs::write(
+        &csv,
+        "integrator,seconds,spp,rmse,relmse\npath,0.1,1,1e-300,1e-300\npath,1,2,1e300,1e300\nbdpt,0.5,1,0.5,0.25\n",
+    )
+    .unwrap();
+    let mut cmd = warpray();
+    cmd.args(["converge", "--replot"]).arg(&csv).arg("-o").arg(dir.join("w"));
+    let out = output_within(cmd, limit);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(image::open(dir.join("w.png")).is_ok());
+}
