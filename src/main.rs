@@ -161,7 +161,8 @@ struct RenderArgs {
     #[arg(long)]
     max_depth: Option<u32>,
     /// Pixel filter: box, gaussian (sigma 0.5, radius 2, Mitsuba's) or
-    /// gaussian:SIGMA:RADIUS [default: box, or the scene file's].
+    /// gaussian:SIGMA:RADIUS, RADIUS in [0.5, 16] and SIGMA in [0.01, 16 × RADIUS]
+    /// [default: box, or the scene file's].
     #[arg(long)]
     filter: Option<warpray::filter::Filter>,
     /// How camera samples meet the filter: sample (drawn from the filter and weighted,
