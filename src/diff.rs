@@ -46,9 +46,18 @@ pub fn read_image(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
         Some("exr") => read_exr(path),
         Some("png") => {
             crate::scene::input::open_regular(path)?;
-            let img = image::open(path)
-                .map_err(|e| Error::Output { path: path.into(), msg: format!("not a readable PNG: {e}") })?
-                .to_rgb8();
+            let unreadable =
+                |e: &dyn std::fmt::Display| Error::Input { path: path.into(), msg: format!("not a readable PNG: {e}") };
+            // The header's size passes the film's limits before anything is decoded: a
+            // 31 kB 1-bit PNG decoded to 3.7 GB.
+            let reader = image::ImageReader::open(path).map_err(|e| Error::io(path, e))?;
+            let reader = reader.with_guessed_format().map_err(|e| Error::io(path, e))?;
+            let (w, h) = reader.into_dimensions().map_err(|e| unreadable(&e))?;
+            crate::film::check_size(w, h).map_err(|e| Error::Input {
+                path: path.into(),
+                msg: format!("not a readable PNG: its header claims {w}x{h} pixels ({e})"),
+            })?;
+            let img = image::open(path).map_err(|e| unreadable(&e))?.to_rgb8();
             let linear = |c: u8| {
                 let x = c as f32 / 255.0;
                 if x <= 0.04045 { x / 12.92 } else { ((x + 0.055) / 1.055).powf(2.4) }
@@ -56,7 +65,7 @@ pub fn read_image(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
             let px = img.pixels().map(|p| Vec3::new(linear(p[0]), linear(p[1]), linear(p[2]))).collect();
             Ok((img.width(), img.height(), px))
         }
-        _ => Err(Error::Output { path: path.into(), msg: "unknown image type: use .exr or .png".into() }),
+        _ => Err(Error::Input { path: path.into(), msg: "unknown image type: use .exr or .png".into() }),
     }
 }
 

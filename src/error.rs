@@ -170,9 +170,17 @@ pub enum Error {
     /// A setting or option out of range, or two that conflict.
     #[error("{0}")]
     BadSetting(String),
-    /// An output image cannot be written (or an input image read).
+    /// An output image cannot be written.
     #[error("{path}: cannot write image: {msg}")]
     Output {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        msg: String,
+    },
+    /// An input image (a reference, a `diff` operand) cannot be read.
+    #[error("{path}: cannot read image: {msg}")]
+    Input {
         /// The file.
         path: PathBuf,
         /// Why.

@@ -343,7 +343,7 @@ impl Film {
 pub fn read_exr_metadata(path: &Path) -> Result<Vec<(String, String)>> {
     crate::scene::input::open_regular(path)?;
     let meta = exr::meta::MetaData::read_from_file(path, false)
-        .map_err(|e| Error::Output { path: path.into(), msg: format!("not a readable EXR: {e}") })?;
+        .map_err(|e| Error::Input { path: path.into(), msg: format!("not a readable EXR: {e}") })?;
     let mut out: Vec<(String, String)> = meta
         .headers
         .first()

@@ -309,7 +309,7 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
     crate::scene::input::open_regular(path)?;
     let unreadable = |e: exr::error::Error| match e {
         exr::error::Error::Io(io) => crate::error::Error::io(path, io),
-        other => crate::error::Error::Output { path: path.into(), msg: format!("not a readable EXR: {other}") },
+        other => crate::error::Error::Input { path: path.into(), msg: format!("not a readable EXR: {other}") },
     };
     // The pixel buffer is sized from the header before any pixel is read, so a tiny
     // file claiming a huge image would allocate without bound (found by fuzzing): the
@@ -318,7 +318,7 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
     for header in &meta.headers {
         let (w, h) = (header.layer_size.width(), header.layer_size.height());
         let side = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
-        crate::film::check_size(side(w), side(h)).map_err(|e| crate::error::Error::Output {
+        crate::film::check_size(side(w), side(h)).map_err(|e| crate::error::Error::Input {
             path: path.into(),
             msg: format!("not a readable EXR: its header claims {w}x{h} pixels ({e})"),
         })?;

@@ -366,7 +366,7 @@ fn exr_headers_claiming_huge_images_are_refused() {
     for name in ["fuzz-exr-huge-header.exr", "fuzz-exr-oom.exr"] {
         let path = data.join(name);
         let e = warpray::diff::read_image(&path).unwrap_err();
-        assert!(matches!(&e, Error::Output { path: p, .. } if p == &path), "{e}");
+        assert!(matches!(&e, Error::Input { path: p, .. } if p == &path), "{e}");
         assert!(e.to_string().contains("not a readable EXR"), "{e}");
     }
 }

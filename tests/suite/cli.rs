@@ -438,3 +438,37 @@ fn converge_refuses_broken_references_and_charts_any_range() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(image::open(dir.join("w.png")).is_ok());
 }
+
+#[test]
+fn diff_checks_a_png_header_before_decoding() {
+    // A PNG of a few dozen bytes whose header claims 20,000 × 20,000 1-bit pixels (a
+    // 31 kB one decoded to 3.7 GB): refused by its header, naming the size, with
+    // "cannot read" (reading an image said "cannot write image").
+    let dir = scratch("png-bomb");
+    let bomb = dir.join("bomb.png");
+    let chunk = |kind: &[u8], data: &[u8]| {
+        let mut body = kind.to_vec();
+        body.extend_from_slice(data);
+        let mut crc = flate2::Crc::new();
+        crc.update(&body);
+        let mut out = (data.len() as u32).to_be_bytes().to_vec();
+        out.extend(body);
+        out.extend(crc.sum().to_be_bytes());
+        out
+    };
+    let mut ihdr = 20_000u32.to_be_bytes().to_vec();
+    ihdr.extend(20_000u32.to_be_bytes());
+    ihdr.extend([1, 0, 0, 0, 0]); // 1-bit greyscale, no interlacing
+    let mut png = vec![137, 80, 78, 71, 13, 10, 26, 10];
+    png.extend(chunk(b"IHDR", &ihdr));
+    // One row's worth of compressed zeros: enough for a decoder to reach the pixels.
+    let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::best());
+    std::io::Write::write_all(&mut z, &[0u8; 2501]).unwrap();
+    png.extend(chunk(b"IDAT", &z.finish().unwrap()));
+    png.extend(chunk(b"IEND", &[]));
+    std::fs::write(&bomb, png).unwrap();
+    let out = warpray().arg("diff").arg(&bomb).arg(&bomb).output().unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{e}");
+    assert!(e.contains("cannot read image") && e.contains("20000x20000"), "{e}");
+}
