@@ -109,8 +109,8 @@ struct ConvergeArgs {
     /// Reference image (linear EXR of the same size). Without it, one is rendered.
     #[arg(long)]
     reference: Option<PathBuf>,
-    /// Samples per pixel of a rendered reference.
-    #[arg(long, default_value_t = 4096)]
+    /// Samples per pixel of a rendered reference (at least 1).
+    #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(1..))]
     reference_spp: u32,
     /// Integrator of a rendered reference.
     #[arg(long, value_enum, default_value = "path")]
@@ -193,8 +193,9 @@ struct RenderArgs {
     /// Output files; the extension (.png or .exr) picks the format. May be repeated.
     #[arg(short, long = "output", default_values = ["out.png", "out.exr"])]
     output: Vec<PathBuf>,
-    /// Exposure multiplier applied before the PNG tone map (EXR stays linear).
-    #[arg(long, default_value_t = 1.0)]
+    /// Exposure multiplier applied before the PNG tone map (EXR stays linear): finite
+    /// and not negative.
+    #[arg(long, default_value_t = 1.0, value_parser = parse_exposure)]
     exposure: f32,
     /// No progress bar.
     #[arg(long, short)]
@@ -211,6 +212,14 @@ struct RenderArgs {
 }
 
 /// `--integrator`: a label of the integrator registry.
+fn parse_exposure(s: &str) -> std::result::Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
+        Ok(x) => Err(format!("{x} is not a finite multiplier of 0 or more")),
+        Err(_) => Err(format!("'{s}' is not a number")),
+    }
+}
+
 fn parse_variant(s: &str) -> std::result::Result<Variant, String> {
     Variant::parse(s).map_err(|e| e.to_string())
 }

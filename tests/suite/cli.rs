@@ -44,7 +44,7 @@ fn render_writes_png_and_exr_and_a_summary() {
 fn bad_arguments_fail_with_a_message_and_write_nothing() {
     let dir = scratch("bad");
     let png = dir.join("never.png");
-    let cases: [&[&str]; 8] = [
+    let cases: [&[&str]; 11] = [
         &["render", "/no/such/scene.obj"],
         &["render", "--size", "0x10"],
         &["render", "--size", "20000x20000"],
@@ -53,6 +53,9 @@ fn bad_arguments_fail_with_a_message_and_write_nothing() {
         &["render", "--spp", "0"],
         &["render", "--seconds", "1e30"],
         &["render", "--seconds", "nan"],
+        &["render", "--exposure", "inf"],
+        &["render", "--exposure", "nan"],
+        &["render", "--exposure=-2"],
     ];
     for args in cases {
         let start = std::time::Instant::now();
@@ -66,6 +69,10 @@ fn bad_arguments_fail_with_a_message_and_write_nothing() {
     let out = warpray().args(["converge", "--seconds", "1e30", "-o"]).arg(dir.join("c")).output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains("--seconds"), "{stderr}");
+    // A reference of 0 spp is black: errors against it would measure nothing.
+    let out = warpray().args(["converge", "--reference-spp", "0", "-o"]).arg(dir.join("c")).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("--reference-spp"), "{stderr}");
     let out = warpray().args(["render", "-o"]).arg(dir.join("x.jpg")).output().unwrap();
     assert!(!out.status.success());
     assert!(std::fs::read_dir(&dir).unwrap().next().is_none(), "nothing may be left behind");
