@@ -466,3 +466,19 @@ fn dielectrics_take_mitsubas_ior_names_as_documented() {
     let e = glass(r#"<boolean name="int_ior" value="true"/>"#).unwrap_err().to_string();
     assert!(e.contains("a number or a <string> name"), "{e}");
 }
+
+#[test]
+fn duplicate_ids_and_fractional_counts_are_errors() {
+    // Silently, the later <bsdf> of an id won, and sample_count 1.5 became 1.
+    let two = r#"<scene version="3.0.0"><bsdf type="diffuse" id="a"/>
+<bsdf type="conductor" id="a"/></scene>"#;
+    let e = parse(two).unwrap_err().to_string();
+    assert!(e.contains("a second <bsdf id=\"a\">") && e.contains("test.xml:2"), "{e}");
+    for (what, value) in [("sample_count", "1.5"), ("seed", "-3"), ("seed", "2.5")] {
+        let xml = format!(
+            r#"<scene version="3.0.0"><sensor type="perspective"><sampler type="independent"><float name="{what}" value="{value}"/></sampler></sensor></scene>"#
+        );
+        let e = parse(&xml).unwrap_err().to_string();
+        assert!(e.contains(&format!("{what} {value}")) && e.contains("whole number"), "{what} {value}: {e}");
+    }
+}

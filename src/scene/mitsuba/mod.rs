@@ -55,6 +55,10 @@ pub fn parse_mitsuba(path: &Path, text: &str) -> Result<SceneDesc> {
     for c in root.children().filter(|c| c.is_element() && c.tag_name().name() == "bsdf") {
         let id = doc.need(c, "id").map_err(|_| doc.err(c, "a top-level <bsdf> needs an id"))?;
         let bsdf = b.bsdf(c)?;
+        if b.ids.contains_key(&id) {
+            // Mitsuba refuses it too; silently, the later one won.
+            return Err(doc.err(c, format!("a second <bsdf id=\"{id}\">: ids must be unique")));
+        }
         b.ids.insert(id, (bsdf, None));
     }
     for c in root.children().filter(Node::is_element) {
@@ -132,13 +136,16 @@ impl Builder<'_, '_> {
                 "sampler" => {
                     let mut p = Props::of(doc, c)?;
                     if let Some(n) = p.number("sample_count")? {
-                        if !(n >= 1.0 && n <= u32::MAX as f64) {
-                            return Err(doc.err(c, format!("sample_count {n} must be at least 1")));
+                        if !(n >= 1.0 && n <= u32::MAX as f64 && n.fract() == 0.0) {
+                            return Err(doc.err(c, format!("sample_count {n} must be a whole number of at least 1")));
                         }
                         self.settings.spp = Some(n as u32);
                     }
                     if let Some(seed) = p.number("seed")? {
-                        self.settings.seed = Some(seed.max(0.0) as u64);
+                        if !(seed >= 0.0 && seed <= u64::MAX as f64 && seed.fract() == 0.0) {
+                            return Err(doc.err(c, format!("seed {seed} must be a whole number of at least 0")));
+                        }
+                        self.settings.seed = Some(seed as u64);
                     }
                     // Every sampler type is accepted: warpray draws its own numbers.
                     p.ignore(&["jitter", "scramble_seed", "dimension"]);
