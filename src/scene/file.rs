@@ -80,8 +80,8 @@ fn default_fov() -> f32 {
 #[serde(deny_unknown_fields)]
 struct FileMesh {
     file: PathBuf,
-    #[serde(default)]
-    scale: f32,
+    /// Uniform scale (1 when unset); 0, negative or non-finite is an error.
+    scale: Option<f32>,
     #[serde(default)]
     translate: [f32; 3],
     material: Option<String>,
@@ -361,6 +361,11 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
     if let Some(m) = file.material.iter().find(|m| m.name.is_empty()) {
         return Err(err(format!("a [[material]] of type '{}' has no name", m.kind)));
     }
+    for (i, m) in file.material.iter().enumerate() {
+        if file.material[..i].iter().any(|o| o.name == m.name) {
+            return Err(err(format!("two [[material]] tables are named '{}'", m.name)));
+        }
+    }
     let named = file
         .material
         .iter()
@@ -383,7 +388,11 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
                 ),
             ));
         }
-        let opts = ObjOptions { scale: mesh.scale, translate: Vec3::from_array(mesh.translate), ..Default::default() };
+        let scale = mesh.scale.unwrap_or(1.0);
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(err(format!("mesh {}: scale {scale} must be positive and finite", mesh.file.display())));
+        }
+        let opts = ObjOptions { scale, translate: Vec3::from_array(mesh.translate), ..Default::default() };
         let mut part = load_obj(&found, &opts)?;
         if let Some(mname) = &mesh.material {
             let (_, m, e) = named.iter().find(|(n, ..)| n == mname).ok_or_else(|| {
@@ -397,7 +406,19 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
         }
         scene.append(part);
     }
-    // A [[material]] whose name matches a loaded material replaces it.
+    // A [[material]] whose name matches a loaded material replaces it; one that matches
+    // none (a typo) is an error rather than ignored.
+    for (name, ..) in &named {
+        if !scene.material_names.iter().any(|n| n == name) {
+            let mut known: Vec<&str> = scene.material_names.iter().map(String::as_str).collect();
+            known.sort_unstable();
+            known.dedup();
+            return Err(err(format!(
+                "[[material]] '{name}' names no material of the scene (its materials: {})",
+                known.join(", ")
+            )));
+        }
+    }
     for (name, m, e) in &named {
         for i in 0..scene.materials.len() {
             if &scene.material_names[i] == name {

@@ -370,3 +370,28 @@ fn exr_headers_claiming_huge_images_are_refused() {
         assert!(e.to_string().contains("not a readable EXR"), "{e}");
     }
 }
+
+/// Scene-file mistakes that were accepted without a word: a `[[material]]` whose name
+/// matches nothing (a typo: ignored), two of one name (the later won), a mesh scale of
+/// 0 (taken as 1). Each is an error naming the file and what is wrong.
+#[test]
+fn scene_file_typos_duplicates_and_zero_scales_are_errors() {
+    let parse = |text: &str| warpray::scene::parse_scene_file(Path::new("s.toml"), text);
+    let white = "[[material]]\nname = \"white\"\ntype = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5]\n";
+    assert!(parse(&format!("base = \"cornell\"\n{white}")).is_ok(), "a name the scene has replaces it");
+    let typo = "base = \"cornell\"\n[[material]]\nname = \"whte\"\ntype = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5]\n";
+    let e = parse(typo).unwrap_err().to_string();
+    assert!(e.contains("s.toml") && e.contains("'whte' names no material") && e.contains("white"), "{e}");
+    let e = parse(&format!("base = \"cornell\"\n{white}{white}")).unwrap_err().to_string();
+    assert!(e.contains("two [[material]] tables are named 'white'"), "{e}");
+    let dir = std::env::temp_dir().join(format!("warpray-scale-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("t.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    for scale in ["0", "-1", "nan"] {
+        let text = format!("[[mesh]]\nfile = \"t.obj\"\nscale = {scale}\n");
+        let e = warpray::scene::parse_scene_file(&dir.join("s.toml"), &text).unwrap_err().to_string();
+        assert!(e.contains("scale") && e.contains("must be positive"), "{scale}: {e}");
+    }
+    let ok = warpray::scene::parse_scene_file(&dir.join("s.toml"), "[[mesh]]\nfile = \"t.obj\"\n");
+    assert!(ok.is_ok(), "no scale is 1: {:?}", ok.err());
+}
