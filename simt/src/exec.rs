@@ -15,7 +15,7 @@
 //! runs a plain loop whose `Thread`s carry no meter, so after inlining the kernel's
 //! accesses are ordinary loads and stores.
 //!
-//! About 660 lines on purpose: `Block`, `Warp` and `Thread` are one execution model,
+//! About 890 lines on purpose: `Block`, `Warp` and `Thread` are one execution model,
 //! and the meter that all three feed (sites, lanes, regions) must follow the same
 //! lockstep rules; keeping them together keeps those rules in one place.
 

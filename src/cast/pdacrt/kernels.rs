@@ -1,7 +1,7 @@
 //! PDACRT's kernels. Each takes a thread and plain `Copy` data (views and work items);
 //! none allocates, forks or launches. The host code in `mod.rs` launches them.
 //!
-//! About 600 lines on purpose: these are the stages of the paper's pipeline (filter,
+//! About 740 lines on purpose: these are the stages of the paper's pipeline (filter,
 //! status codes, partition, terminal brute force) in the order they run, sharing the
 //! same views and work items; split, the order and the shared data would be harder to
 //! follow.
