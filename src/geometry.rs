@@ -14,7 +14,6 @@
 use glam::{Vec3, Vec3A};
 
 pub mod lanes;
-pub use lanes::RaySlab;
 
 /// A ray with a parametric interval `[t_min, t_max)`. `dir` need not be normalised;
 /// distances are in units of `dir`.

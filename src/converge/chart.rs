@@ -1,7 +1,7 @@
 //! The error-against-time chart: RMSE and relMSE panels, log-log, one line per
 //! integrator, as SVG or PNG.
 
-use super::Checkpoint;
+use super::metrics::Checkpoint;
 use crate::error::Result;
 use crate::film::atomic_write;
 use std::path::Path;

@@ -43,7 +43,8 @@
 //! Every call counts its ray–triangle tests ([`CastStats::tests`]).
 
 use super::{CastStats, RayCaster, Triangles, triangles_bytes};
-use crate::geometry::{Aabb, Hit, Ray, RayShear, RaySlab, intersect_triangle};
+use crate::geometry::lanes::RaySlab;
+use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle};
 use crate::scene::Scene;
 use packets::{ORIGIN_BITS, Packets};
 use rayon::prelude::*;

@@ -19,7 +19,8 @@
 //! or on which the members' directions have both signs, gives no bound.
 
 use super::{Dacrt, Trace};
-use crate::geometry::{Aabb, Ray, RaySlab, SLAB_WIDEN, inv_dir};
+use crate::geometry::lanes::RaySlab;
+use crate::geometry::{Aabb, Ray, SLAB_WIDEN, inv_dir};
 use glam::Vec3;
 use rayon::prelude::*;
 
