@@ -1,7 +1,7 @@
 //! The inspector's worker: one render request (`Job`) run on its own thread, with the
 //! PDACRT and CIS analyses and the cached reference the panels show.
 
-use super::{Series, Shared, lock};
+use super::shared::{Series, Shared, lock};
 use crate::cast::pdacrt::{Pdacrt, PdacrtParams};
 use crate::cast::{BvhCaster, CasterKind, RayCaster};
 use crate::converge::rmse;

@@ -7,13 +7,10 @@
 //! stays responsive. `cargo run --release --features inspector --bin warpray-inspector`.
 
 use crate::cast::CasterKind;
-use crate::cast::pdacrt::LevelRecord;
 use crate::geometry::Aabb;
-use crate::render::cis::QueueRecord;
 use crate::render::{IntegratorKind, Variant};
 use egui::{TextureHandle, Ui};
 use glam::{Vec2, Vec3};
-use simt::KernelSummary;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -21,7 +18,10 @@ use std::thread::JoinHandle;
 
 mod job;
 mod panels;
+mod shared;
 use job::Job;
+use shared::lock;
+pub use shared::{Series, Shared};
 
 /// The inspector's panels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,53 +51,6 @@ impl Panel {
             Panel::Convergence => "Convergence",
         }
     }
-}
-
-/// One render's error curve.
-#[derive(Clone, Debug, Default)]
-pub struct Series {
-    /// `integrator / caster`.
-    pub label: String,
-    /// (seconds, RMSE against the reference)
-    pub points: Vec<(f64, f64)>,
-}
-
-/// What the worker shares with the UI.
-#[derive(Default)]
-pub struct Shared {
-    /// The mean image so far.
-    pub image: Vec<Vec3>,
-    /// Image width.
-    pub width: u32,
-    /// Image height.
-    pub height: u32,
-    /// Passes done.
-    pub passes: u32,
-    /// Whether the worker is busy (analysing, rendering the reference, or rendering).
-    pub running: bool,
-    /// What the worker is doing, with its progress.
-    pub status: String,
-    /// Error curves, one per render since the inspector started.
-    pub series: Vec<Series>,
-    /// PDACRT's levels on the primary rays.
-    pub levels: Vec<LevelRecord>,
-    /// Per pixel: PDACRT terminal nodes that tested its primary ray.
-    pub visits: Vec<u32>,
-    /// The scene's camera (to draw level boxes over the image).
-    pub camera: Option<crate::scene::Camera>,
-    /// CIS-LBDPT queue records of the last pass.
-    pub queues: Vec<QueueRecord>,
-    /// Material names of the scene, by index (for the queue panel).
-    pub material_names: Vec<String>,
-    /// `cis::shade` SIMD efficiency of one pass, unsorted and sorted.
-    pub sorting_effect: Option<(f64, f64)>,
-    /// Kernels of the chosen render's own device (PDACRT casting, CIS-LBDPT); empty
-    /// when the render runs nothing on one.
-    pub kernels: Vec<KernelSummary>,
-    /// Kernels of the analysis before the render (PDACRT on the primary rays, one CIS
-    /// pass sorted), kept apart from the render's.
-    pub analysis_kernels: Vec<KernelSummary>,
-    references: Vec<(String, u32, Vec<Vec3>)>,
 }
 
 /// The inspector's state: the choices in its controls and what the worker shares.
@@ -139,10 +92,6 @@ impl Default for Inspector {
     fn default() -> Self {
         Self::new()
     }
-}
-
-fn lock(s: &Mutex<Shared>) -> std::sync::MutexGuard<'_, Shared> {
-    s.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 impl Inspector {

@@ -2,7 +2,8 @@
 //! kernel statistics and error against time. The methods live beside `Inspector`'s
 //! controls in `mod.rs`; this file only draws.
 
-use super::{Inspector, lock, project_box};
+use super::shared::lock;
+use super::{Inspector, project_box};
 use crate::cast::pdacrt::LevelRecord;
 use crate::film::encode_srgb8;
 use egui::{Color32, ColorImage, RichText, TextureOptions, Ui};
