@@ -3,7 +3,7 @@
 //! run on the inputs a CPU render captured ([`ShadeCapture`]), and what they write is
 //! compared with what the emulator wrote (`docs/gpu-check.md`).
 
-use super::ffi::{CisFns, Library};
+use super::ffi::{CisFns, Library, library_path};
 use crate::bsdf::layered::LayerBase;
 use crate::cast::RayCaster;
 use crate::error::{Error, Result};
@@ -230,9 +230,9 @@ impl Drop for GpuCis {
 
 impl GpuCis {
     /// Uploads `scene`, its lights, the camera and options of `opts`, and the light vertex
-    /// cache of `cap`'s pass, to the GPU of the library at [`super::library_path`].
+    /// cache of `cap`'s pass, to the GPU of the library at [`crate::gpu::library_path`].
     pub fn new(scene: &Scene, opts: &RenderOptions, cap: &ShadeCapture) -> Result<GpuCis> {
-        Self::with_library(super::library_path(), scene, opts, cap)
+        Self::with_library(library_path(), scene, opts, cap)
     }
 
     /// As [`GpuCis::new`], with the library at `path`.

@@ -6,6 +6,16 @@ use crate::geometry::{Aabb, Ray};
 use std::ffi::{CStr, c_char, c_int, c_void};
 use std::path::PathBuf;
 
+/// Environment variable naming the CUDA library (default [`DEFAULT_LIBRARY`]).
+pub const LIBRARY_ENV: &str = "WARPRAY_CUDA_LIB";
+/// Where `cuda/build.sh` puts the library, relative to the repository root.
+pub const DEFAULT_LIBRARY: &str = "target/cuda/libwarpray_cuda.so";
+
+/// The library path: `$WARPRAY_CUDA_LIB`, else [`DEFAULT_LIBRARY`].
+pub fn library_path() -> PathBuf {
+    std::env::var_os(LIBRARY_ENV).map(PathBuf::from).unwrap_or_else(|| PathBuf::from(DEFAULT_LIBRARY))
+}
+
 /// `WR_API_VERSION` of the header this file mirrors.
 const API_VERSION: c_int = 2;
 
@@ -102,7 +112,7 @@ impl Library {
         if !path.is_file() {
             return Err(err(format!(
                 "not found; build it on a machine with CUDA with `sh cuda/build.sh`, or point {} at it",
-                super::LIBRARY_ENV
+                LIBRARY_ENV
             )));
         }
         // SAFETY: loading runs the library's initialisers; ours has none beyond the CUDA

@@ -29,19 +29,10 @@ use crate::cast::pdacrt::kernels::{BLOCKED, NO_HIT, hit_of_key};
 use crate::cast::{CastStats, LEAF_PAIRS_FACTOR, RayCaster};
 use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray, SLAB_WIDEN};
+pub use ffi::{DEFAULT_LIBRARY, LIBRARY_ENV, library_path};
 use ffi::{Library, WrParams, WrStats};
 use std::path::PathBuf;
 use std::sync::Mutex;
-
-/// Environment variable naming the CUDA library (default [`DEFAULT_LIBRARY`]).
-pub const LIBRARY_ENV: &str = "WARPRAY_CUDA_LIB";
-/// Where `cuda/build.sh` puts the library, relative to the repository root.
-pub const DEFAULT_LIBRARY: &str = "target/cuda/libwarpray_cuda.so";
-
-/// The library path: `$WARPRAY_CUDA_LIB`, else [`DEFAULT_LIBRARY`].
-pub fn library_path() -> PathBuf {
-    std::env::var_os(LIBRARY_ENV).map(PathBuf::from).unwrap_or_else(|| PathBuf::from(DEFAULT_LIBRARY))
-}
 
 /// What the GPU did in the most recent call.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
