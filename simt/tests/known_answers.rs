@@ -768,3 +768,81 @@ fn statistics_aggregate_per_kernel_name() {
     dev.reset_stats();
     assert!(dev.kernel_stats().is_empty());
 }
+
+/// Every warp intrinsic in a partial last warp: 40 threads are one full warp and one of
+/// 8 lanes, so each intrinsic issues twice for 40 active lanes (SIMD efficiency 0.625,
+/// not 1.0), and what it returns ignores the 24 lanes that do not exist.
+#[test]
+fn every_warp_intrinsic_counts_and_answers_for_a_partial_warp() {
+    type Probe = fn(&simt::Warp) -> u32;
+    let probes: [(&str, Probe); 7] = [
+        ("ballot", |w| w.ballot(&[true; 32])),
+        ("any", |w| w.any(&std::array::from_fn(|l| l >= 8)) as u32),
+        ("all", |w| w.all(&std::array::from_fn(|l| l < 8)) as u32),
+        ("shfl_down", |w| w.shfl_down(&w.lanes(|l| l + 100), 4)[6]),
+        ("shfl_up", |w| w.shfl_up(&w.lanes(|l| l + 100), 2)[7]),
+        ("shfl_xor", |w| w.shfl_xor(&w.lanes(|l| l + 100), 8)[7]),
+        ("shfl", |w| w.shfl(&w.lanes(|l| l + 100), 5)[0]),
+    ];
+    // Answers in the 8-lane warp: only its 8 lanes vote; lane 6's partner 10 and lane
+    // 7's partner 15 do not exist, so those lanes keep their own values.
+    let partial = [0xff, 0, 1, 106, 105, 107, 105];
+    // In the full warp the same calls see all 32 lanes.
+    let full = [u32::MAX, 1, 0, 110, 105, 115, 105];
+    for (k, (name, probe)) in probes.into_iter().enumerate() {
+        let dev = measured();
+        let mut out = dev.alloc::<u32>(2);
+        let o = out.view_mut();
+        let rec = dev
+            .launch(name, LaunchConfig { grid: 1, block: 40, shared_bytes: 0, regions: &[] }, |blk| {
+                blk.for_each_warp(|w| o.write(w.warp_idx() as usize, probe(w)));
+            })
+            .unwrap();
+        assert_eq!(out.as_slice(), &[full[k], partial[k]], "{name}: values (full warp, partial warp)");
+        assert_eq!((rec.ops.issued, rec.ops.active), (2, 40), "{name}: issued and active lanes");
+        assert_eq!(rec.simd_efficiency(), Some(40.0 / 64.0), "{name}");
+    }
+}
+
+/// One-dimensional launches of `n` threads with `n` not a multiple of 32: ⌈n/32⌉ warps
+/// issue each instruction, and only `n` lanes are active.
+#[test]
+fn simd_efficiency_of_launches_whose_size_is_not_a_multiple_of_32() {
+    for n in [1usize, 31, 33, 40, 257, 1000] {
+        let dev = measured();
+        let data = dev.alloc::<u32>(n);
+        let v = data.view();
+        let rec = dev.for_each("odd", n, |t, i| {
+            std::hint::black_box(t.load(&v, i));
+        });
+        let warps = n.div_ceil(32) as u64;
+        assert_eq!((rec.ops.issued, rec.ops.active), (warps, n as u64), "n = {n}");
+        assert_eq!(rec.simd_efficiency(), Some(n as f64 / (32 * warps) as f64), "n = {n}");
+    }
+}
+
+/// The primitives built from warp intrinsics give the host's answers when the last
+/// warp of the last tile is partial.
+#[test]
+fn primitives_are_exact_on_partial_warps() {
+    let dev = measured();
+    for n in [1usize, 7, 33, 1000, 4133] {
+        let host: Vec<u32> = (0..n as u32).map(|i| i.wrapping_mul(2_654_435_761) >> 20).collect();
+        let input = dev.alloc_from(&host);
+        assert_eq!(simt::reduce(&dev, &input, 0, 0, |a, b| a + b), host.iter().sum::<u32>(), "reduce, n = {n}");
+        let mut scanned = dev.alloc::<u32>(n);
+        simt::inclusive_scan(&dev, &input, &mut scanned, 0, |a, b| a + b);
+        let want: Vec<u32> = host
+            .iter()
+            .scan(0, |s, &x| {
+                *s += x;
+                Some(*s)
+            })
+            .collect();
+        assert_eq!(scanned.as_slice(), &want[..], "inclusive_scan, n = {n}");
+        let mut kept = dev.alloc::<u32>(n);
+        let count = simt::copy_if(&dev, &input, &mut kept, |x| x % 3 == 0);
+        let want: Vec<u32> = host.iter().copied().filter(|x| x % 3 == 0).collect();
+        assert_eq!(&kept.as_slice()[..count], &want[..], "copy_if, n = {n}");
+    }
+}
