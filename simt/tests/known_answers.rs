@@ -1,6 +1,6 @@
 //! Known-answer tests of the emulator itself: launch errors, SIMD efficiency,
 //! coalescing, warp intrinsics, barriers, registers, atomics and memory accounting.
-//! About 650 lines: one known answer per rule of the execution model, which reads best
+//! About 840 lines: one known answer per rule of the execution model, which reads best
 //! beside the others; other launch forms are in `launch_forms.rs`.
 
 use simt::{Device, DeviceConfig, LaunchConfig, LaunchError, Place, WorkQueue};
