@@ -7,6 +7,7 @@ mod common;
 
 mod bad_input;
 mod bsdf;
+mod bsdf_reference;
 mod bvh_robust;
 mod bvh_vs_brute;
 mod cis;
