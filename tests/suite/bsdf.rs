@@ -214,6 +214,46 @@ fn f_pdf_and_sample_f_agree() {
     }
 }
 
+/// Delta lobes keep the identity `weight = f · |cos θi| / pdf` too (with `f` and `pdf`
+/// the discrete value and probability), from both sides of glass and in both modes.
+#[test]
+fn delta_samples_keep_the_weight_identity() {
+    let (au_eta, au_k) = metals::GOLD;
+    let delta = [
+        ("mirror", Material::Mirror { reflectance: Vec3::new(0.9, 0.5, 0.2) }),
+        ("glass", Material::Glass { ior: 1.5, tint: Vec3::new(1.0, 0.8, 0.6) }),
+        ("smooth gold", Material::Conductor { eta: au_eta, k: au_k, roughness: 0.0 }),
+        (
+            "coated smooth gold",
+            layered(
+                &[coat(1.5, 0.0, Vec3::new(0.1, 0.2, 0.3))],
+                LayerBase::Conductor { eta: au_eta, k: au_k, roughness: 0.0 },
+            ),
+        ),
+    ];
+    let mut rng = Rng::for_sample(5, 5, 5);
+    for (name, m) in delta {
+        for wo in [
+            Vec3::new(0.3, 0.2, 0.93).normalize(),
+            Vec3::new(-0.6, 0.1, 0.5).normalize(),
+            Vec3::new(0.2, 0.1, -0.97).normalize(),
+        ] {
+            for mode in [TransportMode::Radiance, TransportMode::Importance] {
+                for _ in 0..200 {
+                    let Some(s) = m.sample_f(wo, rng.uniform(), rng.uniform2(), mode) else { continue };
+                    assert!(s.delta, "{name}: a delta material sampled a continuous lobe");
+                    let w = s.f * s.wi.z.abs() / s.pdf;
+                    assert!(
+                        (w - s.weight).abs().max_element() <= 1e-4 * w.max_element().max(1e-3),
+                        "{name} {mode:?}: {w} vs {}",
+                        s.weight
+                    );
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn reflection_is_reciprocal() {
     let mut rng = Rng::for_sample(7, 7, 7);
@@ -249,15 +289,13 @@ fn white_furnace() {
         ("mirror", Material::Mirror { reflectance: Vec3::ONE }),
         ("glass", Material::Glass { ior: 1.5, tint: Vec3::ONE }),
         ("smooth metal", Material::Conductor { eta: perfect_metal.0, k: perfect_metal.1, roughness: 0.0 }),
-        // Single-scattering microfacets lose energy as roughness grows (1.1 % at α = 0.1
-        // for a perfect metal at normal incidence); at α = 0.05 the loss is below 1 %.
-        ("rough metal 0.05", Material::Conductor { eta: perfect_metal.0, k: perfect_metal.1, roughness: 0.05 }),
-        ("rough glass 0.05", Material::RoughGlass { ior: 1.5, roughness: 0.05, tint: Vec3::ONE }),
+        // Rough microfacets lose what single scattering shadows: that loss is stated and
+        // checked against a reference in bsdf_reference.rs.
     ];
     for (name, m) in lossless {
         for wo in [Vec3::Z, Vec3::new(0.5, 0.0, 0.866), Vec3::new(0.0, 0.7, 0.714)] {
             let a = albedo(&m, wo);
-            assert!((a - Vec3::ONE).abs().max_element() < 0.01, "{name} at {wo}: reflects {a}, not 100 %");
+            assert!((a - Vec3::ONE).abs().max_element() < 0.005, "{name} at {wo}: reflects {a}, not 100 %");
         }
     }
     // No material reflects more than it receives, at any angle (single scattering in
