@@ -7,6 +7,7 @@ mod common;
 
 mod bad_input;
 mod bsdf;
+mod bsdf_energy;
 mod bsdf_reference;
 mod bvh_robust;
 mod bvh_vs_brute;
@@ -24,6 +25,7 @@ mod inspector;
 mod integrators;
 mod lvc;
 mod mitsuba;
+mod optics;
 mod outputs;
 mod pdacrt_weights;
 mod point_light;
