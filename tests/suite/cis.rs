@@ -1,22 +1,23 @@
-//! CIS-LBDPT: convergence to the BDPT reference with every idea on and each switched off,
+//! CIS-LBDPT: agreement with BDPT over independent seeds with every idea on and each switched off,
 //! its relation to uniform LVC, determinism, and what sorting does to SIMD efficiency.
 
 use crate::common::*;
+use crate::seeds::{Runs, assert_agree, runs};
 use warpray::cast::BvhCaster;
+use warpray::converge::relmse;
 use warpray::film::Film;
-use warpray::glam::Vec3;
 use warpray::render::CisParams;
 use warpray::render::{Budget, IntegratorKind, LvcParams, RenderOptions, Renderer, render};
 use warpray::scene::{Scene, cornell_box};
 
-fn opts(kind: IntegratorKind, spp: u32, cis: CisParams, lvc: LvcParams) -> RenderOptions {
+fn opts(kind: IntegratorKind, spp: u32, cis: CisParams, lvc: LvcParams, seed: u64) -> RenderOptions {
     RenderOptions {
         width: 32,
         height: 32,
         budget: Budget::Samples(spp),
         max_depth: 8,
         integrator: kind,
-        seed: 13,
+        seed,
         lvc,
         cis,
         ..Default::default()
@@ -30,36 +31,37 @@ fn film(scene: &Scene, o: &RenderOptions) -> Film {
     f
 }
 
-fn lum(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
-}
-
 fn small_pool(p: CisParams) -> CisParams {
     // A pool smaller than the image, so regeneration really happens.
     CisParams { pool: 300, ..p }
 }
 
+/// The ablations that change the estimate's distribution (sorting reorders the work,
+/// not the random numbers: `cis_is_deterministic_across_thread_counts_and_with_or_without_sorting`
+/// checks that its image is the same to the bit).
 fn variants() -> Vec<(&'static str, CisParams)> {
     let d = small_pool(CisParams::default());
     vec![
         ("all on", d),
-        ("no sorting", CisParams { sort: false, ..d }),
         ("no importance sampling", CisParams { importance: false, ..d }),
         ("no compaction", CisParams { regenerate: false, ..d }),
     ]
 }
 
+fn bdpt_runs(scene: &Scene) -> Runs {
+    let o = |seed| opts(IntegratorKind::Bdpt, 8, CisParams::default(), LvcParams::default(), seed);
+    runs("bdpt", 100, 32, 8, |seed| film(scene, &o(seed)).mean())
+}
+
+/// CIS with every idea on and each switched off agrees with BDPT over 16 seeds each,
+/// in the image mean (to a precision that shows a 1 % bias: 0.18 %) and block by block.
 fn converges(scene: &Scene, what: &str) {
-    let reference = film(scene, &opts(IntegratorKind::Bdpt, 512, CisParams::default(), LvcParams::default()));
-    let r = lum(reference.image_mean());
+    let bdpt = bdpt_runs(scene);
     for (name, p) in variants() {
-        let low = film(scene, &opts(IntegratorKind::Cis, 8, p, LvcParams::default()));
-        let high = film(scene, &opts(IntegratorKind::Cis, 64, p, LvcParams::default()));
-        let m = lum(high.image_mean());
-        assert!((m - r).abs() / r < 0.005, "{what}/{name}: CIS mean {m} vs BDPT {r}");
-        let e_low = warpray::converge::relmse(&low.mean(), &reference.mean());
-        let e_high = warpray::converge::relmse(&high.mean(), &reference.mean());
-        assert!(e_high < 0.5 * e_low, "{what}/{name}: relMSE {e_low:.5} -> {e_high:.5}");
+        let cis = runs(name, 300, 32, 8, |seed| {
+            film(scene, &opts(IntegratorKind::Cis, 6, p, LvcParams::default(), seed)).mean()
+        });
+        eprintln!("{what}: {}", assert_agree(&cis, &bdpt, 0.0018));
     }
 }
 
@@ -76,20 +78,17 @@ fn cis_and_its_ablations_converge_to_bdpt_on_a_glossy_and_glass_scene() {
 #[test]
 fn cis_with_one_candidate_and_one_draw_is_uniform_lvc() {
     // N = M = 1: the single candidate is always drawn with weight 1, so the estimator is
-    // uniform LVC with one connection. Same distribution: same mean, and the per-pixel
-    // spread against a reference matches within sampling noise.
+    // uniform LVC with one connection. Same distribution: the same limit (over 16 seeds
+    // each), and the same per-pixel spread against a BDPT average within sampling noise.
     let scene = cornell_box();
-    let reference = film(&scene, &opts(IntegratorKind::Bdpt, 512, CisParams::default(), LvcParams::default()));
     let cis = CisParams { candidates: 1, draws: 1, ..small_pool(CisParams::default()) };
     let lvc = LvcParams { connections: 1, ..LvcParams::default() };
-    let a = film(&scene, &opts(IntegratorKind::Cis, 32, cis, lvc));
-    let b = film(&scene, &opts(IntegratorKind::Lvc, 32, cis, lvc));
-    let (ma, mb) = (lum(a.image_mean()), lum(b.image_mean()));
-    assert!((ma - mb).abs() / mb < 0.005, "means {ma} vs {mb}");
-    let (ea, eb) = (
-        warpray::converge::relmse(&a.mean(), &reference.mean()),
-        warpray::converge::relmse(&b.mean(), &reference.mean()),
-    );
+    let a = runs("cis N=M=1", 300, 32, 8, |seed| film(&scene, &opts(IntegratorKind::Cis, 6, cis, lvc, seed)).mean());
+    let b =
+        runs("lvc 1 connection", 500, 32, 8, |seed| film(&scene, &opts(IntegratorKind::Lvc, 6, cis, lvc, seed)).mean());
+    eprintln!("{}", assert_agree(&a, &b, 0.0018));
+    let reference = bdpt_runs(&scene).average;
+    let (ea, eb) = (relmse(&a.first, &reference), relmse(&b.first, &reference));
     assert!((ea / eb - 1.0).abs() < 0.25, "error against the reference: CIS {ea:.5} vs LVC {eb:.5}");
 }
 
@@ -97,8 +96,13 @@ fn cis_with_one_candidate_and_one_draw_is_uniform_lvc() {
 fn cis_is_deterministic_across_thread_counts_and_with_or_without_sorting() {
     let scene = glossy_glass_box();
     let run = |threads, sort| {
-        let o =
-            opts(IntegratorKind::Cis, 2, CisParams { sort, ..small_pool(CisParams::default()) }, LvcParams::default());
+        let o = opts(
+            IntegratorKind::Cis,
+            2,
+            CisParams { sort, ..small_pool(CisParams::default()) },
+            LvcParams::default(),
+            13,
+        );
         rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| film(&scene, &o))
     };
     let (a, b) = (run(1, true), run(2, true));
@@ -117,7 +121,7 @@ fn sorting_by_material_raises_the_shading_kernels_simd_efficiency() {
     let (mut efficiency, mut whole) = (Vec::new(), Vec::new());
     for sort in [false, true] {
         let p = CisParams { sort, measure: true, pool: 1024, ..CisParams::default() };
-        let o = opts(IntegratorKind::Cis, 1, p, LvcParams::default());
+        let o = opts(IntegratorKind::Cis, 1, p, LvcParams::default(), 13);
         let mut renderer = Renderer::new(&scene, &caster, &o).unwrap();
         let mut f = renderer.film().unwrap();
         renderer.pass(0, &mut f);

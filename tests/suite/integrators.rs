@@ -1,6 +1,7 @@
 //! The integrators against an analytic case and against each other.
 
 use crate::common::*;
+use crate::seeds::{Runs, assert_agree, assert_constant, runs};
 use warpray::cast::BvhCaster;
 use warpray::film::Film;
 use warpray::glam::{Vec2, Vec3};
@@ -35,7 +36,8 @@ fn render_mean_seeded(
 }
 
 /// Inside a closed sphere of albedo ρ whose every point emits Le, the radiance is
-/// Le / (1 − ρ) everywhere.
+/// Le / (1 − ρ) everywhere: each integrator's image over 16 seeds matches it in the mean
+/// (path and BDPT to 0.15 %, so a 1 % bias fails) and block by block.
 #[test]
 fn furnace_closed_sphere_matches_the_analytic_radiance() {
     let (v, f) = icosphere(2);
@@ -46,12 +48,14 @@ fn furnace_closed_sphere_matches_the_analytic_radiance() {
     scene.materials[0] = Material::Diffuse { albedo: Vec3::splat(albedo) };
     scene.emission[0] = Vec3::splat(le);
     scene.camera = Camera::look_at(Vec3::new(0.1, -0.05, 0.0), Vec3::new(0.3, 0.2, 1.0), Vec3::Y, 60.0);
-    let want = le / (1.0 - albedo);
-    // Light tracing is the noisiest here (every pixel gets splats from all over the sphere).
-    for (kind, spp) in [(IntegratorKind::Path, 128), (IntegratorKind::Light, 1024), (IntegratorKind::Bdpt, 32)] {
-        let (mean, _) = render_mean(&scene, kind, 32, spp, 60);
-        let err = (mean - Vec3::splat(want)).abs().max_element() / want;
-        assert!(err < 0.01, "{}: image mean {mean}, analytic {want} (error {:.2} %)", kind.name(), err * 100.0);
+    let want = Vec3::splat(le / (1.0 - albedo));
+    // Light tracing is the noisiest here (every pixel gets splats from all over the
+    // sphere): its mean is known to 0.3 % (a 2 % bias fails).
+    for (kind, spp, precision) in
+        [(IntegratorKind::Path, 8, 0.0015), (IntegratorKind::Light, 64, 0.003), (IntegratorKind::Bdpt, 2, 0.0015)]
+    {
+        let r = runs(kind.name(), 40, 32, 8, |seed| render_mean_seeded(&scene, kind, 32, spp, 60, seed).1.mean());
+        eprintln!("{}", assert_constant(&r, want, precision));
     }
 }
 
@@ -60,63 +64,41 @@ fn relmse(a: &[Vec3], b: &[Vec3]) -> f64 {
         / a.len() as f64
 }
 
-/// The three integrators' image means agree within their standard errors over eight
-/// independent seeds, and their per-pixel disagreement falls as samples grow (one
-/// seed's image against the eight seeds' average).
+/// Path and light tracing agree with BDPT over 16 seeds each (`seeds.rs`: image means
+/// and block by block), and each one's per-pixel disagreement with BDPT falls as samples
+/// grow (one seed's image against the average of 16). `spp` is per seed: path, light,
+/// BDPT. Light tracing's image mean is known to about 0.1 % here (combined with BDPT's,
+/// at most 0.3 %: a 2 % bias fails). The path tracer's is not: the Cornell box's small
+/// light and the glass's caustics give it a heavy tail, and its standard error over 16
+/// seeds of 64 spp ranged from 0.28 % to 0.7 % across seed sets, so only 1 % is asked of
+/// it (a 6 % bias fails); `direct.rs` and the Mitsuba box check the path tracer to
+/// 0.1 % and 0.25 %.
 fn converge_together(scene: &Scene, size: u32, spp: [u32; 3], what: &str) {
-    const SEEDS: u64 = 8;
-    let lum = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722)) as f64;
-    let mut stats = Vec::new();
-    let mut low = Vec::new();
-    let mut high = Vec::new();
-    for (kind, n) in IntegratorKind::CORE.into_iter().zip(spp) {
-        let mut means = Vec::new();
-        let mut sum = vec![Vec3::ZERO; (size * size) as usize];
-        for seed in 0..SEEDS {
-            let (m, f) = render_mean_seeded(scene, kind, size, n / SEEDS as u32, 8, seed);
-            means.push(lum(m));
-            let img = f.mean();
-            sum.iter_mut().zip(&img).for_each(|(s, v)| *s += *v / SEEDS as f32);
-            if seed == 0 {
-                low.push(img);
-            }
-        }
-        stats.push((kind, statistics(&means)));
-        high.push(sum);
-    }
-    for i in 0..3 {
-        for j in i + 1..3 {
-            let ((ki, (a, sa)), (kj, (b, sb))) = (stats[i], stats[j]);
-            let z = (a - b) / (sa * sa + sb * sb).sqrt();
-            assert!(
-                z.abs() < 4.0,
-                "{what}: {} mean {a:.5} ± {sa:.5} vs {} mean {b:.5} ± {sb:.5} (z = {z:.2})",
-                ki.name(),
-                kj.name()
-            );
-            let (r_low, r_high) = (relmse(&low[i], &low[j]), relmse(&high[i], &high[j]));
-            assert!(
-                r_high < 0.5 * r_low,
-                "{what}: relMSE {} vs {} went {r_low:.4} -> {r_high:.4}",
-                ki.name(),
-                kj.name()
-            );
-        }
-    }
-    // Power: each mean is known to better than 0.5 %.
-    for (kind, (m, se)) in &stats {
-        assert!(*se < 0.005 * m, "{what}: {} standard error {se} against mean {m}", kind.name());
+    let mut all: Vec<Runs> = IntegratorKind::CORE
+        .into_iter()
+        .zip(spp)
+        .map(|(kind, n)| {
+            runs(&format!("{what}: {}", kind.name()), 0, size as usize, 8, |seed| {
+                render_mean_seeded(scene, kind, size, n, 8, seed).1.mean()
+            })
+        })
+        .collect();
+    let bdpt = all.pop().unwrap();
+    for (r, precision) in all.iter().zip([0.01, 0.003]) {
+        eprintln!("{}", assert_agree(r, &bdpt, precision));
+        let (low, high) = (relmse(&r.first, &bdpt.first), relmse(&r.average, &bdpt.average));
+        assert!(high < 0.5 * low, "{}: relMSE against bdpt went {low:.4} -> {high:.4}", r.what);
     }
 }
 
 #[test]
 fn path_light_and_bdpt_agree_on_the_cornell_box() {
-    converge_together(&cornell_box(), 32, [1024, 1024, 256], "cornell");
+    converge_together(&cornell_box(), 32, [64, 24, 16], "cornell");
 }
 
 #[test]
 fn path_light_and_bdpt_agree_on_a_glossy_and_glass_scene() {
-    converge_together(&glossy_glass_box(), 32, [1024, 1024, 256], "glossy+glass");
+    converge_together(&glossy_glass_box(), 32, [64, 24, 16], "glossy+glass");
 }
 
 #[test]

@@ -1,13 +1,13 @@
-//! LVC-BDPT against the BDPT reference, and its determinism.
+//! LVC-BDPT against BDPT over independent seeds, and its determinism.
 
 use crate::common::*;
+use crate::seeds::{assert_agree, runs};
 use warpray::cast::BvhCaster;
 use warpray::film::Film;
-use warpray::glam::Vec3;
 use warpray::render::{Budget, IntegratorKind, LvcParams, RenderOptions, render};
 use warpray::scene::{Scene, cornell_box};
 
-fn film(scene: &Scene, kind: IntegratorKind, spp: u32, lvc: LvcParams) -> Film {
+fn film(scene: &Scene, kind: IntegratorKind, spp: u32, lvc: LvcParams, seed: u64) -> Film {
     let caster = BvhCaster::new(scene);
     let opts = RenderOptions {
         width: 32,
@@ -15,7 +15,7 @@ fn film(scene: &Scene, kind: IntegratorKind, spp: u32, lvc: LvcParams) -> Film {
         budget: Budget::Samples(spp),
         max_depth: 8,
         integrator: kind,
-        seed: 11,
+        seed,
         lvc,
         ..Default::default()
     };
@@ -24,40 +24,29 @@ fn film(scene: &Scene, kind: IntegratorKind, spp: u32, lvc: LvcParams) -> Film {
     f
 }
 
-fn lum(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
-}
-
-fn relmse(a: &[Vec3], b: &[Vec3]) -> f64 {
-    warpray::converge::relmse(a, b)
-}
-
-/// Image mean within 0.5 % of a BDPT reference, and per-pixel relMSE against it falling
-/// as samples grow.
-fn converges_to_bdpt(scene: &Scene, lvc: LvcParams, what: &str) {
-    let reference = film(scene, IntegratorKind::Bdpt, 512, LvcParams::default());
-    let low = film(scene, IntegratorKind::Lvc, 16, lvc);
-    let high = film(scene, IntegratorKind::Lvc, 128, lvc);
-    let (m, r) = (lum(high.image_mean()), lum(reference.image_mean()));
-    assert!((m - r).abs() / r < 0.005, "{what}: LVC mean {m} vs BDPT {r}");
-    let (e_low, e_high) = (relmse(&low.mean(), &reference.mean()), relmse(&high.mean(), &reference.mean()));
-    assert!(e_high < 0.5 * e_low, "{what}: relMSE {e_low:.5} -> {e_high:.5}");
+/// LVC and BDPT over 16 seeds each agree in their image means (to a precision that
+/// shows a 1 % bias: 0.18 %) and block by block (see `seeds.rs`).
+fn converges_to_bdpt(scene: &Scene, lvc: LvcParams, spp: u32, what: &str) {
+    let bdpt = runs("bdpt", 100, 32, 8, |seed| film(scene, IntegratorKind::Bdpt, 6, LvcParams::default(), seed).mean());
+    let ours = runs("lvc", 200, 32, 8, |seed| film(scene, IntegratorKind::Lvc, spp, lvc, seed).mean());
+    eprintln!("{what}: {}", assert_agree(&ours, &bdpt, 0.0018));
 }
 
 #[test]
 fn lvc_converges_to_bdpt_on_the_cornell_box() {
-    converges_to_bdpt(&cornell_box(), LvcParams::default(), "cornell");
+    converges_to_bdpt(&cornell_box(), LvcParams::default(), 4, "cornell");
     // Fewer light paths than pixels and more connections per vertex.
     converges_to_bdpt(
         &cornell_box(),
         LvcParams { light_paths: 300, connections: 5, ..Default::default() },
+        12,
         "cornell, 300 light paths",
     );
 }
 
 #[test]
 fn lvc_converges_to_bdpt_on_a_glossy_and_glass_scene() {
-    converges_to_bdpt(&glossy_glass_box(), LvcParams::default(), "glossy+glass");
+    converges_to_bdpt(&glossy_glass_box(), LvcParams::default(), 4, "glossy+glass");
 }
 
 #[test]
@@ -68,7 +57,7 @@ fn lvc_is_deterministic_across_thread_counts() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| film(&scene, IntegratorKind::Lvc, 2, LvcParams::default()))
+            .install(|| film(&scene, IntegratorKind::Lvc, 2, LvcParams::default(), 11))
     };
     let (a, b) = (run(1), run(2));
     assert!(a.sum == b.sum && a.splat == b.splat);
