@@ -26,6 +26,7 @@ mod inspector;
 mod integrators;
 mod lvc;
 mod mitsuba;
+mod mitsuba_bsdfs;
 mod optics;
 mod outputs;
 mod pdacrt_weights;

@@ -84,6 +84,13 @@ pub fn runs(what: &str, base: u64, width: usize, block: usize, render: impl Fn(u
 }
 
 impl Runs {
+    /// Statistics computed elsewhere (another renderer's seeds), laid out as [`runs`]
+    /// lays them out.
+    pub fn from_per_seed(what: &str, per_seed: Vec<Vec<f64>>, width: usize, block: usize) -> Runs {
+        assert_eq!(per_seed.len() as u64, SEEDS, "{what}: {SEEDS} seeds expected");
+        Runs { what: what.to_string(), per_seed, average: Vec::new(), first: Vec::new(), width, block }
+    }
+
     /// (mean, standard error) of statistic `k` over seeds.
     pub fn stat(&self, k: usize) -> (f64, f64) {
         crate::common::statistics(&self.per_seed.iter().map(|s| s[k]).collect::<Vec<_>>())
