@@ -165,6 +165,7 @@ __device__ inline bool hit_triangle(Vec3 o, const Shear& s, const float* v, floa
     return true;
 }
 
+// The closest-hit key of src/geometry/hit_key.rs: distance bits above the triangle id.
 __device__ inline uint64_t pack_hit(float t, uint32_t prim) { return (uint64_t)__float_as_uint(t) << 32 | prim; }
 __device__ inline float t_far(const Ray& r, uint64_t key) {
     return key == NO_HIT ? r.t_max : fminf(__uint_as_float((uint32_t)(key >> 32)), r.t_max);

@@ -13,6 +13,7 @@
 
 use glam::{Vec3, Vec3A};
 
+pub(crate) mod hit_key;
 pub mod lanes;
 
 /// A ray with a parametric interval `[t_min, t_max)`. `dir` need not be normalised;

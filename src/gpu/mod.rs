@@ -123,8 +123,8 @@ impl GpuPdacrt {
         }
     }
 
-    /// Every ray's key: `(distance bits << 32) | triangle`, `u64::MAX` for a miss; with
-    /// `any_hit`, 0 for a blocked ray.
+    /// Every ray's key (`geometry::hit_key`): `u64::MAX` for a miss; with `any_hit`, 0
+    /// for a blocked ray.
     pub fn trace_keys(&self, rays: &[Ray], any_hit: bool) -> Result<Vec<u64>> {
         let mut keys = vec![NO_HIT; rays.len()];
         let handle = self.handle.lock().unwrap_or_else(|e| e.into_inner());
@@ -136,7 +136,7 @@ impl GpuPdacrt {
     /// The hits that closest-hit keys stand for (barycentrics recomputed on the host).
     pub fn hits_of_keys(&self, rays: &[Ray], keys: &[u64], hits: &mut [Hit]) {
         for ((h, r), &k) in hits.iter_mut().zip(rays).zip(keys) {
-            let tri = if k == NO_HIT { [0.0; 9] } else { self.tris[(k & 0xffff_ffff) as usize] };
+            let tri = if k == NO_HIT { [0.0; 9] } else { self.tris[crate::geometry::hit_key::prim_of(k) as usize] };
             *h = hit_of_key(r, k, tri);
         }
     }

@@ -2,8 +2,9 @@
 //! a time on SIMD lanes (`geometry::lanes`), deciding hits by the same watertight rule
 //! as every caster.
 
-use super::{BLOCKED, Dacrt, Trace, pack};
+use super::{Dacrt, Trace};
 use crate::geometry::RayShear;
+use crate::geometry::hit_key::{BLOCKED, pack};
 use crate::geometry::lanes::Triangles4;
 use std::sync::atomic::Ordering::Relaxed;
 

@@ -43,6 +43,7 @@
 //! Every call counts its ray–triangle tests ([`CastStats::tests`]).
 
 use super::{CastStats, RayCaster, Triangles, triangles_bytes};
+use crate::geometry::hit_key::{self, BLOCKED, NONE};
 use crate::geometry::lanes::RaySlab;
 use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle};
 use crate::scene::Scene;
@@ -130,10 +131,6 @@ pub struct Dacrt {
     phases: Mutex<Vec<(&'static str, f64)>>,
 }
 
-/// Key of "no hit yet".
-const NONE: u64 = u64::MAX;
-/// Key of an occluded shadow ray.
-const BLOCKED: u64 = 0;
 /// A node with few rays is a leaf only while it has at most this many times
 /// `leaf_rays · leaf_triangles` ray–triangle pairs.
 pub(crate) const LEAF_PAIRS_FACTOR: u64 = 4;
@@ -142,16 +139,6 @@ const NEAR_SAMPLES: usize = 32;
 /// SAH bins per axis, and triangles sampled per SAH decision.
 const SAH_BINS: usize = 16;
 const SAH_SAMPLES: usize = 2048;
-
-#[inline]
-fn pack(t: f32, prim: u32) -> u64 {
-    (t.to_bits() as u64) << 32 | prim as u64
-}
-
-#[inline]
-fn unpack_t(key: u64) -> f32 {
-    f32::from_bits((key >> 32) as u32)
-}
 
 /// What one trace call shares between its recursive steps. Its rays are the batch's
 /// valid rays renumbered in coherence order: a ray's id indexes `rays`, `slabs` and
@@ -209,7 +196,7 @@ impl Trace {
     #[inline]
     fn t_far(&self, id: u32) -> f32 {
         let k = self.keys[id as usize].load(Relaxed);
-        if k == NONE { self.rays[id as usize].t_max } else { unpack_t(k).min(self.rays[id as usize].t_max) }
+        if k == NONE { self.rays[id as usize].t_max } else { hit_key::t_of(k).min(self.rays[id as usize].t_max) }
     }
 
     /// Whether most of the rays travel toward `+axis`, judged on at most
@@ -228,7 +215,7 @@ impl Trace {
             return false;
         }
         let s = &self.slabs[id as usize];
-        s.enters(b, if k == NONE { s.t_max() } else { unpack_t(k).min(s.t_max()) })
+        s.enters(b, if k == NONE { s.t_max() } else { hit_key::t_of(k).min(s.t_max()) })
     }
 }
 
@@ -440,9 +427,9 @@ impl RayCaster for Dacrt {
                 Hit::MISS
             } else {
                 // Barycentrics of the winner, from the same watertight test.
-                let prim = (k & 0xffff_ffff) as u32;
+                let prim = hit_key::prim_of(k);
                 let [a, b, c] = self.tris[prim as usize];
-                let t = unpack_t(k);
+                let t = hit_key::t_of(k);
                 intersect_triangle(ray.origin, &RayShear::new(ray.dir), a, b, c, ray.t_min, t.next_up())
                     .map_or(Hit { t, prim, u: 0.0, v: 0.0 }, |(t, u, v)| Hit { t, prim, u, v })
             };

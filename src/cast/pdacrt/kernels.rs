@@ -7,6 +7,7 @@
 //! follow.
 
 use crate::cast::LEAF_PAIRS_FACTOR;
+use crate::geometry::hit_key;
 use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir, triangle_test};
 use glam::Vec3;
 use simt::{Block, DeviceCopy, Global, GlobalMut, Place, Readable, Thread};
@@ -20,9 +21,8 @@ pub(crate) const BOTH: u32 = 1;
 pub(crate) const RIGHT: u32 = 2;
 pub(crate) const NEITHER: u32 = 3;
 
-/// Key of "no hit yet"; shadow rays that are blocked get [`BLOCKED`].
-pub(crate) const NO_HIT: u64 = u64::MAX;
-pub(crate) const BLOCKED: u64 = 0;
+/// Key of "no hit yet"; shadow rays that are blocked get [`BLOCKED`] (`geometry::hit_key`).
+pub(crate) use crate::geometry::hit_key::{BLOCKED, NONE as NO_HIT};
 
 /// Child kinds.
 pub(crate) const DROPPED: u32 = 0;
@@ -67,20 +67,10 @@ pub(crate) type Triple = [u32; 3];
 unsafe impl DeviceCopy for NodeData {}
 unsafe impl DeviceCopy for ChildData {}
 
-#[inline]
-pub(crate) fn pack_hit(t: f32, prim: u32) -> u64 {
-    (t.to_bits() as u64) << 32 | prim as u64
-}
-
-#[inline]
-pub(crate) fn key_t(key: u64) -> f32 {
-    f32::from_bits((key >> 32) as u32)
-}
-
 /// The ray's interval end: its closest hit so far, or its own `t_max`.
 #[inline]
 fn t_far(ray: &Ray, key: u64) -> f32 {
-    if key == NO_HIT { ray.t_max } else { key_t(key).min(ray.t_max) }
+    if key == NO_HIT { ray.t_max } else { hit_key::t_of(key).min(ray.t_max) }
 }
 
 /// A triangle's corners from its flat device record.
@@ -676,7 +666,7 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
                     t.work(0, 1, PAST_EDGES_INSTRUCTIONS);
                     let (th, _, _) = hit?;
                     if !a.any_hit {
-                        let candidate = pack_hit(th, t.load_shared(stage_ids, s));
+                        let candidate = hit_key::pack(th, t.load_shared(stage_ids, s));
                         if candidate < key {
                             key = candidate;
                             far = th;
@@ -722,8 +712,8 @@ pub(crate) fn hit_of_key(ray: &Ray, key: u64, tri: [f32; 9]) -> Hit {
     if key == NO_HIT {
         return Hit::MISS;
     }
-    let prim = (key & 0xffff_ffff) as u32;
-    let t = key_t(key);
+    let prim = hit_key::prim_of(key);
+    let t = hit_key::t_of(key);
     let [a, b, c] = corners(tri);
     intersect_triangle(ray.origin, &RayShear::new(ray.dir), a, b, c, ray.t_min, t.next_up())
         .map_or(Hit { t, prim, u: 0.0, v: 0.0 }, |(t, u, v)| Hit { t, prim, u, v })
@@ -739,6 +729,6 @@ pub(crate) fn resolve_hit(
     i: usize,
 ) {
     let key = t.load(keys, i);
-    let tri = if key == NO_HIT { [0.0; 9] } else { t.load(tris, (key & 0xffff_ffff) as usize) };
+    let tri = if key == NO_HIT { [0.0; 9] } else { t.load(tris, hit_key::prim_of(key) as usize) };
     t.store(out, i, hit_of_key(&t.load(rays, i), key, tri));
 }

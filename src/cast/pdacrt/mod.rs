@@ -33,6 +33,7 @@
 pub(crate) mod kernels;
 
 use crate::cast::{CastStats, RayCaster};
+use crate::geometry::hit_key;
 use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle};
 use crate::scene::Scene;
 use kernels::*;
@@ -404,7 +405,7 @@ impl Pdacrt {
                     } else if let Some((t, _, _)) =
                         intersect_triangle(r.origin, &shear, a, b, c, r.t_min, far.next_up())
                     {
-                        let k = pack_hit(t, id as u32);
+                        let k = hit_key::pack(t, id as u32);
                         if k < key {
                             key = k;
                             far = t;
@@ -419,7 +420,7 @@ impl Pdacrt {
 
     /// The hit a key stands for (host side of the tiny-batch path).
     fn resolve(&self, ray: &Ray, key: u64) -> Hit {
-        let tri = if key == NO_HIT { [0.0; 9] } else { self.tris.as_slice()[(key & 0xffff_ffff) as usize] };
+        let tri = if key == NO_HIT { [0.0; 9] } else { self.tris.as_slice()[hit_key::prim_of(key) as usize] };
         hit_of_key(ray, key, tri)
     }
 }
