@@ -22,7 +22,7 @@ if [ -x "$BIN/gpu_tests" ]; then
     tail -5 "$OUT/tests.txt"
 fi
 "$BIN/gpu_check" simt --model "$MODEL" --batch "$BATCHES" --size "$SIZE" --out "$OUT/simt_$MODEL.tsv"
-ncu --csv --page raw --print-units base --metrics "$("$BIN/gpu_check" metrics)" \
+ncu --clock-control none --csv --page raw --print-units base --metrics "$("$BIN/gpu_check" metrics)" \
     --log-file "$OUT/ncu_$MODEL.csv" \
     "$BIN/gpu_check" gpu --model "$MODEL" --batch "$BATCHES" --size "$SIZE" --repeat 1 --brute-every 0 >/dev/null
 "$BIN/gpu_check" report --simt "$OUT/simt_$MODEL.tsv" --ncu "$OUT/ncu_$MODEL.csv" | tee "$OUT/report_$MODEL.md"

@@ -1,6 +1,6 @@
 // CIS-LBDPT's GPU twin built for the CPU: the device code of cis_device.cuh compiled
 // by a host C++ compiler behind the library's C interface (cis_api.h, plus stubs for
-// PDACRT's entry points, which report that they are absent), so that the port can be
+// PDACRT's and the GPU BVH's entry points, which report that they are absent), so that the port can be
 // compared with the emulator on a machine with no GPU:
 //
 //   g++ -std=c++17 -O2 -ffp-contract=off -shared -fPIC -o target/cuda/libwarpray_cuda_host.so cuda/cis_host_check.cpp
@@ -32,6 +32,7 @@ static inline float __int_as_float(int i) {
     return f;
 }
 
+#include "bvh_api.h"
 #include "cis_device.cuh"
 #include "pdacrt_api.h"
 
@@ -61,6 +62,11 @@ const char* wr_last_error(void) { return "PDACRT is not part of the host check";
 int wr_pdacrt_create(const float*, uint64_t, const float*, void**) { return 1; }
 int wr_pdacrt_trace(void*, const void*, uint64_t, int, const WrParams*, uint64_t*, WrStats*) { return 1; }
 void wr_pdacrt_destroy(void*) {}
+const char* wr_bvh_last_error(void) { return "the GPU BVH is not part of the host check"; }
+int wr_bvh_create(void**) { return 1; }
+int wr_bvh_build(void*, const float*, uint64_t, WrBvhStats*) { return 1; }
+int wr_bvh_trace(void*, const void*, uint64_t, int, float, uint64_t*, WrBvhStats*) { return 1; }
+void wr_bvh_destroy(void*) {}
 const char* wr_cis_last_error(void) { return last_error.c_str(); }
 
 int wr_cis_create(const WrCisScene* s, void** handle) {

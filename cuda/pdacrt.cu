@@ -21,23 +21,17 @@
 #include <chrono>
 #include <string>
 
+#include "device_buf.cuh"
+#include "geometry.cuh"
 #include "guarded.h"
 #include "pdacrt_api.h"
 
 namespace pdacrt {
 
+using namespace wr;
+
 // ---------------------------------------------------------------- data
 
-struct Vec3 {
-    float x, y, z;
-};
-struct Ray {
-    Vec3 o, d;
-    float t_min, t_max;
-};
-struct Aabb {
-    Vec3 lo, hi;
-};
 struct NodeData {
     Aabb bounds;
     uint32_t ray_start, ray_count, tri_start, tri_count, tries;
@@ -48,128 +42,17 @@ struct ChildData {
 struct Triple {
     uint32_t v[3];
 };
-struct Tri {
-    float v[9];
-};
 
-static_assert(sizeof(Ray) == 32, "Ray layout");
 static_assert(sizeof(NodeData) == 44, "NodeData layout");
 static_assert(sizeof(ChildData) == 28, "ChildData layout");
-static_assert(sizeof(Tri) == 36, "triangle layout");
 
 constexpr uint32_t LEFT = 0, BOTH = 1, RIGHT = 2, NEITHER = 3;
 constexpr uint32_t DROPPED = 0, INNER = 1, TERMINAL = 2;
 constexpr uint32_t MAX_TRIES = 3;
-constexpr uint64_t NO_HIT = ~0ull;
-constexpr uint64_t BLOCKED = 0;
 constexpr int BOUNDS_RUN = 32;
 constexpr int STAGE = 128;
 constexpr int LINEAR_BLOCK = 256;  // `simt::Device::for_each`'s block
 
-// ---------------------------------------------------------------- geometry (geometry.rs)
-
-__host__ __device__ inline float comp(const Vec3& v, int a) { return a == 0 ? v.x : (a == 1 ? v.y : v.z); }
-__host__ __device__ inline void set_comp(Vec3& v, int a, float x) {
-    if (a == 0) v.x = x;
-    else if (a == 1) v.y = x;
-    else v.z = x;
-}
-__host__ __device__ inline Vec3 vmin(Vec3 a, Vec3 b) { return {fminf(a.x, b.x), fminf(a.y, b.y), fminf(a.z, b.z)}; }
-__host__ __device__ inline Vec3 vmax(Vec3 a, Vec3 b) { return {fmaxf(a.x, b.x), fmaxf(a.y, b.y), fmaxf(a.z, b.z)}; }
-__host__ __device__ inline Vec3 sub(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-
-__device__ inline Aabb empty_box() { return {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}}; }
-__device__ inline Aabb box_union(Aabb a, Aabb b) { return {vmin(a.lo, b.lo), vmax(a.hi, b.hi)}; }
-__device__ inline Aabb box_of(const Tri& t) {
-    Aabb b = empty_box();
-    for (int k = 0; k < 3; k++) {
-        Vec3 p = {t.v[3 * k], t.v[3 * k + 1], t.v[3 * k + 2]};
-        b.lo = vmin(b.lo, p);
-        b.hi = vmax(b.hi, p);
-    }
-    return b;
-}
-__device__ inline bool overlaps(const Aabb& a, const Aabb& b) {
-    return a.lo.x <= b.hi.x && a.lo.y <= b.hi.y && a.lo.z <= b.hi.z && a.hi.x >= b.lo.x && a.hi.y >= b.lo.y &&
-           a.hi.z >= b.lo.z;
-}
-
-/// `Aabb::intersect`: the widened slab test; a zero direction component is decided
-/// by position.
-__host__ __device__ inline bool enters(const Aabb& b, Vec3 o, Vec3 inv, float t_min, float t_max, float widen) {
-    float near_t = t_min, far_t = t_max;
-    for (int a = 0; a < 3; a++) {
-        float ia = comp(inv, a), oa = comp(o, a), lo = comp(b.lo, a), hi = comp(b.hi, a);
-        if (isinf(ia)) {
-            if (oa < lo || oa > hi) return false;
-            continue;
-        }
-        float t0 = (lo - oa) * ia;
-        float t1 = (hi - oa) * ia;
-        near_t = fmaxf(near_t, fminf(t0, t1));
-        far_t = fminf(far_t, fmaxf(t0, t1) * widen);
-    }
-    return near_t <= far_t;
-}
-
-__host__ __device__ inline Vec3 inv_dir(Vec3 d) { return {1.0f / d.x, 1.0f / d.y, 1.0f / d.z}; }
-
-__host__ __device__ inline bool finite3(Vec3 v) { return isfinite(v.x) && isfinite(v.y) && isfinite(v.z); }
-__host__ __device__ inline bool ray_valid(const Ray& r) {
-    return finite3(r.o) && finite3(r.d) && !(r.d.x == 0.0f && r.d.y == 0.0f && r.d.z == 0.0f) && !isnan(r.t_min) &&
-           !isnan(r.t_max);
-}
-
-/// `RayShear`: the permutation that makes the dominant axis z, and the shear.
-struct Shear {
-    int kx, ky, kz;
-    float sx, sy, sz;
-};
-__device__ inline Shear make_shear(Vec3 d) {
-    float ax = fabsf(d.x), ay = fabsf(d.y), az = fabsf(d.z);
-    int kz = (ax >= ay && ax >= az) ? 0 : (ay >= az ? 1 : 2);
-    int kx = (kz + 1) % 3, ky = (kx + 1) % 3;
-    if (comp(d, kz) < 0.0f) {
-        int s = kx;
-        kx = ky;
-        ky = s;
-    }
-    float dz = comp(d, kz);
-    return {kx, ky, kz, comp(d, kx) / dz, comp(d, ky) / dz, 1.0f / dz};
-}
-
-/// `intersect_triangle`: watertight and two-sided; true with `t` for t_min < t < t_max.
-__device__ inline bool hit_triangle(Vec3 o, const Shear& s, const float* v, float t_min, float t_max, float& t_out) {
-    Vec3 a = sub({v[0], v[1], v[2]}, o), b = sub({v[3], v[4], v[5]}, o), c = sub({v[6], v[7], v[8]}, o);
-    float az0 = comp(a, s.kz), bz0 = comp(b, s.kz), cz0 = comp(c, s.kz);
-    float ax = comp(a, s.kx) - s.sx * az0, ay = comp(a, s.ky) - s.sy * az0;
-    float bx = comp(b, s.kx) - s.sx * bz0, by = comp(b, s.ky) - s.sy * bz0;
-    float cx = comp(c, s.kx) - s.sx * cz0, cy = comp(c, s.ky) - s.sy * cz0;
-    float e0 = cx * by - cy * bx;
-    float e1 = ax * cy - ay * cx;
-    float e2 = bx * ay - by * ax;
-    if (e0 == 0.0f || e1 == 0.0f || e2 == 0.0f) {
-        double dax = ax, day = ay, dbx = bx, dby = by, dcx = cx, dcy = cy;
-        e0 = (float)(dcx * dby - dcy * dbx);
-        e1 = (float)(dax * dcy - day * dcx);
-        e2 = (float)(dbx * day - dby * dax);
-    }
-    if ((e0 < 0.0f || e1 < 0.0f || e2 < 0.0f) && (e0 > 0.0f || e1 > 0.0f || e2 > 0.0f)) return false;
-    float det = e0 + e1 + e2;
-    if (det == 0.0f || !isfinite(det)) return false;
-    float t_scaled = e0 * (s.sz * az0) + e1 * (s.sz * bz0) + e2 * (s.sz * cz0);
-    float inv_det = 1.0f / det;
-    float t = t_scaled * inv_det;
-    if (!(t > t_min && t < t_max)) return false;
-    t_out = t;
-    return true;
-}
-
-// The closest-hit key of src/geometry/hit_key.rs: distance bits above the triangle id.
-__device__ inline uint64_t pack_hit(float t, uint32_t prim) { return (uint64_t)__float_as_uint(t) << 32 | prim; }
-__device__ inline float t_far(const Ray& r, uint64_t key) {
-    return key == NO_HIT ? r.t_max : fminf(__uint_as_float((uint32_t)(key >> 32)), r.t_max);
-}
 __device__ inline uint32_t ordered(float x) {
     uint32_t b = __float_as_uint(x);
     return (b >> 31) ? ~b : (b | 0x80000000u);
@@ -296,7 +179,7 @@ __global__ void filter_rays(const uint32_t* ray_ids, const uint32_t* ray_node, c
     } else {
         Ray r = rays[id];
         Vec3 inv = inv_dir(r.d);
-        float far_t = t_far(r, key);
+        float far_t = cull_distance(t_far(r, key), widen);
         bool l = enters(children[2 * (size_t)node], r.o, inv, r.t_min, far_t, widen);
         bool rt = enters(children[2 * (size_t)node + 1], r.o, inv, r.t_min, far_t, widen);
         code = code_of(l, rt);
@@ -538,39 +421,6 @@ __global__ void brute_force(BruteForceArgs a) {
 // ---------------------------------------------------------------- host pipeline (mod.rs, level.rs)
 
 namespace pdacrt {
-
-using wr::CudaError;
-
-static void check(cudaError_t e, const char* what) {
-    if (e != cudaSuccess) throw CudaError{std::string(what) + ": " + cudaGetErrorString(e)};
-}
-
-/// A device array that keeps its allocation when it shrinks (`DeviceBuffer::resize`).
-/// Growing does not keep the contents: every caller overwrites what it resized.
-template <class T>
-struct Buf {
-    T* p = nullptr;
-    size_t n = 0, cap = 0;
-    size_t* live = nullptr;
-    void resize(size_t m) {
-        if (m > cap) {
-            if (p) check(cudaFree(p), "cudaFree");
-            size_t c = m + m / 4 + 16;
-            check(cudaMalloc(&p, c * sizeof(T)), "cudaMalloc");
-            if (live) *live += (c - cap) * sizeof(T);
-            cap = c;
-        }
-        n = m;
-    }
-    ~Buf() {
-        if (p) cudaFree(p);
-    }
-    void swap(Buf& o) {
-        std::swap(p, o.p);
-        std::swap(n, o.n);
-        std::swap(cap, o.cap);
-    }
-};
 
 struct LevelBuffers {
     Buf<NodeData> nodes;

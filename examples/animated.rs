@@ -20,13 +20,12 @@
 
 use clap::Parser;
 use std::time::Instant;
-use warpray::cast::batches::primary_rays;
+use warpray::cast::batches::{primary_rays, waving_grid, waving_grid_camera, waving_grid_shadow_rays};
 use warpray::cast::{BvhCaster, Dacrt, RayCaster, Traversal};
 use warpray::geometry::{Hit, Ray, offset_ray_origin};
 use warpray::glam::Vec3;
 use warpray::machine::median;
 use warpray::pdacrt::Pdacrt;
-use warpray::scene::Camera;
 
 #[derive(Parser)]
 struct Args {
@@ -49,43 +48,6 @@ struct Args {
     /// One JSON object per (caster, threads, frame) instead of the table.
     #[arg(long)]
     json: bool,
-}
-
-/// The grid at time `time`: `n × n` quads over [-1, 1]², heights from two travelling
-/// waves.
-fn grid(n: usize, time: f32) -> Vec<[Vec3; 3]> {
-    let p = |i: usize, j: usize| {
-        let (x, y) = (i as f32 / n as f32 * 2.0 - 1.0, j as f32 / n as f32 * 2.0 - 1.0);
-        let h = 0.08 * (7.0 * x + 2.0 * time).sin() * (5.0 * y - 1.3 * time).cos()
-            + 0.03 * (23.0 * (x + y) + 5.0 * time).sin();
-        Vec3::new(x, h, y)
-    };
-    let mut tris = Vec::with_capacity(2 * n * n);
-    for j in 0..n {
-        for i in 0..n {
-            let (a, b, c, d) = (p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1));
-            tris.push([a, b, c]);
-            tris.push([a, c, d]);
-        }
-    }
-    tris
-}
-
-/// Shadow rays to a light above the grid from every primary hit.
-fn shadow_rays(tris: &[[Vec3; 3]], primary: &[Ray], hits: &[Hit]) -> Vec<Ray> {
-    let light = Vec3::new(0.3, 2.0, -0.4);
-    primary
-        .iter()
-        .zip(hits)
-        .filter(|(_, h)| h.is_hit())
-        .map(|(r, h)| {
-            let [a, b, c] = tris[h.prim as usize];
-            let n = (b - a).cross(c - a).normalize_or_zero();
-            let n = if n.dot(r.dir) > 0.0 { -n } else { n };
-            let p = offset_ray_origin(r.at(h.t), n);
-            Ray::segment(p, light - p, 1.0)
-        })
-        .collect()
 }
 
 /// One cosine-weighted diffuse bounce from every primary hit (seeded by pixel).
@@ -189,15 +151,15 @@ fn run(a: Args) -> Result<(), String> {
     }
     let diffuse = a.secondary == "diffuse";
     let n = ((a.triangles / 2) as f64).sqrt().round().max(1.0) as usize;
-    let camera = Camera::look_at(Vec3::new(0.0, 1.3, -2.2), Vec3::new(0.0, -0.1, 0.0), Vec3::Y, 45.0);
+    let camera = waving_grid_camera();
     let primary = primary_rays(&camera, a.size, a.size);
     // The frames' geometry and secondary rays (found with the BVH, outside the timings).
     let secondary = |tris: &[[Vec3; 3]], hits: &[Hit]| {
-        if diffuse { diffuse_rays(tris, &primary, hits) } else { shadow_rays(tris, &primary, hits) }
+        if diffuse { diffuse_rays(tris, &primary, hits) } else { waving_grid_shadow_rays(tris, &primary, hits) }
     };
     let frames: Vec<(Vec<[Vec3; 3]>, Vec<Ray>)> = (0..a.frames)
         .map(|f| {
-            let tris = grid(n, f as f32 * 0.25);
+            let tris = waving_grid(n, f as f32 * 0.25);
             let mut hits = vec![Hit::MISS; primary.len()];
             BvhCaster::from_triangles(tris.clone()).closest(&primary, &mut hits);
             let rays = secondary(&tris, &hits);
@@ -217,7 +179,7 @@ fn run(a: Args) -> Result<(), String> {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().map_err(|e| e.to_string())?;
         let mut live: Vec<Live> = a.casters.iter().map(|c| Live::new(c)).collect();
         // A refitted structure is built once, from the frame before the first.
-        pool.install(|| live.iter_mut().try_for_each(|l| l.frame(grid(n, -0.25), |_| ()).map(|_| ())))?;
+        pool.install(|| live.iter_mut().try_for_each(|l| l.frame(waving_grid(n, -0.25), |_| ()).map(|_| ())))?;
         for (f, (tris, rays)) in frames.iter().enumerate() {
             for (c, l) in a.casters.iter().zip(&mut live) {
                 let (setup, (p, s)) = pool.install(|| {

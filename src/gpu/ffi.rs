@@ -1,5 +1,5 @@
-//! The C interface of `libwarpray_cuda` (`cuda/pdacrt_api.h`, and `cuda/cis_api.h` for
-//! CIS-LBDPT's twins), opened with libloading.
+//! The C interface of `libwarpray_cuda` (`cuda/pdacrt_api.h`, `cuda/bvh_api.h` for the
+//! GPU BVH baseline, and `cuda/cis_api.h` for CIS-LBDPT's twins), opened with libloading.
 
 use crate::error::{Error, Result};
 use crate::geometry::{Aabb, Ray};
@@ -17,7 +17,7 @@ pub fn library_path() -> PathBuf {
 }
 
 /// `WR_API_VERSION` of the header this file mirrors.
-const API_VERSION: c_int = 2;
+const API_VERSION: c_int = 3;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default)]
@@ -43,6 +43,29 @@ pub(crate) struct WrStats {
     pub peak_bytes: u64,
 }
 
+/// What the GPU BVH's most recent build or trace did (`GpuBvhStats` of
+/// `cuda/bvh_api.h`); a call fills the fields it names.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GpuBvhStats {
+    /// Build: host-to-device copy of the triangles (host wall time), milliseconds.
+    pub upload_ms: f64,
+    /// Build: GPU time of the build with the triangles resident (CUDA events).
+    pub build_ms: f64,
+    /// Trace: GPU time of the traversal with the rays resident (CUDA events).
+    pub trace_ms: f64,
+    /// Host wall time of the call, transfers included.
+    pub call_ms: f64,
+    /// Trace: ray–triangle tests.
+    pub tests: u64,
+    /// Trace: inner nodes visited (each one fetch of 64 bytes and two box tests).
+    pub visits: u64,
+    /// Build: inner nodes (triangles − 1; one triangle per leaf).
+    pub nodes: u64,
+    /// Build: device bytes of the structure (nodes, reordered triangles, their ids).
+    pub bytes: u64,
+}
+
 type VersionFn = unsafe extern "C" fn() -> c_int;
 type DeviceNameFn = unsafe extern "C" fn(*mut c_char, u32) -> c_int;
 type CreateFn = unsafe extern "C" fn(*const f32, u64, *const f32, *mut *mut c_void) -> c_int;
@@ -50,6 +73,10 @@ type TraceFn =
     unsafe extern "C" fn(*mut c_void, *const c_void, u64, c_int, *const WrParams, *mut u64, *mut WrStats) -> c_int;
 type DestroyFn = unsafe extern "C" fn(*mut c_void);
 type ErrorFn = unsafe extern "C" fn() -> *const c_char;
+type BvhCreateFn = unsafe extern "C" fn(*mut *mut c_void) -> c_int;
+type BvhBuildFn = unsafe extern "C" fn(*mut c_void, *const f32, u64, *mut GpuBvhStats) -> c_int;
+type BvhTraceFn =
+    unsafe extern "C" fn(*mut c_void, *const c_void, u64, c_int, f32, *mut u64, *mut GpuBvhStats) -> c_int;
 type CisCreateFn = unsafe extern "C" fn(*const c_void, *mut *mut c_void) -> c_int;
 type CisShadeFn = unsafe extern "C" fn(
     *mut c_void,
@@ -66,6 +93,15 @@ type CisShadeFn = unsafe extern "C" fn(
 ) -> c_int;
 type CisCompactFn =
     unsafe extern "C" fn(*mut c_void, u64, *const u32, u64, *const c_void, *mut u32, *mut u64, *mut f64) -> c_int;
+
+/// The GPU BVH's entry points (`cuda/bvh_api.h`).
+struct BvhFns {
+    create: BvhCreateFn,
+    build: BvhBuildFn,
+    trace: BvhTraceFn,
+    destroy: DestroyFn,
+    last_error: ErrorFn,
+}
 
 /// CIS-LBDPT's entry points (`cuda/cis_api.h`).
 pub(crate) struct CisFns {
@@ -84,6 +120,7 @@ pub(crate) struct Library {
     trace: TraceFn,
     destroy: DestroyFn,
     last_error: ErrorFn,
+    bvh: BvhFns,
     pub(crate) cis: CisFns,
     // Last: the entry points above must not outlive it.
     _lib: libloading::Library,
@@ -137,6 +174,13 @@ impl Library {
             trace: sym!(b"wr_pdacrt_trace\0", TraceFn),
             destroy: sym!(b"wr_pdacrt_destroy\0", DestroyFn),
             last_error: sym!(b"wr_last_error\0", ErrorFn),
+            bvh: BvhFns {
+                create: sym!(b"wr_bvh_create\0", BvhCreateFn),
+                build: sym!(b"wr_bvh_build\0", BvhBuildFn),
+                trace: sym!(b"wr_bvh_trace\0", BvhTraceFn),
+                destroy: sym!(b"wr_bvh_destroy\0", DestroyFn),
+                last_error: sym!(b"wr_bvh_last_error\0", ErrorFn),
+            },
             cis: CisFns {
                 create: sym!(b"wr_cis_create\0", CisCreateFn),
                 shade: sym!(b"wr_cis_shade\0", CisShadeFn),
@@ -202,8 +246,52 @@ impl Library {
         }
         Ok(stats)
     }
+
+    /// An empty GPU BVH.
+    pub fn bvh_create(&self) -> Result<Handle> {
+        let mut ptr = std::ptr::null_mut();
+        // SAFETY: writes one pointer.
+        if unsafe { (self.bvh.create)(&mut ptr) } != 0 {
+            return Err(self.error_from(self.bvh.last_error, "creating the GPU BVH"));
+        }
+        Ok(Handle { ptr, destroy: self.bvh.destroy })
+    }
+
+    /// Uploads `tris` and rebuilds the BVH over them.
+    pub fn bvh_build(&self, h: &Handle, tris: &[[f32; 9]]) -> Result<GpuBvhStats> {
+        let mut stats = GpuBvhStats::default();
+        // SAFETY: `tris` holds `len` records of 9 floats; the handle came from `bvh_create`.
+        let rc = unsafe { (self.bvh.build)(h.ptr, tris.as_ptr().cast(), tris.len() as u64, &mut stats) };
+        if rc != 0 {
+            return Err(self.error_from(self.bvh.last_error, "building the GPU BVH"));
+        }
+        Ok(stats)
+    }
+
+    /// Traces `rays` through the BVH: one key per ray, as [`Library::trace`].
+    pub fn bvh_trace(&self, h: &Handle, rays: &[Ray], any_hit: bool, keys: &mut [u64]) -> Result<GpuBvhStats> {
+        assert_eq!(rays.len(), keys.len());
+        let mut stats = GpuBvhStats::default();
+        // SAFETY: as `trace`; the handle came from `bvh_create`.
+        let rc = unsafe {
+            (self.bvh.trace)(
+                h.ptr,
+                rays.as_ptr().cast(),
+                rays.len() as u64,
+                any_hit as c_int,
+                crate::geometry::SLAB_WIDEN,
+                keys.as_mut_ptr(),
+                &mut stats,
+            )
+        };
+        if rc != 0 {
+            return Err(self.error_from(self.bvh.last_error, "tracing the GPU BVH"));
+        }
+        Ok(stats)
+    }
 }
 
 const _: () = assert!(std::mem::size_of::<Ray>() == 32);
 const _: () = assert!(std::mem::size_of::<WrParams>() == 40);
 const _: () = assert!(std::mem::size_of::<WrStats>() == 40);
+const _: () = assert!(std::mem::size_of::<GpuBvhStats>() == 64);

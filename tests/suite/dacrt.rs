@@ -349,3 +349,49 @@ fn dacrt_reports_its_stages() {
     assert!(at("groups_longest") <= at("groups_busy") && at("groups_busy") > 0.0, "{phases:?}");
     assert!(BruteForce::new(&scene).phase_seconds().is_empty());
 }
+
+#[test]
+fn pdacrt_keeps_the_smallest_key_where_triangles_tie() {
+    // Rays aimed exactly at corners and edge midpoints, where several triangles are hit
+    // at one distance and the smallest id must win (brute force's answer), bit for bit.
+    // A box culled at the best distance itself, unwidened, loses some of these ties: a
+    // ray entering a box exactly at its best hit computes an entry a rounding above it
+    // (the GPU BVH twin and PDACRT's `filter_rays` both did so on the conference room).
+    let mut r = rng(29);
+    let grid = warpray::cast::batches::waving_grid(24, 0.3);
+    let tilted: Vec<[Vec3; 3]> =
+        quad_grid(12).iter().map(|t| t.map(|p| Vec3::new(p.x, p.y + 0.37 * p.x, p.z - 0.21 * p.y))).collect();
+    for (tris, what) in [(cornell_box().triangle_vertices(), "cornell"), (grid, "waving grid"), (tilted, "tilted grid")]
+    {
+        let scene = scene_from_triangles(&tris);
+        let b = scene.bounds();
+        let (lo, hi) = (b.min - 0.5 * b.extent(), b.max + 0.5 * b.extent());
+        let rays: Vec<Ray> = tris
+            .iter()
+            .flat_map(|&[a, b, c]| [a, b, c, (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5])
+            .map(|target| {
+                let o = random_in_box(&mut r, lo, hi);
+                Ray::new(o, target - o)
+            })
+            .collect();
+        let mut want = vec![Hit::MISS; rays.len()];
+        BruteForce::new(&scene).closest(&rays, &mut want);
+        let tiny = PdacrtParams { leaf_rays: 4, leaf_triangles: 2, ..PdacrtParams::default() };
+        for (caster, p) in [("pdacrt", PdacrtParams::default()), ("pdacrt, tiny leaves", tiny)] {
+            let mut got = vec![Hit::MISS; rays.len()];
+            Pdacrt::from_triangles(&tris, p).closest(&rays, &mut got);
+            let lost: Vec<usize> = (0..rays.len())
+                .filter(|&i| (got[i].t.to_bits(), got[i].prim) != (want[i].t.to_bits(), want[i].prim))
+                .collect();
+            assert!(
+                lost.is_empty(),
+                "{what}, {caster}: {} of {} rays differ from brute force, first {:?}: {:?} vs {:?}",
+                lost.len(),
+                rays.len(),
+                rays[lost[0]],
+                got[lost[0]],
+                want[lost[0]]
+            );
+        }
+    }
+}
