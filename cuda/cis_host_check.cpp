@@ -61,6 +61,7 @@ int wr_device_name(char* buf, uint32_t len) {
 const char* wr_last_error(void) { return "PDACRT is not part of the host check"; }
 int wr_pdacrt_create(const float*, uint64_t, const float*, void**) { return 1; }
 int wr_pdacrt_trace(void*, const void*, uint64_t, int, const WrParams*, uint64_t*, WrStats*) { return 1; }
+int wr_pdacrt_set_triangles(void*, const float*, uint64_t, const float*) { return 1; }
 void wr_pdacrt_destroy(void*) {}
 const char* wr_bvh_last_error(void) { return "the GPU BVH is not part of the host check"; }
 int wr_bvh_create(void**) { return 1; }

@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <cstring>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <string>
 
@@ -460,7 +461,13 @@ struct Tracer {
     Buf<int> selected;
     Buf<char> scratch;
     WrParams params;
-    uint32_t launches = 0, levels = 0;
+    uint32_t launches = 0, levels = 0, read_backs = 0;
+    /// Pinned host memory for `read_together`.
+    static constexpr size_t STAGING_BYTES = 64;
+    char* staging = nullptr;
+    ~Tracer() {
+        if (staging) cudaFreeHost(staging);
+    }
 
     template <class T>
     void track(Buf<T>& b) {
@@ -501,7 +508,25 @@ struct Tracer {
     T read(const Buf<T>& b, size_t i) {
         T v;
         check(cudaMemcpy(&v, b.p + i, sizeof(T), cudaMemcpyDeviceToHost), "read back");
+        read_backs++;
         return v;
+    }
+
+    /// Reads element `i` of each buffer back with one synchronisation: asynchronous
+    /// copies into pinned memory, then one wait (a level's four scan totals cost one
+    /// round trip, not four).
+    template <class T, size_t N>
+    std::array<T, N> read_together(const std::array<const Buf<T>*, N>& bufs, size_t i) {
+        static_assert(N * sizeof(T) <= STAGING_BYTES, "staging holds the values");
+        if (!staging) check(cudaMallocHost(&staging, STAGING_BYTES), "cudaMallocHost");
+        for (size_t k = 0; k < N; k++)
+            check(cudaMemcpyAsync(staging + k * sizeof(T), bufs[k]->p + i, sizeof(T), cudaMemcpyDeviceToHost),
+                  "read back");
+        check(cudaStreamSynchronize(0), "read back");
+        read_backs++;
+        std::array<T, N> out;
+        memcpy(out.data(), staging, N * sizeof(T));
+        return out;
     }
 
     void trace_chunk(size_t n, int any_hit) {
@@ -593,8 +618,9 @@ struct Tracer {
         launched("pdacrt::classify_children");
         exclusive_scan(inner.p, inner_scan.p, Add3(), Triple{{0, 0, 0}}, n_children);
         exclusive_scan(terminal.p, terminal_scan.p, Add3(), Triple{{0, 0, 0}}, n_children);
-        Triple nx = Add3()(read(inner_scan, n_children - 1), read(inner, n_children - 1));
-        Triple tm = Add3()(read(terminal_scan, n_children - 1), read(terminal, n_children - 1));
+        auto last = read_together<Triple, 4>({&inner_scan, &inner, &terminal_scan, &terminal}, n_children - 1);
+        Triple nx = Add3()(last[0], last[1]);
+        Triple tm = Add3()(last[2], last[3]);
         next.nodes.resize(nx.v[0]);
         term_nodes.resize(tm.v[0]);
         emit_children<<<grid_of(n_children), LINEAR_BLOCK>>>(cur.nodes.p, child_boxes.p, inner_scan.p, terminal_scan.p,
@@ -624,7 +650,8 @@ struct Tracer {
         count_chunks<<<grid_of(k), LINEAR_BLOCK>>>(term_nodes.p, block, chunks.p, k);
         launched("pdacrt::count_chunks");
         exclusive_scan(chunks.p, chunk_start.p, AddU32(), (uint32_t)0, k);
-        uint32_t grid = read(chunk_start, k - 1) + read(chunks, k - 1);
+        auto end = read_together<uint32_t, 2>({&chunk_start, &chunks}, k - 1);
+        uint32_t grid = end[0] + end[1];
         if (grid == 0) return;
         BruteForceArgs a = {term_nodes.p, chunk_start.p, (uint32_t)k, term_ray_ids.p, term_tri_ids.p,
                             rays.p,       tris.p,        keys.p,      tests.p,       any_hit};
@@ -658,21 +685,31 @@ extern "C" int wr_device_name(char* buf, uint32_t len) {
     });
 }
 
+/// Uploads the triangles and their box into `t`; on failure `t` holds none.
+static void upload_triangles(Tracer& t, const float* tris, uint64_t n_tris, const float* scene_box) {
+    t.tris.resize(n_tris);
+    cudaError_t e = n_tris ? cudaMemcpy(t.tris.p, tris, n_tris * sizeof(Tri), cudaMemcpyHostToDevice) : cudaSuccess;
+    if (e != cudaSuccess) t.tris.n = 0;
+    check(e, "upload triangles");
+    t.scene_box = {{scene_box[0], scene_box[1], scene_box[2]}, {scene_box[3], scene_box[4], scene_box[5]}};
+}
+
 extern "C" int wr_pdacrt_create(const float* tris, uint64_t n_tris, const float* scene_box, void** handle) {
     return guarded([&] {
         Tracer* t = new Tracer();
         try {
             t->track_all();
-            t->tris.resize(n_tris);
-            if (n_tris)
-                check(cudaMemcpy(t->tris.p, tris, n_tris * sizeof(Tri), cudaMemcpyHostToDevice), "upload triangles");
-            t->scene_box = {{scene_box[0], scene_box[1], scene_box[2]}, {scene_box[3], scene_box[4], scene_box[5]}};
+            upload_triangles(*t, tris, n_tris, scene_box);
         } catch (...) {
             delete t;
             throw;
         }
         *handle = t;
     });
+}
+
+extern "C" int wr_pdacrt_set_triangles(void* handle, const float* tris, uint64_t n_tris, const float* scene_box) {
+    return guarded([&] { upload_triangles(*static_cast<Tracer*>(handle), tris, n_tris, scene_box); });
 }
 
 extern "C" void wr_pdacrt_destroy(void* handle) { delete static_cast<Tracer*>(handle); }
@@ -685,7 +722,7 @@ extern "C" int wr_pdacrt_trace(void* handle, const void* rays, uint64_t n_rays, 
         t.params = *params;
         if (t.params.brute_force_block == 0 || t.params.brute_force_block > 1024)
             throw CudaError{"brute_force_block must be 1..=1024"};
-        t.launches = t.levels = 0;
+        t.launches = t.levels = t.read_backs = 0;
         size_t resident = t.live;
         size_t peak = 0;
         t.tests.resize(1);
@@ -716,6 +753,7 @@ extern "C" int wr_pdacrt_trace(void* handle, const void* rays, uint64_t n_rays, 
         cudaEventDestroy(start);
         cudaEventDestroy(stop);
         stats->trace_ms = trace_ms;
+        stats->read_backs = t.read_backs;  // the trace's own, before the counter's below
         stats->tests = t.read(t.tests, 0);
         stats->levels = t.levels;
         stats->launches = t.launches;

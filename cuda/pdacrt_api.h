@@ -10,7 +10,7 @@ extern "C" {
 #endif
 
 /* Bumped whenever a struct or signature below changes. */
-#define WR_API_VERSION 3
+#define WR_API_VERSION 4
 
 /* PdacrtParams, plus what the kernels need from the Rust side. */
 typedef struct WrParams {
@@ -38,6 +38,10 @@ typedef struct WrStats {
     uint32_t launches;
     /* Largest device allocation of the call's buffers (bytes), triangles excluded. */
     uint64_t peak_bytes;
+    /* Host synchronisations that read totals back (per level: the scans' totals, then
+     * the brute-force grid; per pass: the rays that enter the scene's box). */
+    uint32_t read_backs;
+    uint32_t reserved;
 } WrStats;
 
 int wr_api_version(void);
@@ -49,6 +53,8 @@ int wr_pdacrt_create(const float* tris, uint64_t n_tris, const float* scene_box,
  * (distance bits << 32 | triangle id), UINT64_MAX for a miss, or for any_hit 0 when blocked. */
 int wr_pdacrt_trace(void* handle, const void* rays, uint64_t n_rays, int any_hit, const WrParams* params,
                     uint64_t* keys, WrStats* stats);
+/* Replaces the handle's triangles (a new frame), keeping its working buffers. */
+int wr_pdacrt_set_triangles(void* handle, const float* tris, uint64_t n_tris, const float* scene_box);
 void wr_pdacrt_destroy(void* handle);
 const char* wr_last_error(void);
 

@@ -70,9 +70,10 @@ struct Figures {
     call_ms: f64,
     tests_per_ray: f64,
     visits_per_ray: f64,
-    /// PDACRT: levels and launches (kernels and CUB calls) of the trace.
+    /// PDACRT: levels, launches (kernels and CUB calls) and host read-backs of the trace.
     levels: f64,
     launches: f64,
+    read_backs: f64,
 }
 
 struct Row {
@@ -126,6 +127,7 @@ fn medians(samples: &[Figures]) -> Figures {
         visits_per_ray: m(|s| s.visits_per_ray),
         levels: m(|s| s.levels),
         launches: m(|s| s.launches),
+        read_backs: m(|s| s.read_backs),
     }
 }
 
@@ -139,6 +141,7 @@ fn trace_pdacrt(p: &GpuPdacrt, rays: &[Ray], any_hit: bool) -> Result<Figures, S
         tests_per_ray: s.tests as f64 / n,
         levels: s.levels as f64,
         launches: s.launches as f64,
+        read_backs: s.read_backs as f64,
         ..Default::default()
     })
 }
@@ -256,7 +259,7 @@ fn run(a: Args) -> Result<(), String> {
         for r in &rows {
             let fig = |f: &Figures| {
                 format!(
-                    "{{\"upload_ms\":{:.4},\"build_ms\":{:.4},\"trace_ms\":{:.4},\"call_ms\":{:.4},\"tests_per_ray\":{:.3},\"visits_per_ray\":{:.3},\"levels\":{},\"launches\":{}}}",
+                    "{{\"upload_ms\":{:.4},\"build_ms\":{:.4},\"trace_ms\":{:.4},\"call_ms\":{:.4},\"tests_per_ray\":{:.3},\"visits_per_ray\":{:.3},\"levels\":{},\"launches\":{},\"read_backs\":{}}}",
                     f.upload_ms,
                     f.build_ms,
                     f.trace_ms,
@@ -264,7 +267,8 @@ fn run(a: Args) -> Result<(), String> {
                     f.tests_per_ray,
                     f.visits_per_ray,
                     f.levels,
-                    f.launches
+                    f.launches,
+                    f.read_backs
                 )
             };
             println!(
@@ -287,14 +291,14 @@ fn run(a: Args) -> Result<(), String> {
     );
     println!("GPU: {device}. Host: {machine}.\n");
     println!(
-        "| scene | batch | rays | PDACRT trace ms | BVH build ms | BVH trace ms | BVH build + trace | PDACRT ÷ BVH b+t | tests/ray PDACRT | tests/ray BVH | nodes/ray BVH | PDACRT levels / launches | upload ms PDACRT / BVH | with transfers PDACRT / BVH |"
+        "| scene | batch | rays | PDACRT trace ms | BVH build ms | BVH trace ms | BVH build + trace | PDACRT ÷ BVH b+t | tests/ray PDACRT | tests/ray BVH | nodes/ray BVH | PDACRT levels / launches / read-backs | upload ms PDACRT / BVH | with transfers PDACRT / BVH |"
     );
     println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for r in &rows {
         let (p, b) = (&r.pdacrt, &r.bvh);
         let bt = b.build_ms + b.trace_ms;
         println!(
-            "| {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2}× | {:.1} | {:.1} | {:.1} | {} / {} | {:.1} / {:.1} | {:.1} / {:.1} |",
+            "| {} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2}× | {:.1} | {:.1} | {:.1} | {} / {} / {} | {:.1} / {:.1} | {:.1} / {:.1} |",
             r.scene,
             r.batch,
             r.rays,
@@ -308,6 +312,7 @@ fn run(a: Args) -> Result<(), String> {
             b.visits_per_ray,
             p.levels,
             p.launches,
+            p.read_backs,
             p.upload_ms,
             b.upload_ms,
             p.call_ms,

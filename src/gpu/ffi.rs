@@ -17,7 +17,7 @@ pub fn library_path() -> PathBuf {
 }
 
 /// `WR_API_VERSION` of the header this file mirrors.
-const API_VERSION: c_int = 3;
+const API_VERSION: c_int = 4;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default)]
@@ -41,6 +41,8 @@ pub(crate) struct WrStats {
     pub levels: u32,
     pub launches: u32,
     pub peak_bytes: u64,
+    pub read_backs: u32,
+    pub reserved: u32,
 }
 
 /// What the GPU BVH's most recent build or trace did (`GpuBvhStats` of
@@ -69,6 +71,7 @@ pub struct GpuBvhStats {
 type VersionFn = unsafe extern "C" fn() -> c_int;
 type DeviceNameFn = unsafe extern "C" fn(*mut c_char, u32) -> c_int;
 type CreateFn = unsafe extern "C" fn(*const f32, u64, *const f32, *mut *mut c_void) -> c_int;
+type SetTrianglesFn = unsafe extern "C" fn(*mut c_void, *const f32, u64, *const f32) -> c_int;
 type TraceFn =
     unsafe extern "C" fn(*mut c_void, *const c_void, u64, c_int, *const WrParams, *mut u64, *mut WrStats) -> c_int;
 type DestroyFn = unsafe extern "C" fn(*mut c_void);
@@ -117,6 +120,7 @@ pub(crate) struct Library {
     path: PathBuf,
     device_name: DeviceNameFn,
     create: CreateFn,
+    set_triangles: SetTrianglesFn,
     trace: TraceFn,
     destroy: DestroyFn,
     last_error: ErrorFn,
@@ -171,6 +175,7 @@ impl Library {
         Ok(Library {
             device_name: sym!(b"wr_device_name\0", DeviceNameFn),
             create: sym!(b"wr_pdacrt_create\0", CreateFn),
+            set_triangles: sym!(b"wr_pdacrt_set_triangles\0", SetTrianglesFn),
             trace: sym!(b"wr_pdacrt_trace\0", TraceFn),
             destroy: sym!(b"wr_pdacrt_destroy\0", DestroyFn),
             last_error: sym!(b"wr_last_error\0", ErrorFn),
@@ -223,6 +228,17 @@ impl Library {
             return Err(self.error("uploading the triangles"));
         }
         Ok(Handle { ptr, destroy: self.destroy })
+    }
+
+    /// Replaces the triangles of `h`, keeping its working buffers.
+    pub fn set_triangles(&self, h: &Handle, tris: &[[f32; 9]], scene_box: Aabb) -> Result<()> {
+        let b = [scene_box.min.x, scene_box.min.y, scene_box.min.z, scene_box.max.x, scene_box.max.y, scene_box.max.z];
+        // SAFETY: as `create`; the handle came from `create`.
+        let rc = unsafe { (self.set_triangles)(h.ptr, tris.as_ptr().cast(), tris.len() as u64, b.as_ptr()) };
+        if rc != 0 {
+            return Err(self.error("uploading the triangles"));
+        }
+        Ok(())
     }
 
     pub fn trace(&self, h: &Handle, rays: &[Ray], any_hit: bool, p: &WrParams, keys: &mut [u64]) -> Result<WrStats> {
@@ -293,5 +309,5 @@ impl Library {
 
 const _: () = assert!(std::mem::size_of::<Ray>() == 32);
 const _: () = assert!(std::mem::size_of::<WrParams>() == 40);
-const _: () = assert!(std::mem::size_of::<WrStats>() == 40);
+const _: () = assert!(std::mem::size_of::<WrStats>() == 48);
 const _: () = assert!(std::mem::size_of::<GpuBvhStats>() == 64);

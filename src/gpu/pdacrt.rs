@@ -26,6 +26,8 @@ pub struct GpuStats {
     pub launches: u32,
     /// Device bytes of the working buffers (triangles excluded).
     pub working_bytes: u64,
+    /// Host synchronisations that read totals back (two per level, one per pass).
+    pub read_backs: u32,
 }
 
 impl From<WrStats> for GpuStats {
@@ -37,6 +39,7 @@ impl From<WrStats> for GpuStats {
             levels: s.levels,
             launches: s.launches,
             working_bytes: s.peak_bytes,
+            read_backs: s.read_backs,
         }
     }
 }
@@ -77,14 +80,17 @@ impl GpuPdacrt {
     }
 
     /// Replaces the triangles (a new frame of changing geometry): uploads them in place
-    /// of the old ones. PDACRT keeps no structure, so this is all a frame needs before
-    /// tracing. Returns the host wall time of the upload, milliseconds.
+    /// of the old ones, keeping the working buffers. PDACRT keeps no structure, so this
+    /// is all a frame needs before tracing. Returns the host wall time of the copy to
+    /// the device (as [`super::GpuBvhStats::upload_ms`]), milliseconds. On an error no
+    /// triangle is left (every ray misses).
     pub fn set_triangles(&mut self, tris: &[[glam::Vec3; 3]]) -> Result<f64> {
-        let start = std::time::Instant::now();
         let (flat, scene_box) = crate::cast::pdacrt::flatten(tris);
-        let handle = self.lib.create(&flat, scene_box)?;
-        *self.handle.get_mut().unwrap_or_else(|e| e.into_inner()) = handle;
-        self.tris = flat;
+        let start = std::time::Instant::now();
+        let handle = self.handle.get_mut().unwrap_or_else(|e| e.into_inner());
+        let done = self.lib.set_triangles(handle, &flat, scene_box);
+        self.tris = if done.is_ok() { flat } else { Vec::new() };
+        done?;
         Ok(start.elapsed().as_secs_f64() * 1e3)
     }
 

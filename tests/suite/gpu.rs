@@ -174,19 +174,22 @@ fn gpu_bvh_hits_equal_pdacrts_and_brute_force_on_the_cornell_box() {
 
 #[test]
 #[ignore = "needs an NVIDIA GPU and target/cuda/libwarpray_cuda.so (sh cuda/build.sh); run with --include-ignored"]
-fn gpu_bvh_rebuilds_each_frame_of_the_waving_grid_and_handles_tiny_scenes() {
+fn gpu_casters_take_each_frame_of_the_waving_grid_and_tiny_scenes() {
     use warpray::cast::batches::{primary_rays, waving_grid, waving_grid_camera, waving_grid_shadow_rays};
     let mut g = gpu_bvh(&waving_grid(48, -0.25));
+    let mut p = GpuPdacrt::new(&waving_grid(48, -0.25), PdacrtParams::default()).unwrap();
     let primary = primary_rays(&waving_grid_camera(), 96, 96);
     for frame in 0..3 {
         let tris = waving_grid(48, frame as f32 * 0.25);
         g.rebuild(&tris).unwrap();
+        p.set_triangles(&tris).unwrap();
         let mut hits = vec![Hit::MISS; primary.len()];
         BruteForce::from_triangles(tris.clone().into()).closest(&primary, &mut hits);
         assert!(hits.iter().filter(|h| h.is_hit()).count() > primary.len() / 2, "the grid fills the view");
         let mut rays = primary.clone();
         rays.extend(waving_grid_shadow_rays(&tris, &primary, &hits));
         same_hits_as_cpu(&g, &tris, PdacrtParams::default(), &rays);
+        same_hits_as_cpu(&p, &tris, PdacrtParams::default(), &rays);
     }
     // No triangle, one, two, a stack of nearly coincident ones, and copies of one
     // (equal Morton codes: the index breaks the tie; equal distances: the smallest id).
