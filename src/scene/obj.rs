@@ -50,15 +50,18 @@ struct LineCounter<'a, R> {
     scan: FaceScan,
 }
 
-/// Byte-level state of the short-face check.
+/// Byte-level state of the short-face check, and whether any line is a `usemtl`.
 #[derive(Default)]
 struct FaceScan {
     tokens: u32,
     in_token: bool,
     /// The first token so far is exactly `f`.
     face: bool,
+    /// How many bytes of the first token match `usemtl` so far (7: not a match).
+    usemtl: u8,
     line: usize,
     first_short_face: Option<usize>,
+    saw_usemtl: bool,
 }
 
 impl FaceScan {
@@ -73,11 +76,14 @@ impl FaceScan {
                         self.in_token = true;
                         if self.tokens == 1 {
                             self.face = b == b'f';
+                            self.usemtl = if b == b'u' { 1 } else { 7 };
                             continue;
                         }
                     }
                     if self.tokens == 1 {
                         self.face = false; // "fo..." is not a face
+                        let k = self.usemtl as usize;
+                        self.usemtl = if k < 6 && b"usemtl"[k] == b { self.usemtl + 1 } else { 7 };
                     }
                 }
             }
@@ -89,7 +95,8 @@ impl FaceScan {
         if self.face && self.tokens < 4 && self.first_short_face.is_none() {
             self.first_short_face = Some(self.line);
         }
-        *self = FaceScan { line: self.line, first_short_face: self.first_short_face, ..Default::default() };
+        let saw_usemtl = self.saw_usemtl || (self.usemtl == 6 && self.tokens >= 2);
+        *self = FaceScan { line: self.line, first_short_face: self.first_short_face, saw_usemtl, ..Default::default() };
     }
 }
 
@@ -103,10 +110,11 @@ impl<'a, R: BufRead> LineCounter<'a, R> {
         scan.feed(bytes);
     }
 
-    /// The first short face line, once the whole input has been read.
-    fn first_short_face(mut self) -> Option<usize> {
+    /// The first short face line, and whether any line was a `usemtl`, once the whole
+    /// input has been read.
+    fn finish(mut self) -> (Option<usize>, bool) {
         self.scan.end_line();
-        self.scan.first_short_face
+        (self.scan.first_short_face, self.scan.saw_usemtl)
     }
 }
 
@@ -163,13 +171,22 @@ pub fn load_obj(path: impl AsRef<Path>, opts: &ObjOptions) -> Result<Scene> {
             return Err(diagnose(path, Some(e), lines_read.get().max(1), limit));
         }
     };
-    if let Some(line) = reader.first_short_face() {
+    let (short_face, saw_usemtl) = reader.finish();
+    if let Some(line) = short_face {
         return Err(Error::MalformedObj {
             at: Location::new(path, line),
             msg: "a face needs at least three vertices".into(),
         });
     }
     let materials = materials.unwrap_or_default();
+    // tobj gives faces under a `usemtl` of an unknown name no material, as if none was
+    // named; they would render with the default material without a word.
+    if saw_usemtl && !opts.ignore_materials && models.iter().any(|m| m.mesh.material_id.is_none()) {
+        let known: Vec<&str> = materials.iter().map(|m| m.name.as_str()).collect();
+        if let Some(e) = unknown_material(path, &known, limit) {
+            return Err(e);
+        }
+    }
 
     let mut scene = Scene::empty(path);
     for m in &materials {
@@ -232,6 +249,27 @@ fn load_mtl(
         Ok(r) => Ok(r),
         Err(e) => fail(Error::MalformedMtl { at: Location::new(&full, mtl_lines.get().max(1)), msg: e.to_string() }),
     }
+}
+
+/// The first `usemtl` line naming a material that no MTL file defined.
+fn unknown_material(path: &Path, known: &[&str], limit: u64) -> Option<Error> {
+    let exceeded = Cell::new(false);
+    let reader = open_text(path, limit, &exceeded).ok()?;
+    for (i, line) in reader.lines().enumerate() {
+        let line = line.ok()?;
+        let Some(name) = line.trim_start().strip_prefix("usemtl").filter(|r| r.starts_with([' ', '\t'])) else {
+            continue;
+        };
+        let name = name.trim();
+        if !name.is_empty() && !known.contains(&name) {
+            let list = if known.is_empty() { "none: no mtllib was loaded".to_string() } else { known.join(", ") };
+            return Some(Error::MalformedObj {
+                at: Location::new(path, i + 1),
+                msg: format!("usemtl '{name}' names a material that no MTL file defines (defined: {list})"),
+            });
+        }
+    }
+    None
 }
 
 /// Finds the first line of the OBJ that is malformed, out of range or not finite.

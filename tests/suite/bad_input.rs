@@ -70,6 +70,26 @@ fn malformed_obj_line_names_its_line() {
 }
 
 #[test]
+fn usemtl_of_an_unknown_material_names_its_line() {
+    let dir = scratch("usemtl");
+    // tobj reads an unknown name as "no material", so these faces would have been drawn
+    // with the default material without a word.
+    let e = load(&dir, &obj("f 1 2 3\nusemtl whyte\nf 1 3 2\n")).unwrap_err();
+    assert!(
+        matches!(&e, Error::MalformedObj { at, msg } if at.line == 7 && msg.contains("'whyte'") && msg.contains("white, lamp")),
+        "{e}"
+    );
+    // No mtllib at all: the same, saying that none was loaded.
+    let p = write(&dir, "bare.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n");
+    let e = load_obj(&p, &ObjOptions::default()).unwrap_err();
+    assert!(matches!(&e, Error::MalformedObj { at, msg } if at.line == 4 && msg.contains("no mtllib")), "{e}");
+    // Asked to ignore materials, the file loads; a name like `usemtlx` is no usemtl.
+    assert!(load_obj(&p, &ObjOptions { ignore_materials: true, ..Default::default() }).is_ok());
+    let p = write(&dir, "odd.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtlx red\nf 1 2 3\n");
+    assert!(load_obj(&p, &ObjOptions::default()).is_ok());
+}
+
+#[test]
 fn missing_mtl_names_the_obj_line() {
     let dir = scratch("nomtl");
     let p = write(&dir, "scene.obj", "# header\nmtllib absent.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
