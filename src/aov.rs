@@ -6,7 +6,7 @@
 //! | `albedo`   | `Albedo.R`, `Albedo.G`, `Albedo.B` | directional albedo of the first surface seen: the mean of the BSDF sample weight `f·cos/pdf`, one BSDF sample per camera ray |
 //! | `normal`   | `N.X`, `N.Y`, `N.Z`            | world-space normal of the first surface, turned to face the camera, averaged over the pixel's rays (shorter than 1 on edges) |
 //! | `depth`    | `Z`                            | camera-space depth (distance along the view axis) of the first surface, averaged over the rays that hit; +∞ where none did |
-//! | `variance` | `Variance.R`, `.G`, `.B`       | sample variance of the pixel's per-pass estimates ([`Film::variance`]) |
+//! | `variance` | `Variance.R`, `.G`, `.B`       | sample variance of the pixel's per-pass estimates ([`Film::variance`]); NaN (undefined) after one pass, and `--spp 1` with it is refused |
 //!
 //! The geometric AOVs come from a separate pass of `samples` jittered camera rays per
 //! pixel, cast as one batch per sample through the render's own caster, seeded by

@@ -222,14 +222,14 @@ impl Film {
     }
 
     /// Per-pixel sample variance of the passes' estimates (unbiased: divided by
-    /// `passes − 1`; zero before the second pass). The variance of the mean is this
+    /// `passes − 1`; NaN, undefined, before the second pass). The variance of the mean is this
     /// divided by `passes`. With [`FilterMode::Splat`] a pass's estimate is that pass's
     /// own weighted average (plus its splats), taken about the film's mean: close to,
     /// not exactly, the variance of the ratio the film reports.
     pub fn variance(&self) -> Vec<Vec3> {
         let n = self.passes as f64;
         if self.passes < 2 {
-            return vec![Vec3::ZERO; self.sum.len()];
+            return vec![Vec3::NAN; self.sum.len()];
         }
         let mean = self.mean();
         (0..mean.len())

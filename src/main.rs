@@ -343,6 +343,13 @@ fn run_render(args: RenderArgs) -> Result<bool> {
     if budget == Budget::Samples(0) {
         return Err(Error::BadSetting("--spp must be at least 1".into()));
     }
+    if budget == Budget::Samples(1) && args.aov.contains(&warpray::aov::Aov::Variance) {
+        return Err(Error::BadSetting(
+            "--aov variance needs at least 2 samples per pixel (the variance of one estimate is undefined); \
+             use --spp 2 or more"
+                .into(),
+        ));
+    }
     // The scene file's depth and filter, unless a flag says otherwise.
     let mut opts = variant.apply(RenderOptions::for_scene(
         s,

@@ -133,10 +133,25 @@ fn aovs_need_an_exr() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--aov"), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(!png.exists());
+    // The variance of one sample per pixel is undefined: refused before rendering
+    // (it was written as zeros, which read as a converged pixel).
+    let exr = dir.join("a.exr");
+    let out = warpray().args(["render", "--aov", "variance", "--spp", "1", "-q", "-o"]).arg(&exr).output().unwrap();
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("at least 2 samples"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(!exr.exists());
 }
 
 #[test]
 fn film_variance_is_the_unbiased_sample_variance_of_each_pass() {
+    let mut film = Film::new(2, 1).unwrap();
+    // One pass has no variance: undefined, never a zero that looks like a converged pixel.
+    film.add_pass(0, &[Vec3::ONE, Vec3::ONE]);
+    assert!(film.variance().iter().all(|v| v.is_nan()));
     let mut film = Film::new(2, 1).unwrap();
     // Pixel 0: estimates 1, 2, 3, 6 (mean 3, sample variance 14/3). Pixel 1: the same
     // values arriving as splats, as light tracing delivers them.
