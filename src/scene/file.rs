@@ -340,15 +340,17 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
         msg: e.message().to_string(),
     })?;
     let err = |msg: String| Error::SceneFile { at: Location::file(path), msg };
+    // An error at the first line that sets `key` (the file's start when none does).
+    let err_at = |key: &str, msg: String| {
+        let line = text.lines().position(|l| l.trim_start().starts_with(key)).map_or(0, |i| i + 1);
+        Error::SceneFile { at: Location::new(path, line), msg }
+    };
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     if let Some(t) = file.render.seconds
         && !(t > 0.0 && t <= crate::limits::MAX_SECONDS)
     {
-        let line = text.lines().position(|l| l.trim_start().starts_with("seconds")).map_or(0, |i| i + 1);
-        return Err(Error::SceneFile {
-            at: Location::new(path, line),
-            msg: format!("render.seconds = {t}: must be positive and at most {:e}", crate::limits::MAX_SECONDS),
-        });
+        let max = crate::limits::MAX_SECONDS;
+        return Err(err_at("seconds", format!("render.seconds = {t}: must be positive and at most {max:e}")));
     }
 
     let mut scene = match file.base.as_deref() {
@@ -437,9 +439,20 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
     }
     match &file.camera {
         Some(c) => {
-            let eye = Vec3::from_array(c.position);
-            let target = Vec3::from_array(c.look_at);
-            let cam = Camera::look_at(eye, target, Vec3::from_array(c.up), c.fov);
+            let (eye, target, up) = (Vec3::from_array(c.position), Vec3::from_array(c.look_at), Vec3::from_array(c.up));
+            // A camera with no view direction, or no up that is not along it, would be
+            // made up silently by `Camera::look_at`.
+            let view = target - eye;
+            if !(view.length() > 1e-6 * eye.abs().max_element().max(1.0)) {
+                return Err(err_at(
+                    "look_at",
+                    format!("camera.look_at {target} is the camera's position: no view direction"),
+                ));
+            }
+            if !(view.normalize().cross(up.normalize_or_zero()).length() > 1e-4) {
+                return Err(err_at("up", format!("camera.up {up} is zero or along the view direction {view}")));
+            }
+            let cam = Camera::look_at(eye, target, up, c.fov);
             let focus = c.focus_distance.unwrap_or((target - eye).length());
             scene.camera = cam.with_lens(c.aperture_radius, focus);
         }

@@ -378,6 +378,36 @@ fn vectors_in_scene_files_have_exactly_three_numbers() {
     }
 }
 
+#[test]
+fn degenerate_cameras_are_refused_at_their_line() {
+    // `Camera::look_at` makes up a view direction or an up vector when given none; a
+    // scene file that asks for a degenerate camera is a mistake, said at its line.
+    let dir = scratch("camera");
+    let cases = [
+        ("base = \"cornell\"\n[camera]\nposition = [0, 1, 3]\nlook_at = [0, 1, 3]\n", 4, "no view direction"),
+        (
+            "base = \"cornell\"\n[camera]\nposition = [0, 1, 3]\nlook_at = [0, 1, 0]\nup = [0, 0, 2]\n",
+            5,
+            "along the view",
+        ),
+        ("base = \"cornell\"\n[camera]\nposition = [0, 1, 3]\nlook_at = [0, 1, 0]\nup = [0, 0, 0]\n", 5, "zero"),
+        ("base = \"cornell\"\n[camera]\nposition = [0, 5, 0]\nlook_at = [0, 0, 0]\n", 0, "along the view"),
+    ];
+    for (text, line, words) in cases {
+        let p = write(&dir, "c.toml", text);
+        let e = load_scene(&p).unwrap_err();
+        assert!(matches!(&e, Error::SceneFile { at, .. } if at.line == line), "{text:?}: {e}");
+        assert!(e.to_string().contains(words), "{e}");
+    }
+    // Looking down with an up that is not along the view is fine.
+    let p = write(
+        &dir,
+        "ok.toml",
+        "base = \"cornell\"\n[camera]\nposition = [0, 5, 0]\nlook_at = [0, 0, 0]\nup = [0, 0, 1]\n",
+    );
+    assert!(load_scene(&p).is_ok());
+}
+
 /// Inputs the `image` fuzz target found (docs/fuzz.md): EXR headers claiming images of
 /// terabytes, which the reader used to allocate before reading a pixel (an abort).
 #[test]
