@@ -285,11 +285,38 @@ pub fn load_scene(path: impl AsRef<Path>) -> Result<SceneDesc> {
         let scene = load_obj(path, &ObjOptions::default())?;
         return Ok(SceneDesc { scene, settings: RenderSettings::default() });
     }
+    if name.ends_with(".ply") {
+        return Ok(SceneDesc { scene: ply_scene(path)?, settings: RenderSettings::default() });
+    }
     let text = super::input::read_text(path, super::input::max_input_bytes())?;
     if name.ends_with(".xml") {
         return super::parse_mitsuba(path, &text);
     }
-    parse_scene_file(path, &text)
+    parse_scene_file(path, &text).map_err(|e| match e {
+        // A file of another kind read as TOML: say what was expected, not TOML's word.
+        Error::SceneFile { at, msg } if !name.ends_with(".toml") => Error::SceneFile {
+            at,
+            msg: format!("not a scene file warpray knows (.toml, .xml, .obj, .obj.gz, .ply); read as TOML: {msg}"),
+        },
+        e => e,
+    })
+}
+
+/// A PLY mesh as a scene: every triangle of the default material, the camera framed
+/// on it (as for an OBJ file without materials).
+fn ply_scene(path: &Path) -> Result<Scene> {
+    let mesh = super::ply::load_ply(path)?;
+    let mut scene = Scene::empty(path);
+    scene.add_material("default", Material::DEFAULT, Vec3::ZERO);
+    scene.material_of = vec![0; mesh.triangles.len()];
+    scene.positions = mesh.positions;
+    scene.triangles = mesh.triangles;
+    if scene.triangles.is_empty() {
+        return Err(Error::EmptyMesh { at: Location::file(path) });
+    }
+    scene.frame_camera();
+    scene.validate()?;
+    Ok(scene)
 }
 
 /// The 1-based line of byte `offset` in `text` (scene-file and XML errors).

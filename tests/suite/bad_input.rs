@@ -379,6 +379,21 @@ fn vectors_in_scene_files_have_exactly_three_numbers() {
 }
 
 #[test]
+fn a_ply_file_is_a_scene_and_an_unknown_kind_says_so() {
+    let dir = scratch("kinds");
+    let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+               element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n";
+    // It was read as TOML ("key with no value").
+    let s = load_scene(write(&dir, "quad.ply", ply)).unwrap().scene;
+    assert_eq!(s.triangle_count(), 2);
+    let e = load_scene(write(&dir, "notes.dat", "hello world\n")).unwrap_err();
+    assert!(matches!(&e, Error::SceneFile { at, msg } if at.line == 1 && msg.contains(".ply")), "{e}");
+    // A .toml file keeps TOML's own message.
+    let e = load_scene(write(&dir, "bad.toml", "hello world\n")).unwrap_err();
+    assert!(!e.to_string().contains("not a scene file"), "{e}");
+}
+
+#[test]
 fn degenerate_cameras_are_refused_at_their_line() {
     // `Camera::look_at` makes up a view direction or an up vector when given none; a
     // scene file that asks for a degenerate camera is a mistake, said at its line.
