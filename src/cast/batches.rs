@@ -4,7 +4,8 @@
 //! ambient-occlusion rays; and the changing-geometry case, a waving grid with its camera
 //! and shadow rays.
 
-use super::{BvhCaster, RayCaster};
+use super::bvh::BvhCaster;
+use super::caster::RayCaster;
 use crate::geometry::{Hit, Ray, offset_ray_origin};
 use crate::sampling::{Frame, Rng, cosine_hemisphere};
 use crate::scene::{Camera, Scene};

@@ -1,7 +1,7 @@
 //! Brute force: every ray against every triangle. O(rays × triangles); the oracle that
 //! every other caster is tested against, and the leaf stage's reference.
 
-use super::{CastStats, RayCaster, Triangles, any_hit_ids, intersect_ids, timed, triangles_bytes};
+use super::caster::{CastStats, RayCaster, Triangles, any_hit_ids, intersect_ids, timed, triangles_bytes};
 use crate::geometry::{Hit, Ray, RayShear};
 use crate::scene::Scene;
 use rayon::prelude::*;

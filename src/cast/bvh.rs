@@ -17,7 +17,7 @@
 //! over the same CWBVH nodes, child boxes decoded and rounded outward, tested with
 //! warpray's conservative slab test, which decides a zero component by position.
 
-use super::{CastStats, RayCaster, Triangles, any_hit_ids, timed, triangles_bytes};
+use super::caster::{CastStats, RayCaster, Triangles, any_hit_ids, timed, triangles_bytes};
 use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir};
 use crate::scene::Scene;
 use glam::{Vec3, Vec3A};

@@ -42,7 +42,7 @@
 //!
 //! Every call counts its ray–triangle tests ([`CastStats::tests`]).
 
-use super::{CastStats, RayCaster, Triangles, triangles_bytes};
+use super::caster::{CastStats, RayCaster, Triangles, triangles_bytes};
 use crate::geometry::hit_key::{self, BLOCKED, NONE};
 use crate::geometry::lanes::RaySlab;
 use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle};

@@ -26,7 +26,7 @@ mod ffi;
 
 pub use ffi::LIBRARY_ENV;
 
-use super::{CastStats, RayCaster, Triangles, intersect_ids, timed, triangles_bytes};
+use super::caster::{CastStats, RayCaster, Triangles, intersect_ids, timed, triangles_bytes};
 use crate::cast::bvh::OUTLIER_COORDINATE;
 use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray, RayShear, intersect_triangle};
@@ -374,7 +374,7 @@ impl EmbreeCaster {
         let mut tests = 0;
         if !self.outliers.is_empty() {
             for (r, o) in rays.iter().zip(out.iter_mut()).filter(|(r, o)| r.is_valid() && !**o) {
-                let (hit, n) = super::any_hit_ids(&self.tris, self.outliers.iter().copied(), r, &RayShear::new(r.dir));
+                let (hit, n) = super::caster::any_hit_ids(&self.tris, self.outliers.iter().copied(), r, &RayShear::new(r.dir));
                 *o = hit;
                 tests += n;
             }

@@ -6,7 +6,7 @@
 //! same views and work items; split, the order and the shared data would be harder to
 //! follow.
 
-use crate::cast::LEAF_PAIRS_FACTOR;
+use crate::cast::dacrt::LEAF_PAIRS_FACTOR;
 use crate::geometry::hit_key;
 use crate::geometry::{Aabb, Hit, Ray, RayShear, SLAB_WIDEN, intersect_triangle, inv_dir, triangle_test};
 use glam::Vec3;

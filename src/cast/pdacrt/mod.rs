@@ -32,7 +32,7 @@
 
 pub(crate) mod kernels;
 
-use crate::cast::{CastStats, RayCaster};
+use crate::cast::caster::{CastStats, RayCaster};
 use crate::geometry::hit_key;
 use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle};
 use crate::scene::Scene;

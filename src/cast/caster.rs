@@ -1,0 +1,214 @@
+//! What every caster shares, one floor below the casters: the [`RayCaster`] trait and
+//! its [`CastStats`], the triangle list, the brute-force loops over listed triangles
+//! that the oracle, the BVH's outliers and Embree's fallback call, and the counting
+//! wrapper. `cast/mod.rs` re-exports these and dispatches; the casters import from here.
+
+use crate::geometry::{Hit, Ray, RayShear, intersect_triangle};
+use glam::Vec3;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering::Relaxed};
+use std::time::Instant;
+
+/// What one batch call did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CastStats {
+    /// Rays in the batch.
+    pub rays: usize,
+    /// Wall time of the call, seconds.
+    pub seconds: f64,
+    /// Peak bytes the caster allocated for this call beyond its own structure
+    /// (id lists, queues); 0 for casters that work in per-thread stack space.
+    pub peak_working_bytes: usize,
+    /// Ray–triangle intersection tests made: the algorithm's cost, independent of the
+    /// machine.
+    pub tests: u64,
+}
+
+impl CastStats {
+    /// Rays per second.
+    pub fn rays_per_second(&self) -> f64 {
+        if self.seconds > 0.0 { self.rays as f64 / self.seconds } else { 0.0 }
+    }
+
+    /// Ray–triangle tests per ray.
+    pub fn tests_per_ray(&self) -> f64 {
+        if self.rays > 0 { self.tests as f64 / self.rays as f64 } else { 0.0 }
+    }
+
+    /// Peak working bytes per ray of the call.
+    pub fn bytes_per_ray(&self) -> f64 {
+        if self.rays > 0 { self.peak_working_bytes as f64 / self.rays as f64 } else { 0.0 }
+    }
+
+    /// Sums two calls (peak memory is the larger of the two).
+    pub fn merge(self, o: CastStats) -> CastStats {
+        CastStats {
+            rays: self.rays + o.rays,
+            seconds: self.seconds + o.seconds,
+            peak_working_bytes: self.peak_working_bytes.max(o.peak_working_bytes),
+            tests: self.tests + o.tests,
+        }
+    }
+}
+
+/// Every ray caster: BVH, brute force, serial DACRT, PDACRT.
+pub trait RayCaster: Send + Sync {
+    /// Short name for tables and the command line (`"bvh"`, `"brute"`, …).
+    fn name(&self) -> &'static str;
+    /// Closest hit of every ray; `hits.len()` must equal `rays.len()`.
+    fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats;
+    /// Whether anything lies on each ray within `(t_min, t_max)`; `out.len() == rays.len()`.
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats;
+    /// Bytes of the caster's persistent structure (BVH nodes, indices, its triangle copy).
+    fn memory_bytes(&self) -> usize;
+    /// The last call's seconds by stage, in order, for casters that time their stages
+    /// (DACRT: `filter`, `prepare` with its two halves run side by side, `groups` with
+    /// the groups' summed and longest times, `back`); empty for the others.
+    fn phase_seconds(&self) -> Vec<(&'static str, f64)> {
+        Vec::new()
+    }
+    /// Seconds spent building the structure (0 for casters with none).
+    fn build_seconds(&self) -> f64 {
+        0.0
+    }
+    /// The emulated GPU the caster runs on, for casters that run on one (PDACRT). A
+    /// render hands it to integrators that stream on `simt` too, so that one device
+    /// holds the render's whole kernel table and memory peak.
+    fn device(&self) -> Option<&simt::Device> {
+        None
+    }
+    /// Whether the caster suits rays cast one at a time (the LVC megakernel's): true
+    /// for casters with a stored structure, false for the divide-and-conquer casters,
+    /// which build their work from the batch.
+    fn casts_single_rays(&self) -> bool {
+        true
+    }
+}
+
+/// Triangle corners in scene order, as the casters store them.
+pub type Triangles = Vec<[Vec3; 3]>;
+
+/// Bytes of a triangle array.
+pub(crate) fn triangles_bytes(tris: &Triangles) -> usize {
+    tris.len() * std::mem::size_of::<[Vec3; 3]>()
+}
+
+/// Runs `f` timing it, and fills in the ray count; `f` returns the tests it made.
+pub(crate) fn timed(rays: usize, peak_working_bytes: usize, f: impl FnOnce() -> u64) -> CastStats {
+    let start = Instant::now();
+    let tests = f();
+    CastStats { rays, seconds: start.elapsed().as_secs_f64(), peak_working_bytes, tests }
+}
+
+/// Wraps a caster and adds up every call made through it, from any thread: what a
+/// render reports as rays cast, seconds inside the caster (summed over calls, so calls
+/// made in parallel each count their own wall time), tests and peak working bytes.
+pub struct CountingCaster<'a> {
+    inner: &'a dyn RayCaster,
+    rays: AtomicU64,
+    tests: AtomicU64,
+    nanos: AtomicU64,
+    peak: AtomicUsize,
+    shadow: AtomicU64,
+    calls: AtomicU64,
+}
+
+impl<'a> CountingCaster<'a> {
+    /// A counter around `inner`, starting at zero.
+    pub fn new(inner: &'a dyn RayCaster) -> Self {
+        CountingCaster {
+            inner,
+            rays: AtomicU64::new(0),
+            tests: AtomicU64::new(0),
+            nanos: AtomicU64::new(0),
+            peak: AtomicUsize::new(0),
+            shadow: AtomicU64::new(0),
+            calls: AtomicU64::new(0),
+        }
+    }
+
+    /// Rays sent through `occluded` (shadow and connection rays) so far; the rest of
+    /// [`CastStats::rays`] went through `closest`.
+    pub fn shadow_rays(&self) -> u64 {
+        self.shadow.load(Relaxed)
+    }
+
+    /// Caster calls (batches) with at least one ray so far: rays per call is how
+    /// batch-friendly the caller is.
+    pub fn calls(&self) -> u64 {
+        self.calls.load(Relaxed)
+    }
+
+    /// Everything counted so far.
+    pub fn stats(&self) -> CastStats {
+        CastStats {
+            rays: self.rays.load(Relaxed) as usize,
+            seconds: self.nanos.load(Relaxed) as f64 * 1e-9,
+            peak_working_bytes: self.peak.load(Relaxed),
+            tests: self.tests.load(Relaxed),
+        }
+    }
+
+    fn add(&self, s: CastStats) -> CastStats {
+        self.rays.fetch_add(s.rays as u64, Relaxed);
+        self.tests.fetch_add(s.tests, Relaxed);
+        self.nanos.fetch_add((s.seconds * 1e9) as u64, Relaxed);
+        self.peak.fetch_max(s.peak_working_bytes, Relaxed);
+        self.calls.fetch_add((s.rays > 0) as u64, Relaxed);
+        s
+    }
+}
+
+impl RayCaster for CountingCaster<'_> {
+    fn name(&self) -> &'static str {
+        self.inner.name()
+    }
+    fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
+        self.add(self.inner.closest(rays, hits))
+    }
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
+        self.shadow.fetch_add(rays.len() as u64, Relaxed);
+        self.add(self.inner.occluded(rays, out))
+    }
+    fn memory_bytes(&self) -> usize {
+        self.inner.memory_bytes()
+    }
+    fn build_seconds(&self) -> f64 {
+        self.inner.build_seconds()
+    }
+    fn casts_single_rays(&self) -> bool {
+        self.inner.casts_single_rays()
+    }
+}
+
+/// Tests one ray against a list of triangle ids, shrinking `best` to the closest hit.
+/// Shared by every caster's leaf stage so all of them decide hits identically.
+#[inline]
+pub fn intersect_ids(
+    tris: &[[Vec3; 3]],
+    ids: impl IntoIterator<Item = u32>,
+    ray: &Ray,
+    shear: &RayShear,
+    best: &mut Hit,
+) {
+    for id in ids {
+        let [a, b, c] = tris[id as usize];
+        if let Some((t, u, v)) = intersect_triangle(ray.origin, shear, a, b, c, ray.t_min, best.t.min(ray.t_max)) {
+            *best = Hit { t, prim: id, u, v };
+        }
+    }
+}
+
+/// Whether any of the listed triangles lies on the ray within its interval, and how
+/// many were tested before the answer was known.
+#[inline]
+pub fn any_hit_ids(tris: &[[Vec3; 3]], ids: impl IntoIterator<Item = u32>, ray: &Ray, shear: &RayShear) -> (bool, u64) {
+    let mut tests = 0;
+    for id in ids {
+        tests += 1;
+        let [a, b, c] = tris[id as usize];
+        if intersect_triangle(ray.origin, shear, a, b, c, ray.t_min, ray.t_max).is_some() {
+            return (true, tests);
+        }
+    }
+    (false, tests)
+}
