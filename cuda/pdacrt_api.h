@@ -18,7 +18,7 @@ typedef struct WrParams {
     uint32_t leaf_triangles;
     uint32_t max_depth;
     uint32_t brute_force_block;
-    /* LEAF_PAIRS_FACTOR * leaf_rays * leaf_triangles. */
+    /* PdacrtParams::leaf_pairs(): DACRT's leaf rule, 4 * leaf_rays * leaf_triangles. */
     uint64_t leaf_pairs;
     /* Rays per pass of the pipeline (0: the whole batch). */
     uint64_t chunk_rays;

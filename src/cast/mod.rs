@@ -12,17 +12,16 @@
 
 pub mod batches;
 mod brute;
-mod caster;
 mod bvh;
+mod caster;
 mod dacrt;
 #[cfg(feature = "embree")]
 pub mod embree;
 pub mod pdacrt;
 
 pub use brute::BruteForce;
-pub use caster::{CastStats, CountingCaster, RayCaster, Triangles, any_hit_ids, intersect_ids};
 pub use bvh::{BvhBuild, BvhCaster, Traversal};
-pub(crate) use dacrt::LEAF_PAIRS_FACTOR;
+pub use caster::{CastStats, CountingCaster, RayCaster, Triangles, any_hit_ids, intersect_ids};
 pub use dacrt::{Dacrt, DacrtParams};
 
 use crate::scene::Scene;
@@ -70,4 +69,3 @@ impl CasterKind {
         ]
     }
 }
-

@@ -5,7 +5,7 @@ use super::ffi::{self, Library, WrParams, WrStats, library_path};
 use super::keys::{closest_by_keys, hits_of_keys, occluded_by_keys};
 use crate::cast::pdacrt::PdacrtParams;
 use crate::cast::pdacrt::kernels::NO_HIT;
-use crate::cast::{CastStats, LEAF_PAIRS_FACTOR, RayCaster};
+use crate::cast::{CastStats, RayCaster};
 use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray, SLAB_WIDEN};
 use std::path::PathBuf;
@@ -111,7 +111,7 @@ impl GpuPdacrt {
             leaf_triangles: p.leaf_triangles,
             max_depth: p.max_depth,
             brute_force_block: p.brute_force_block,
-            leaf_pairs: LEAF_PAIRS_FACTOR * p.leaf_rays as u64 * p.leaf_triangles as u64,
+            leaf_pairs: p.leaf_pairs(),
             chunk_rays: p.chunk_rays as u64,
             slab_widen: SLAB_WIDEN,
             reserved: 0,

@@ -15,8 +15,8 @@
 //! recursion's lists, and one taken by another thread at once holds more rays, whose
 //! intervals are cut again at every level below as hits arrive.
 
+use super::state::{Dacrt, Trace};
 use super::top::{Scratch, SharedTop, Top};
-use super::{Dacrt, Trace};
 use crate::geometry::Aabb;
 use std::sync::atomic::Ordering::Relaxed;
 use std::time::Instant;
@@ -125,8 +125,8 @@ impl Dacrt {
 
 #[cfg(test)]
 mod tests {
-    use super::super::DacrtParams;
     use super::super::packets::ORIGIN_BITS;
+    use super::super::state::DacrtParams;
     use super::*;
 
     /// A camera's batch (one origin) is cut into many groups and never forks; an

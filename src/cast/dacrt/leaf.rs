@@ -2,7 +2,7 @@
 //! a time on SIMD lanes (`geometry::lanes`), deciding hits by the same watertight rule
 //! as every caster.
 
-use super::{Dacrt, Trace};
+use super::state::{Dacrt, Trace};
 use crate::geometry::RayShear;
 use crate::geometry::hit_key::{BLOCKED, pack};
 use crate::geometry::lanes::Triangles4;

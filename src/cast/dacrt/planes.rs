@@ -1,7 +1,7 @@
 //! Split planes that do not depend on the rays: a binned SAH over a subsample of a
 //! node's triangles, and the median of their centroids; and a child's triangle test.
 
-use super::{Dacrt, SAH_BINS, SAH_SAMPLES};
+use super::state::{Dacrt, SAH_BINS, SAH_SAMPLES, partition};
 use crate::geometry::Aabb;
 use glam::{BVec4A, Vec4};
 
@@ -60,7 +60,7 @@ impl Dacrt {
     #[inline]
     pub(super) fn partition_triangles(&self, tris: &mut [u32], child: &Aabb) -> (usize, Aabb) {
         let mut g = Grower::new(child);
-        let n = super::partition(tris, |t| g.test(&self.boxes[t as usize]));
+        let n = partition(tris, |t| g.test(&self.boxes[t as usize]));
         (n, g.union())
     }
 }

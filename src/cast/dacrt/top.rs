@@ -3,7 +3,7 @@
 //! The planes are chosen on a sample of the triangles' boxes; every triangle is then
 //! routed down them and gathered by cell in two parallel passes (a counting sort).
 
-use super::{Dacrt, Trace};
+use super::state::{Dacrt, Trace};
 use crate::geometry::Aabb;
 use rayon::prelude::*;
 
@@ -11,7 +11,7 @@ use rayon::prelude::*;
 /// routing passes.
 const ROUTE_CHUNK: usize = 1 << 14;
 /// The shared top's planes are chosen on a sample holding about this many triangles
-/// per cell of [`DacrtParams::top_cell_triangles`](super::DacrtParams::top_cell_triangles).
+/// per cell of [`DacrtParams::top_cell_triangles`](super::state::DacrtParams::top_cell_triangles).
 /// (64 choose planes as good as 256 do on the dragon, in a quarter of the time:
 /// ray–triangle tests within 1 % on its primary, shadow and mirror batches).
 const TOP_SAMPLES_PER_CELL: usize = 64;
@@ -174,7 +174,7 @@ impl Dacrt {
     /// forks; rays from many origins make groups that reach most cells, each one
     /// re-partitioning their triangles, so one group per thread, with forks, is cheaper,
     /// once a thread's share has at least twice
-    /// [`fork_min_rays`](super::DacrtParams::fork_min_rays) rays (below that nothing
+    /// [`fork_min_rays`](super::state::DacrtParams::fork_min_rays) rays (below that nothing
     /// would fork, and the threads would be left unbalanced).
     pub(super) fn grouping(&self, n: usize, one_origin: bool) -> (usize, usize) {
         let p = &self.params;

@@ -374,7 +374,8 @@ impl EmbreeCaster {
         let mut tests = 0;
         if !self.outliers.is_empty() {
             for (r, o) in rays.iter().zip(out.iter_mut()).filter(|(r, o)| r.is_valid() && !**o) {
-                let (hit, n) = super::caster::any_hit_ids(&self.tris, self.outliers.iter().copied(), r, &RayShear::new(r.dir));
+                let (hit, n) =
+                    super::caster::any_hit_ids(&self.tris, self.outliers.iter().copied(), r, &RayShear::new(r.dir));
                 *o = hit;
                 tests += n;
             }

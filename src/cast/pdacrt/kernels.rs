@@ -6,7 +6,7 @@
 //! same views and work items; split, the order and the shared data would be harder to
 //! follow.
 
-use crate::cast::dacrt::LEAF_PAIRS_FACTOR;
+use crate::cast::dacrt::leaf_pairs;
 use crate::geometry::hit_key;
 use crate::geometry::{Aabb, Hit, Ray, RayShear, SLAB_WIDEN, intersect_triangle, inv_dir, triangle_test};
 use glam::Vec3;
@@ -379,7 +379,7 @@ pub(crate) fn classify_child(
     let keeps_all = |r: u32, tr: u32| r == ray_count && tr == tri_count;
     let stuck = keeps_all(left_rays, left_tris) || keeps_all(right_rays, right_tris);
     // Few triangles, or few rays *and* few pairs (as DACRT's leaf rule), or the cap.
-    let pairs = LEAF_PAIRS_FACTOR * rule.leaf_rays as u64 * rule.leaf_tris as u64;
+    let pairs = leaf_pairs(rule.leaf_rays as u64, rule.leaf_tris as u64);
     let (kind, rays, tris, whole) = if stuck {
         t.work(0, 0, CLASSIFY_ARM);
         let (r, tr) = (left_rays + rays_right, left_tris + tris_right);

@@ -75,6 +75,15 @@ pub struct PdacrtParams {
     pub inspect: bool,
 }
 
+impl PdacrtParams {
+    /// The most ray–triangle pairs of a leaf with few rays (DACRT's rule), as the CUDA
+    /// twin is given it.
+    #[cfg_attr(not(feature = "cuda"), allow(dead_code))]
+    pub(crate) fn leaf_pairs(&self) -> u64 {
+        crate::cast::dacrt::leaf_pairs(self.leaf_rays as u64, self.leaf_triangles as u64)
+    }
+}
+
 impl Default for PdacrtParams {
     fn default() -> Self {
         PdacrtParams {

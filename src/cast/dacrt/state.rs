@@ -1,0 +1,192 @@
+//! What a DACRT trace is made of, one floor below the recursion's files: the caster
+//! and its tunables, the per-call [`Trace`] (rays renumbered in coherence order, their
+//! keys, packets and counters), the constants the steps share and the branch-free
+//! partition. `mod.rs` and the step files (`top`, `planes`, `partition`, `leaf`,
+//! `fork`) build on it.
+
+use super::packets::Packets;
+use crate::cast::caster::Triangles;
+use crate::geometry::Aabb;
+use crate::geometry::Ray;
+use crate::geometry::hit_key::{self, BLOCKED, NONE};
+use crate::geometry::lanes::RaySlab;
+use rayon::prelude::*;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering::Relaxed};
+
+/// Tunables of [`Dacrt`]. The defaults were chosen by measurement (see
+/// `docs/history/dacrt-runs.md`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DacrtParams {
+    /// A node with at most this many rays is solved by brute force.
+    pub leaf_rays: usize,
+    /// A node with at most this many triangles is solved by brute force.
+    pub leaf_triangles: usize,
+    /// Recursion depth cap.
+    pub max_depth: u32,
+    /// Nodes with at least this many triangles split by binned SAH on a subsample
+    /// (`usize::MAX`: spatial median everywhere).
+    pub sah_min_triangles: usize,
+    /// Smallest ray group traced on its own when several threads run; a group also
+    /// carries at least a quarter as many rays as a shared-top cell has triangles (so
+    /// 1,024 for cells of 4,096, and this floor on small scenes).
+    pub min_group_rays: usize,
+    /// The shared top levels stop splitting at cells of at most this many triangles
+    /// (0: no shared top; every group starts from the root).
+    pub top_cell_triangles: usize,
+    /// Ray groups per thread (load balance) for a batch whose rays share one origin;
+    /// 0 traces every batch as one group.
+    pub groups_per_thread: usize,
+    /// For a batch from many origins, when several threads run: one ray group per
+    /// thread, and a node with at least this many rays hands its far child to rayon as
+    /// a task (`fork.rs`), run after the near child on the same thread or at once by a
+    /// thread that would otherwise idle (0: such batches are grouped like the others).
+    pub fork_min_rays: usize,
+    /// Rays per packet for packet filtering (rounded up to a power of two; 0: every
+    /// ray is tested on its own). Off by default: on the 16-core machine it lost on the
+    /// dragon and gained on the bunny (`docs/history/dacrt-runs.md`, run K).
+    pub packet_rays: usize,
+}
+
+impl Default for DacrtParams {
+    fn default() -> Self {
+        DacrtParams {
+            leaf_rays: 12,
+            leaf_triangles: 12,
+            max_depth: 48,
+            sah_min_triangles: 10_000,
+            min_group_rays: 128,
+            top_cell_triangles: 4096,
+            groups_per_thread: 8,
+            fork_min_rays: 4096,
+            packet_rays: 0,
+        }
+    }
+}
+
+impl DacrtParams {
+    /// One recursion over the whole batch, whatever the thread count.
+    pub fn serial() -> Self {
+        DacrtParams { groups_per_thread: 0, fork_min_rays: 0, ..Default::default() }
+    }
+}
+
+/// Divide-and-conquer ray tracing over a triangle soup (see the module docs).
+pub struct Dacrt {
+    pub(super) tris: Triangles,
+    pub(super) boxes: Vec<Aabb>,
+    pub(super) scene_box: Aabb,
+    /// Tunables; may be changed between calls.
+    pub params: DacrtParams,
+    /// The last call's seconds by stage ([`RayCaster::phase_seconds`]).
+    pub(super) phases: Mutex<Vec<(&'static str, f64)>>,
+}
+
+/// A node with few rays is a leaf only while it has at most this many times
+/// `leaf_rays · leaf_triangles` ray–triangle pairs.
+const LEAF_PAIRS_FACTOR: u64 = 4;
+
+/// The most ray–triangle pairs a node with few rays may hold and still be a leaf:
+/// DACRT's leaf rule, which PDACRT's `classify_children` and its CUDA twin share.
+pub(crate) fn leaf_pairs(leaf_rays: u64, leaf_triangles: u64) -> u64 {
+    LEAF_PAIRS_FACTOR * leaf_rays * leaf_triangles
+}
+/// Rays whose directions choose which child is near (`Trace::toward_hi`).
+pub(super) const NEAR_SAMPLES: usize = 32;
+/// SAH bins per axis, and triangles sampled per SAH decision.
+pub(super) const SAH_BINS: usize = 16;
+pub(super) const SAH_SAMPLES: usize = 2048;
+
+/// What one trace call shares between its recursive steps. Its rays are the batch's
+/// valid rays renumbered in coherence order: a ray's id indexes `rays`, `slabs` and
+/// `keys`.
+pub(super) struct Trace {
+    pub(super) rays: Vec<Ray>,
+    /// Each ray packed for the box tests of the ray partitions.
+    pub(super) slabs: Vec<RaySlab>,
+    pub(super) keys: Vec<AtomicU64>,
+    pub(super) packets: Option<Packets>,
+    pub(super) any_hit: bool,
+    pub(super) bytes: AtomicUsize,
+    pub(super) peak: AtomicUsize,
+    pub(super) tests: AtomicU64,
+    /// The ray groups' and forked tasks' summed busy time (`fork.rs` keeps it exact).
+    pub(super) busy_ns: AtomicU64,
+    /// Nodes with at least this many rays fork their far child (0: never).
+    pub(super) fork_min_rays: usize,
+}
+
+impl Trace {
+    /// A trace of `rays` (already renumbered) with no hits yet.
+    pub(super) fn new(rays: Vec<Ray>, any_hit: bool, packet_rays: usize, fork_min_rays: usize) -> Trace {
+        let slabs: Vec<RaySlab> = rays.par_iter().map(RaySlab::new).collect();
+        let keys: Vec<AtomicU64> = (0..rays.len()).into_par_iter().map(|_| AtomicU64::new(NONE)).collect();
+        let packets = Packets::new(&rays, &slabs, packet_rays);
+        Trace {
+            rays,
+            slabs,
+            keys,
+            packets,
+            any_hit,
+            bytes: AtomicUsize::new(0),
+            peak: AtomicUsize::new(0),
+            tests: AtomicU64::new(0),
+            busy_ns: AtomicU64::new(0),
+            fork_min_rays,
+        }
+    }
+
+    /// A trace with no rays (the shared top levels choose planes from triangles alone).
+    pub(super) fn empty() -> Trace {
+        Trace::new(Vec::new(), false, 0, 0)
+    }
+
+    pub(super) fn alloc(&self, bytes: usize) {
+        let now = self.bytes.fetch_add(bytes, Relaxed) + bytes;
+        self.peak.fetch_max(now, Relaxed);
+    }
+    pub(super) fn free(&self, bytes: usize) {
+        self.bytes.fetch_sub(bytes, Relaxed);
+    }
+
+    /// The ray's interval end: its closest hit so far, or its own `t_max`.
+    #[inline]
+    pub(super) fn t_far(&self, id: u32) -> f32 {
+        let k = self.keys[id as usize].load(Relaxed);
+        if k == NONE { self.rays[id as usize].t_max } else { hit_key::t_of(k).min(self.rays[id as usize].t_max) }
+    }
+
+    /// Whether most of the rays travel toward `+axis`, judged on at most
+    /// [`NEAR_SAMPLES`] of them spread over the list (the near child is visited first;
+    /// the choice changes the order of work, never the hits).
+    pub(super) fn toward_hi(&self, rays: &[u32], axis: usize) -> bool {
+        let step = rays.len().div_ceil(NEAR_SAMPLES).max(1);
+        let sum: f32 = rays.iter().step_by(step).map(|&r| self.rays[r as usize].dir[axis].signum()).sum();
+        sum >= 0.0
+    }
+
+    #[inline]
+    pub(super) fn enters(&self, id: u32, b: &Aabb) -> bool {
+        let k = self.keys[id as usize].load(Relaxed);
+        if self.any_hit && k == BLOCKED {
+            return false;
+        }
+        let s = &self.slabs[id as usize];
+        s.enters(b, if k == NONE { s.t_max() } else { hit_key::t_of(k).min(s.t_max()) })
+    }
+}
+
+/// Moves the elements satisfying `keep` to the front; returns how many there are.
+/// The order is that of swapping each kept element to the front, written without a
+/// branch on `keep` (its answer is as good as random for the partitions here).
+pub(super) fn partition(ids: &mut [u32], mut keep: impl FnMut(u32) -> bool) -> usize {
+    let mut n = 0;
+    for i in 0..ids.len() {
+        let (id, front) = (ids[i], ids[n]);
+        let k = keep(id);
+        ids[i] = if k { front } else { id };
+        ids[n] = if k { id } else { front };
+        n += k as usize;
+    }
+    n
+}
