@@ -1,7 +1,8 @@
 //! The device: configuration, memory accounting, kernel launches and statistics.
 
-use crate::exec::{Block, MAX_REGIONS, Thread, Worker};
+use crate::exec::{Block, Thread, Worker};
 pub use crate::launch::{LaunchConfig, LaunchError, MAX_BLOCK_DIM};
+use crate::limits::MAX_REGIONS;
 use crate::memory::{BufferPool, DeviceBuffer, DeviceCopy, MemCounter, Scratch};
 use crate::meter::{Counters, Race};
 use crate::stats::{KernelSummary, LaunchRecord, RegionStats, Stats};

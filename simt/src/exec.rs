@@ -26,22 +26,7 @@ use std::marker::PhantomData;
 use std::panic::Location;
 use std::sync::atomic::Ordering::Relaxed;
 
-/// Threads in a warp.
-pub const WARP_SIZE: u32 = 32;
-/// Regions a kernel may name for SIMD accounting.
-pub const MAX_REGIONS: usize = 8;
-/// Paths (branch arms) per region.
-pub const MAX_PATHS: usize = 8;
-/// Per-thread register file, in 32-bit words (CUDA allows 255 registers; 64 words
-/// keep the emulator's per-block scratch small).
-pub const REGISTER_WORDS_PER_THREAD: usize = 64;
-/// Bytes in one memory sector.
-pub const SECTOR_BYTES: u64 = 32;
-/// Instructions in one trip of the retry loop that a 64-bit shared `atomicAdd` compiles
-/// to on sm_90, which has no 64-bit shared add (nvcc 13.0, `cuobjdump -sass`): the load
-/// (`LDS.64`), the 64-bit add (`IADD3`, `IMAD.X`), the swap (`ATOMS.CAST.SPIN.64`), the
-/// 64-bit test of its result (two `ISETP`) and the branch back.
-pub const RETRY_TRIP_INSTRUCTIONS: u64 = 7;
+use crate::limits::{REGISTER_WORDS_PER_THREAD, WARP_SIZE};
 
 /// A typed array in a block's shared memory (from [`Block::shared`]).
 #[derive(Debug)]
@@ -859,7 +844,7 @@ impl Thread<'_> {
     }
 
     /// Declares `units` instructions of arithmetic on branch arm `path` of region
-    /// `region` (indices below [`MAX_REGIONS`] and [`MAX_PATHS`]; names come from the
+    /// `region` (indices below [`MAX_REGIONS`](crate::MAX_REGIONS) and [`MAX_PATHS`](crate::MAX_PATHS); names come from the
     /// launch). Counted like any other instruction: lanes at the same call site, path
     /// and occurrence share a warp instruction issued `max(units)` times.
     #[inline(always)]

@@ -1,6 +1,6 @@
 //! The shape of a launch and the ways a launch can be refused or fail.
 
-use crate::exec::MAX_REGIONS;
+use crate::limits::MAX_REGIONS;
 use crate::meter::Race;
 
 /// Largest block, as on current NVIDIA GPUs.

@@ -53,6 +53,7 @@ pub mod ambient;
 mod device;
 mod exec;
 mod launch;
+mod limits;
 mod memory;
 pub mod meter;
 pub mod prims;
@@ -62,10 +63,8 @@ mod transform;
 
 pub use ambient::{Scope, scope};
 pub use device::{Device, DeviceConfig, LaunchConfig, LaunchError, MAX_BLOCK_DIM, MemoryStats};
-pub use exec::{
-    Block, Local, MAX_PATHS, MAX_REGIONS, Place, REGISTER_WORDS_PER_THREAD, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES,
-    Shared, Thread, Unrolled, WARP_SIZE, Warp,
-};
+pub use exec::{Block, Local, Place, Shared, Thread, Unrolled, Warp};
+pub use limits::{MAX_PATHS, MAX_REGIONS, REGISTER_WORDS_PER_THREAD, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES, WARP_SIZE};
 pub use memory::{DeviceBuffer, DeviceCopy, Global, GlobalMut, Readable};
 pub use meter::{Race, Traffic};
 pub use prims::queue::{QueuePusher, WorkQueue};

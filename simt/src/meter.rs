@@ -21,8 +21,7 @@
 //! memory traffic and the race check share the per-lane and per-warp state kept
 //! private here.
 
-use crate::WARP_SIZE;
-use crate::exec::{MAX_PATHS, MAX_REGIONS, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES};
+use crate::limits::{MAX_PATHS, MAX_REGIONS, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES, WARP_SIZE};
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 

@@ -1,6 +1,6 @@
 //! Launch records and their aggregation per kernel name.
 
-use crate::exec::WARP_SIZE;
+use crate::limits::WARP_SIZE;
 pub use crate::meter::Traffic;
 use std::collections::{HashMap, VecDeque};
 use std::fmt::Write;

@@ -13,7 +13,8 @@
 //! their addresses, and records only what `f` itself does lane by lane.
 
 use crate::device::{Device, ELEMENT_BLOCK, LaunchConfig};
-use crate::exec::{Thread, WARP_SIZE, access_width};
+use crate::exec::{Thread, access_width};
+use crate::limits::WARP_SIZE;
 use crate::memory::{DeviceBuffer, DeviceCopy, Readable};
 use crate::meter::{Counters, Kind, Meter};
 use crate::stats::LaunchRecord;

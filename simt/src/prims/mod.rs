@@ -6,6 +6,7 @@
 
 pub(crate) mod native;
 pub mod queue;
+mod radix_key;
 pub mod scan;
 pub mod select;
 pub mod sort;

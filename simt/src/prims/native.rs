@@ -9,7 +9,7 @@
 //! do not depend on the number of threads.
 
 use crate::memory::DeviceCopy;
-use crate::prims::sort::RadixKey;
+use crate::prims::radix_key::RadixKey;
 use rayon::prelude::*;
 
 /// Elements per chunk of the parallel scans, reductions and compactions: small

@@ -2,7 +2,7 @@
 //! wavefront renderer). The order of items depends on scheduling: never derive random
 //! numbers or results from an item's position.
 
-use crate::Device;
+use crate::device::Device;
 use crate::exec::Thread;
 use crate::memory::{DeviceBuffer, DeviceCopy, GlobalMut, Readable};
 

@@ -136,7 +136,7 @@ pub struct Flagged<V> {
     /// The value.
     pub value: V,
 }
-unsafe impl<V: DeviceCopy> crate::DeviceCopy for Flagged<V> {}
+unsafe impl<V: DeviceCopy> DeviceCopy for Flagged<V> {}
 
 /// For each run of equal consecutive keys, writes the key and the reduction of its
 /// values; returns the number of runs. Outputs must be as long as the inputs.

@@ -7,6 +7,7 @@
 //! how PDACRT runs a segmented sort; [`sort_by_key_bits`] limits the passes to the bits
 //! in use.
 
+pub use super::radix_key::RadixKey;
 use super::{BLOCK, ITEMS, TILE};
 use crate::device::{Device, LaunchConfig};
 use crate::memory::{DeviceBuffer, DeviceCopy};
@@ -14,40 +15,6 @@ use crate::prims::scan::exclusive_scan;
 
 const RADIX: usize = 256;
 const WARPS: usize = BLOCK as usize / 32;
-
-/// Keys the radix sort understands: unsigned integers.
-pub trait RadixKey: DeviceCopy + Ord + Default {
-    /// Bits of the key that take part in the sort.
-    const BITS: u32;
-    /// Bits `shift..shift + width` of the key (`width` at most 16).
-    fn digit(self, shift: u32, width: u32) -> u32;
-    /// The key's bits, widened.
-    fn bits(self) -> u64;
-}
-
-impl RadixKey for u32 {
-    const BITS: u32 = 32;
-    #[inline(always)]
-    fn digit(self, shift: u32, width: u32) -> u32 {
-        (self >> shift) & ((1u32 << width) - 1)
-    }
-    #[inline(always)]
-    fn bits(self) -> u64 {
-        self as u64
-    }
-}
-
-impl RadixKey for u64 {
-    const BITS: u32 = 64;
-    #[inline(always)]
-    fn digit(self, shift: u32, width: u32) -> u32 {
-        ((self >> shift) & ((1u64 << width) - 1)) as u32
-    }
-    #[inline(always)]
-    fn bits(self) -> u64 {
-        self
-    }
-}
 
 /// Sorts `keys` ascending, moving `values` with them; equal keys keep their order.
 ///

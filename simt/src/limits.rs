@@ -1,0 +1,20 @@
+//! The machine's fixed sizes that the executor, the meter and the statistics share, on
+//! a floor below all three: warp width, regions and paths a kernel may name, the
+//! register file, the memory sector, and the retry loop of a 64-bit shared atomic.
+
+/// Threads in a warp.
+pub const WARP_SIZE: u32 = 32;
+/// Regions a kernel may name for SIMD accounting.
+pub const MAX_REGIONS: usize = 8;
+/// Paths (branch arms) per region.
+pub const MAX_PATHS: usize = 8;
+/// Per-thread register file, in 32-bit words (CUDA allows 255 registers; 64 words
+/// keep the emulator's per-block scratch small).
+pub const REGISTER_WORDS_PER_THREAD: usize = 64;
+/// Bytes in one memory sector.
+pub const SECTOR_BYTES: u64 = 32;
+/// Instructions in one trip of the retry loop that a 64-bit shared `atomicAdd` compiles
+/// to on sm_90, which has no 64-bit shared add (nvcc 13.0, `cuobjdump -sass`): the load
+/// (`LDS.64`), the 64-bit add (`IADD3`, `IMAD.X`), the swap (`ATOMS.CAST.SPIN.64`), the
+/// 64-bit test of its result (two `ISETP`) and the branch back.
+pub const RETRY_TRIP_INSTRUCTIONS: u64 = 7;
