@@ -144,7 +144,7 @@ __device__ inline float t_far(const Ray& r, uint64_t key) {
 /// (`t_far`): that distance widened as the slab test widens box exits, so a box entered
 /// exactly at the best hit (a tie on a shared edge, near-coplanar triangles) is still
 /// visited and the smaller key can win. PDACRT's filter_rays and the BVH's traversal
-/// cull with this; src/cast/pdacrt/kernels.rs's `cull_distance` is its Rust side.
+/// cull with this; `geometry::cull_distance` is its Rust side (DACRT's and PDACRT's).
 __device__ inline float cull_distance(float far_t, float widen) { return far_t * widen; }
 
 }  // namespace wr

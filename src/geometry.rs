@@ -102,6 +102,17 @@ pub struct Aabb {
 /// 1 + 2·γ(3) with γ(n) = nε/(1−nε): the widening that makes the slab test conservative.
 pub(crate) const SLAB_WIDEN: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
+/// Where a caster may stop looking at boxes for a ray whose interval ends at `far`
+/// (its best hit so far, or its `t_max`): that distance widened as the slab test widens
+/// box exits, so a box entered exactly at the best hit (a tie on a shared edge,
+/// near-coplanar triangles) is still visited and the smaller key can win. DACRT's and
+/// PDACRT's ray partitions cull with it; `cull_distance` in cuda/geometry.cuh is its
+/// CUDA side.
+#[inline]
+pub(crate) fn cull_distance(far: f32) -> f32 {
+    far * SLAB_WIDEN
+}
+
 impl Default for Aabb {
     fn default() -> Self {
         Aabb::EMPTY

@@ -351,12 +351,13 @@ fn dacrt_reports_its_stages() {
 }
 
 #[test]
-fn pdacrt_keeps_the_smallest_key_where_triangles_tie() {
+fn dacrt_and_pdacrt_keep_the_smallest_key_where_triangles_tie() {
     // Rays aimed exactly at corners and edge midpoints, where several triangles are hit
     // at one distance and the smallest id must win (brute force's answer), bit for bit.
     // A box culled at the best distance itself, unwidened, loses some of these ties: a
     // ray entering a box exactly at its best hit computes an entry a rounding above it
-    // (the GPU BVH twin and PDACRT's `filter_rays` both did so on the conference room).
+    // (the GPU BVH twin and PDACRT's `filter_rays` both did so on the conference room,
+    // and DACRT's ray partition on this waving grid).
     let mut r = rng(29);
     let grid = warpray::cast::batches::waving_grid(24, 0.3);
     let tilted: Vec<[Vec3; 3]> =
@@ -377,9 +378,16 @@ fn pdacrt_keeps_the_smallest_key_where_triangles_tie() {
         let mut want = vec![Hit::MISS; rays.len()];
         BruteForce::new(&scene).closest(&rays, &mut want);
         let tiny = PdacrtParams { leaf_rays: 4, leaf_triangles: 2, ..PdacrtParams::default() };
-        for (caster, p) in [("pdacrt", PdacrtParams::default()), ("pdacrt, tiny leaves", tiny)] {
+        let tiny_dacrt = DacrtParams { leaf_rays: 1, leaf_triangles: 1, ..DacrtParams::default() };
+        let casters: [(&str, Box<dyn RayCaster>); 4] = [
+            ("pdacrt", Box::new(Pdacrt::from_triangles(&tris, PdacrtParams::default()))),
+            ("pdacrt, tiny leaves", Box::new(Pdacrt::from_triangles(&tris, tiny))),
+            ("dacrt", Box::new(Dacrt::from_triangles(tris.clone(), DacrtParams::default()))),
+            ("dacrt, tiny leaves", Box::new(Dacrt::from_triangles(tris.clone(), tiny_dacrt))),
+        ];
+        for (caster, c) in casters {
             let mut got = vec![Hit::MISS; rays.len()];
-            Pdacrt::from_triangles(&tris, p).closest(&rays, &mut got);
+            c.closest(&rays, &mut got);
             let lost: Vec<usize> = (0..rays.len())
                 .filter(|&i| (got[i].t.to_bits(), got[i].prim) != (want[i].t.to_bits(), want[i].prim))
                 .collect();

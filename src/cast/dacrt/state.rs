@@ -6,10 +6,10 @@
 
 use super::packets::Packets;
 use crate::cast::caster::Triangles;
-use crate::geometry::Aabb;
 use crate::geometry::Ray;
 use crate::geometry::hit_key::{self, BLOCKED, NONE};
 use crate::geometry::lanes::RaySlab;
+use crate::geometry::{Aabb, cull_distance};
 use rayon::prelude::*;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering::Relaxed};
@@ -172,7 +172,7 @@ impl Trace {
             return false;
         }
         let s = &self.slabs[id as usize];
-        s.enters(b, if k == NONE { s.t_max() } else { hit_key::t_of(k).min(s.t_max()) })
+        s.enters(b, cull_distance(if k == NONE { s.t_max() } else { hit_key::t_of(k).min(s.t_max()) }))
     }
 }
 

@@ -8,7 +8,7 @@
 
 use crate::cast::dacrt::leaf_pairs;
 use crate::geometry::hit_key;
-use crate::geometry::{Aabb, Hit, Ray, RayShear, SLAB_WIDEN, intersect_triangle, inv_dir, triangle_test};
+use crate::geometry::{Aabb, Hit, Ray, RayShear, cull_distance, intersect_triangle, inv_dir, triangle_test};
 use glam::Vec3;
 use simt::{Block, DeviceCopy, Global, GlobalMut, Place, Readable, Thread};
 
@@ -71,15 +71,6 @@ unsafe impl DeviceCopy for ChildData {}
 #[inline]
 fn t_far(ray: &Ray, key: u64) -> f32 {
     if key == NO_HIT { ray.t_max } else { hit_key::t_of(key).min(ray.t_max) }
-}
-
-/// Where `filter_rays` stops looking at boxes for a ray whose interval ends at `far`:
-/// that distance widened as the slab test widens box exits, so a box entered exactly at
-/// the best hit (a tie on a shared edge, near-coplanar triangles) still gets the ray and
-/// the smaller key can win. The CUDA side's `cull_distance` (cuda/geometry.cuh) is this.
-#[inline]
-fn cull_distance(far: f32) -> f32 {
-    far * SLAB_WIDEN
 }
 
 /// A triangle's corners from its flat device record.
