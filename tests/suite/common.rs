@@ -185,3 +185,20 @@ pub fn small_render(integrator: warpray::render::IntegratorKind) -> warpray::ren
         ..Default::default()
     }
 }
+
+/// Rays from random points around the scene aimed exactly at its triangles' corners and
+/// edge midpoints, where several triangles are hit at one distance and the smallest id
+/// must win: a caster that culls a box at the best distance itself loses some of these.
+pub fn rays_at_corners(scene: &Scene, rng: &mut Rng) -> Vec<Ray> {
+    let b = scene.bounds();
+    let (lo, hi) = (b.min - 0.5 * b.extent(), b.max + 0.5 * b.extent());
+    scene
+        .triangle_vertices()
+        .iter()
+        .flat_map(|&[a, b, c]| [a, b, c, (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5])
+        .map(|target| {
+            let o = random_in_box(rng, lo, hi);
+            Ray::new(o, target - o)
+        })
+        .collect()
+}

@@ -365,16 +365,7 @@ fn dacrt_and_pdacrt_keep_the_smallest_key_where_triangles_tie() {
     for (tris, what) in [(cornell_box().triangle_vertices(), "cornell"), (grid, "waving grid"), (tilted, "tilted grid")]
     {
         let scene = scene_from_triangles(&tris);
-        let b = scene.bounds();
-        let (lo, hi) = (b.min - 0.5 * b.extent(), b.max + 0.5 * b.extent());
-        let rays: Vec<Ray> = tris
-            .iter()
-            .flat_map(|&[a, b, c]| [a, b, c, (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5])
-            .map(|target| {
-                let o = random_in_box(&mut r, lo, hi);
-                Ray::new(o, target - o)
-            })
-            .collect();
+        let rays = rays_at_corners(&scene, &mut r);
         let mut want = vec![Hit::MISS; rays.len()];
         BruteForce::new(&scene).closest(&rays, &mut want);
         let tiny = PdacrtParams { leaf_rays: 4, leaf_triangles: 2, ..PdacrtParams::default() };

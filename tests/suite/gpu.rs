@@ -125,24 +125,6 @@ fn gpu_keys_equal_the_emulators_on_the_bunny() {
     check_against_cpu(&scene, PdacrtParams::default(), &rays);
 }
 
-/// Rays from random points outside the scene aimed exactly at its triangles' corners
-/// and edge midpoints, where several triangles are hit at one distance: the smallest id
-/// must win in every caster, so a box culled at the best distance shows here.
-fn rays_at_corners(scene: &Scene, seed: u64) -> Vec<Ray> {
-    let b = scene.bounds();
-    let (lo, hi) = (b.min - 0.5 * b.extent(), b.max + 0.5 * b.extent());
-    let mut rng = crate::common::rng(seed);
-    scene
-        .triangle_vertices()
-        .iter()
-        .flat_map(|&[a, b, c]| [a, b, c, (a + b) * 0.5, (b + c) * 0.5])
-        .map(|target| {
-            let o = crate::common::random_in_box(&mut rng, lo, hi);
-            Ray::new(o, target - o)
-        })
-        .collect()
-}
-
 fn gpu_bvh(tris: &[[Vec3; 3]]) -> GpuBvh {
     GpuBvh::new(tris).unwrap_or_else(|e| {
         panic!("\n\nTHIS TEST NEEDS AN NVIDIA GPU and the library from `sh cuda/build.sh`: {e}\n\n")
@@ -166,7 +148,7 @@ fn gpu_bvh_hits_equal_pdacrts_and_brute_force_on_the_cornell_box() {
     assert_eq!(built.nodes as usize, tris.len() - 1);
     assert!(built.build_ms > 0.0 && built.bytes > 0, "{built:?}");
     let mut probe = rays(&scene, 20_000, 1);
-    probe.extend(rays_at_corners(&scene, 3));
+    probe.extend(crate::common::rays_at_corners(&scene, &mut crate::common::rng(3)));
     same_hits_as_cpu(&g, &tris, PdacrtParams::default(), &probe);
     let t = g.last_trace();
     assert!(t.tests > 0 && t.visits > 0 && t.trace_ms > 0.0, "{t:?}");
@@ -216,7 +198,7 @@ fn gpu_bvh_hits_equal_pdacrts_on_the_bunny_batches() {
     rays.extend(b.ambient);
     rays.extend(b.specular);
     rays.extend(b.shadow);
-    rays.extend(rays_at_corners(&scene, 4).into_iter().step_by(7));
+    rays.extend(crate::common::rays_at_corners(&scene, &mut crate::common::rng(4)).into_iter().step_by(7));
     let tris = scene.triangle_vertices();
     same_hits_as_cpu(&gpu_bvh(&tris), &tris, PdacrtParams::default(), &rays);
 }
