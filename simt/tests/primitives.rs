@@ -1,5 +1,5 @@
 //! Every primitive against its sequential twin in `simt::seq`, at the sizes where tiled
-//! and warp-level code breaks (0, 1, 31, 32, 33, 1023, 1024, 1025, 2^20 and the tile
+//! and warp-level code breaks (0, 1, 31, 32, 33, 1023, 1024, 1025, 2^17 + 3 and the tile
 //! edges), on random inputs; plus property tests on arbitrary inputs.
 
 use proptest::prelude::*;
@@ -10,7 +10,7 @@ fn devices() -> [Device; 2] {
     [false, true].map(|measure| Device::new(DeviceConfig { measure, ..Default::default() }))
 }
 
-const SIZES: [usize; 11] = [0, 1, 31, 32, 33, 1023, 1024, 1025, 2048, 2049, 1 << 20];
+const SIZES: [usize; 11] = [0, 1, 31, 32, 33, 1023, 1024, 1025, 2048, 2049, (1 << 17) + 3];
 
 /// Deterministic pseudo-random words (splitmix64).
 fn random(n: usize, seed: u64, modulus: u64) -> Vec<u32> {

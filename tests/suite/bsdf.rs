@@ -92,11 +92,15 @@ fn cell_integral(m: &Material, wo: Vec3, c: usize, sub: usize) -> f64 {
 }
 
 /// Integral of the pdf over every cell, refined where the coarse and fine rules
-/// disagree (narrow transmission lobes near the poles need a fine rule).
+/// disagree (narrow transmission lobes near the poles need a fine rule): 16² and 32²,
+/// else 384². (The midpoint rule's error falls as the square of the step, so where the
+/// two agree to 1e-3 the finer is within about a third of that; an expected count off
+/// by 3e-4 is far below the 3 % noise of a cell's ~900 samples. A first pair of 8² and
+/// 16² let a rough glass lobe at grazing incidence through.)
 fn expected(m: &Material, wo: Vec3) -> Vec<f64> {
     (0..Z_RES * PHI_RES)
         .map(|c| {
-            let (coarse, fine) = (cell_integral(m, wo, c, 16), cell_integral(m, wo, c, 64));
+            let (coarse, fine) = (cell_integral(m, wo, c, 16), cell_integral(m, wo, c, 32));
             if (fine - coarse).abs() <= 1e-3 * fine.max(1e-4) { fine } else { cell_integral(m, wo, c, 384) }
         })
         .collect()

@@ -2,7 +2,8 @@
 //! its relation to uniform LVC, determinism, and what sorting does to SIMD efficiency.
 
 use crate::common::*;
-use crate::seeds::{Runs, assert_agree, runs};
+use crate::reference::{self, TestBox};
+use crate::seeds::{assert_agree, runs};
 use warpray::cast::BvhCaster;
 use warpray::converge::relmse;
 use warpray::film::Film;
@@ -45,15 +46,11 @@ fn variants() -> Vec<(&'static str, CisParams)> {
     vec![("all on", d), ("no importance sampling", CisParams { importance: false, ..d })]
 }
 
-fn bdpt_runs(scene: &Scene) -> Runs {
-    let o = |seed| opts(IntegratorKind::Bdpt, 8, CisParams::default(), LvcParams::default(), seed);
-    runs("bdpt", 100, 32, 8, |seed| film(scene, &o(seed)).mean())
-}
-
-/// CIS with every idea on and each switched off agrees with BDPT over 16 seeds each,
-/// in the image mean (to a precision that shows a 1 % bias: 0.18 %) and block by block.
-fn converges(scene: &Scene, what: &str) {
-    let bdpt = bdpt_runs(scene);
+/// CIS with every idea on and each switched off agrees with BDPT (the shared reference,
+/// `reference.rs`) over 16 seeds each, in the image mean (to a precision that shows a
+/// 1 % bias: 0.18 %) and block by block.
+fn converges(which: TestBox, what: &str) {
+    let (scene, bdpt) = (&which.scene(), reference::bdpt(which));
     for (name, p) in variants() {
         let cis = runs(name, 300, 32, 8, |seed| {
             film(scene, &opts(IntegratorKind::Cis, 6, p, LvcParams::default(), seed)).mean()
@@ -64,12 +61,7 @@ fn converges(scene: &Scene, what: &str) {
 
 #[test]
 fn cis_and_its_ablations_converge_to_bdpt_on_the_cornell_box() {
-    converges(&cornell_box(), "cornell");
-}
-
-#[test]
-fn cis_and_its_ablations_converge_to_bdpt_on_a_glossy_and_glass_scene() {
-    converges(&glossy_glass_box(), "glossy+glass");
+    converges(TestBox::Cornell, "cornell");
 }
 
 #[test]
@@ -84,8 +76,8 @@ fn cis_with_one_candidate_and_one_draw_is_uniform_lvc() {
     let b =
         runs("lvc 1 connection", 500, 32, 8, |seed| film(&scene, &opts(IntegratorKind::Lvc, 6, cis, lvc, seed)).mean());
     eprintln!("{}", assert_agree(&a, &b, 0.0018));
-    let reference = bdpt_runs(&scene).average;
-    let (ea, eb) = (relmse(&a.first, &reference), relmse(&b.first, &reference));
+    let reference = &reference::bdpt(TestBox::Cornell).average;
+    let (ea, eb) = (relmse(&a.first, reference), relmse(&b.first, reference));
     assert!((ea / eb - 1.0).abs() < 0.25, "error against the reference: CIS {ea:.5} vs LVC {eb:.5}");
 }
 
@@ -140,4 +132,16 @@ fn sorting_by_material_raises_the_shading_kernels_simd_efficiency() {
     eprintln!("cis::shade SIMD efficiency, whole kernel: unsorted {:.3}, sorted {:.3}", whole[0], whole[1]);
     assert!(efficiency[1] > efficiency[0] + 0.1, "sorted {:.3} vs unsorted {:.3}", efficiency[1], efficiency[0]);
     assert!(whole[1] > whole[0], "whole kernel: sorted {:.3} vs unsorted {:.3}", whole[1], whole[0]);
+}
+
+/// The heavy tier (README, docs/testing.md): tests that need many samples for their
+/// power, run by CI and before a release rather than before every commit.
+mod heavy {
+    use super::*;
+
+    #[test]
+    #[ignore = "heavy tier, run by CI: cargo test --profile suite --workspace --features inspector,cuda,embree --test suite -- --ignored ::heavy::"]
+    fn cis_and_its_ablations_converge_to_bdpt_on_a_glossy_and_glass_scene() {
+        converges(TestBox::GlossyGlass, "glossy+glass");
+    }
 }

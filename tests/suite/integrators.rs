@@ -1,12 +1,13 @@
 //! The integrators against an analytic case and against each other.
 
 use crate::common::*;
+use crate::reference::{self, TestBox};
 use crate::seeds::{Runs, assert_agree, assert_constant, runs};
 use warpray::cast::BvhCaster;
 use warpray::film::Film;
 use warpray::glam::{Vec2, Vec3};
 use warpray::render::{Budget, IntegratorKind, RenderOptions, render};
-use warpray::scene::{Camera, Material, Scene, cornell_box};
+use warpray::scene::{Camera, Material, Scene};
 
 fn render_mean(scene: &Scene, kind: IntegratorKind, size: u32, spp: u32, max_depth: u32) -> (Vec3, Film) {
     render_mean_seeded(scene, kind, size, spp, max_depth, 5)
@@ -35,30 +36,6 @@ fn render_mean_seeded(
     (film.image_mean(), film)
 }
 
-/// Inside a closed sphere of albedo ρ whose every point emits Le, the radiance is
-/// Le / (1 − ρ) everywhere: each integrator's image over 16 seeds matches it in the mean
-/// (path and BDPT to 0.15 %, so a 1 % bias fails) and block by block.
-#[test]
-fn furnace_closed_sphere_matches_the_analytic_radiance() {
-    let (v, f) = icosphere(2);
-    // Reverse the winding so the normals (and the one-sided emission) face inward.
-    let tris: Vec<[Vec3; 3]> = f.iter().map(|t| [v[t[0] as usize], v[t[2] as usize], v[t[1] as usize]]).collect();
-    let mut scene = scene_from_triangles(&tris);
-    let (albedo, le) = (0.5, 1.0);
-    scene.materials[0] = Material::Diffuse { albedo: Vec3::splat(albedo) };
-    scene.emission[0] = Vec3::splat(le);
-    scene.camera = Camera::look_at(Vec3::new(0.1, -0.05, 0.0), Vec3::new(0.3, 0.2, 1.0), Vec3::Y, 60.0);
-    let want = Vec3::splat(le / (1.0 - albedo));
-    // Light tracing is the noisiest here (every pixel gets splats from all over the
-    // sphere): its mean is known to 0.3 % (a 2 % bias fails).
-    for (kind, spp, precision) in
-        [(IntegratorKind::Path, 8, 0.0015), (IntegratorKind::Light, 64, 0.003), (IntegratorKind::Bdpt, 2, 0.0015)]
-    {
-        let r = runs(kind.name(), 40, 32, 8, |seed| render_mean_seeded(&scene, kind, 32, spp, 60, seed).1.mean());
-        eprintln!("{}", assert_constant(&r, want, precision));
-    }
-}
-
 fn relmse(a: &[Vec3], b: &[Vec3]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (*x - *y).length_squared() as f64 / ((*y).length_squared() as f64 + 1e-2)).sum::<f64>()
         / a.len() as f64
@@ -66,24 +43,26 @@ fn relmse(a: &[Vec3], b: &[Vec3]) -> f64 {
 
 /// Path and light tracing agree with BDPT over 16 seeds each (`seeds.rs`: image means
 /// and block by block), and each one's per-pixel disagreement with BDPT falls as samples
-/// grow (one seed's image against the average of 16). `spp` is per seed: path, light,
-/// BDPT. Light tracing's image mean is known to about 0.1 % here (combined with BDPT's,
-/// at most 0.3 %: a 2 % bias fails). The path tracer's is not: the Cornell box's small
-/// light and the glass's caustics give it a heavy tail, and its standard error over 16
-/// seeds of 64 spp ranged from 0.28 % to 0.7 % across seed sets, so only 1 % is asked of
-/// it (a 6 % bias fails); `direct.rs` and the Mitsuba box check the path tracer to
-/// 0.1 % and 0.25 %.
-fn converge_together(scene: &Scene, size: u32, spp: [u32; 3], what: &str) {
-    let mut all: Vec<Runs> = IntegratorKind::CORE
+/// grow (one seed's image against the average of 16). `spp` is per seed: path, light;
+/// BDPT is the shared reference (`reference.rs`, 16 spp). Light tracing's image mean is
+/// known to about 0.1 % here (combined with BDPT's, at most 0.3 %: a 2 % bias fails). The
+/// path tracer's is not: the Cornell box's small light and the glass's caustics give it
+/// a heavy tail, and its standard error over 16 seeds of 64 spp ranged from 0.28 % to
+/// 0.7 % across seed sets, so only 1 % is asked of it (a 6 % bias fails); `direct.rs`
+/// and the Mitsuba box check the path tracer to 0.1 % and 0.25 %.
+fn converge_together(which: TestBox, spp: [u32; 2], what: &str) {
+    let scene = which.scene();
+    let size = reference::SIZE;
+    let all: Vec<Runs> = [IntegratorKind::Path, IntegratorKind::Light]
         .into_iter()
         .zip(spp)
         .map(|(kind, n)| {
             runs(&format!("{what}: {}", kind.name()), 0, size as usize, 8, |seed| {
-                render_mean_seeded(scene, kind, size, n, 8, seed).1.mean()
+                render_mean_seeded(&scene, kind, size, n, reference::MAX_DEPTH, seed).1.mean()
             })
         })
         .collect();
-    let bdpt = all.pop().unwrap();
+    let bdpt = reference::bdpt(which);
     for (r, precision) in all.iter().zip([0.01, 0.003]) {
         eprintln!("{}", assert_agree(r, &bdpt, precision));
         let (low, high) = (relmse(&r.first, &bdpt.first), relmse(&r.average, &bdpt.average));
@@ -93,12 +72,7 @@ fn converge_together(scene: &Scene, size: u32, spp: [u32; 3], what: &str) {
 
 #[test]
 fn path_light_and_bdpt_agree_on_the_cornell_box() {
-    converge_together(&cornell_box(), 32, [64, 24, 16], "cornell");
-}
-
-#[test]
-fn path_light_and_bdpt_agree_on_a_glossy_and_glass_scene() {
-    converge_together(&glossy_glass_box(), 32, [64, 24, 16], "glossy+glass");
+    converge_together(TestBox::Cornell, [64, 24], "cornell");
 }
 
 #[test]
@@ -125,5 +99,42 @@ fn every_integrator_is_deterministic_across_thread_counts() {
         };
         let (a, b) = (run(1), run(2));
         assert!(a.sum == b.sum && a.splat == b.splat, "{}: 1 and 2 threads differ", kind.name());
+    }
+}
+
+/// The heavy tier (README, docs/testing.md): tests that need many samples for their
+/// power, run by CI and before a release rather than before every commit.
+mod heavy {
+    use super::*;
+
+    /// Inside a closed sphere of albedo ρ whose every point emits Le, the radiance is
+    /// Le / (1 − ρ) everywhere: each integrator's image over 16 seeds matches it in the mean
+    /// (path and BDPT to 0.15 %, so a 1 % bias fails) and block by block.
+    #[test]
+    #[ignore = "heavy tier, run by CI: cargo test --profile suite --workspace --features inspector,cuda,embree --test suite -- --ignored ::heavy::"]
+    fn furnace_closed_sphere_matches_the_analytic_radiance() {
+        let (v, f) = icosphere(2);
+        // Reverse the winding so the normals (and the one-sided emission) face inward.
+        let tris: Vec<[Vec3; 3]> = f.iter().map(|t| [v[t[0] as usize], v[t[2] as usize], v[t[1] as usize]]).collect();
+        let mut scene = scene_from_triangles(&tris);
+        let (albedo, le) = (0.5, 1.0);
+        scene.materials[0] = Material::Diffuse { albedo: Vec3::splat(albedo) };
+        scene.emission[0] = Vec3::splat(le);
+        scene.camera = Camera::look_at(Vec3::new(0.1, -0.05, 0.0), Vec3::new(0.3, 0.2, 1.0), Vec3::Y, 60.0);
+        let want = Vec3::splat(le / (1.0 - albedo));
+        // Light tracing is the noisiest here (every pixel gets splats from all over the
+        // sphere): its mean is known to 0.3 % (a 2 % bias fails).
+        for (kind, spp, precision) in
+            [(IntegratorKind::Path, 8, 0.0015), (IntegratorKind::Light, 64, 0.003), (IntegratorKind::Bdpt, 2, 0.0015)]
+        {
+            let r = runs(kind.name(), 40, 32, 8, |seed| render_mean_seeded(&scene, kind, 32, spp, 60, seed).1.mean());
+            eprintln!("{}", assert_constant(&r, want, precision));
+        }
+    }
+
+    #[test]
+    #[ignore = "heavy tier, run by CI: cargo test --profile suite --workspace --features inspector,cuda,embree --test suite -- --ignored ::heavy::"]
+    fn path_light_and_bdpt_agree_on_a_glossy_and_glass_scene() {
+        converge_together(TestBox::GlossyGlass, [64, 24], "glossy+glass");
     }
 }

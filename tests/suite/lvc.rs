@@ -1,11 +1,12 @@
 //! LVC-BDPT against BDPT over independent seeds, and its determinism.
 
 use crate::common::*;
+use crate::reference::{self, TestBox};
 use crate::seeds::{assert_agree, runs};
 use warpray::cast::BvhCaster;
 use warpray::film::Film;
 use warpray::render::{Budget, IntegratorKind, LvcParams, RenderOptions, render};
-use warpray::scene::{Scene, cornell_box};
+use warpray::scene::Scene;
 
 fn film(scene: &Scene, kind: IntegratorKind, spp: u32, lvc: LvcParams, seed: u64) -> Film {
     let caster = BvhCaster::new(scene);
@@ -26,27 +27,23 @@ fn film(scene: &Scene, kind: IntegratorKind, spp: u32, lvc: LvcParams, seed: u64
 
 /// LVC and BDPT over 16 seeds each agree in their image means (to a precision that
 /// shows a 1 % bias: 0.18 %) and block by block (see `seeds.rs`).
-fn converges_to_bdpt(scene: &Scene, lvc: LvcParams, spp: u32, what: &str) {
-    let bdpt = runs("bdpt", 100, 32, 8, |seed| film(scene, IntegratorKind::Bdpt, 6, LvcParams::default(), seed).mean());
-    let ours = runs("lvc", 200, 32, 8, |seed| film(scene, IntegratorKind::Lvc, spp, lvc, seed).mean());
+/// BDPT is the shared reference (`reference.rs`).
+fn converges_to_bdpt(which: TestBox, lvc: LvcParams, spp: u32, what: &str) {
+    let (scene, bdpt) = (which.scene(), reference::bdpt(which));
+    let ours = runs("lvc", 200, 32, 8, |seed| film(&scene, IntegratorKind::Lvc, spp, lvc, seed).mean());
     eprintln!("{what}: {}", assert_agree(&ours, &bdpt, 0.0018));
 }
 
 #[test]
 fn lvc_converges_to_bdpt_on_the_cornell_box() {
-    converges_to_bdpt(&cornell_box(), LvcParams::default(), 4, "cornell");
+    converges_to_bdpt(TestBox::Cornell, LvcParams::default(), 4, "cornell");
     // Fewer light paths than pixels and more connections per vertex.
     converges_to_bdpt(
-        &cornell_box(),
+        TestBox::Cornell,
         LvcParams { light_paths: 300, connections: 5, ..Default::default() },
         12,
         "cornell, 300 light paths",
     );
-}
-
-#[test]
-fn lvc_converges_to_bdpt_on_a_glossy_and_glass_scene() {
-    converges_to_bdpt(&glossy_glass_box(), LvcParams::default(), 4, "glossy+glass");
 }
 
 #[test]
@@ -61,4 +58,16 @@ fn lvc_is_deterministic_across_thread_counts() {
     };
     let (a, b) = (run(1), run(2));
     assert!(a.sum == b.sum && a.splat == b.splat);
+}
+
+/// The heavy tier (README, docs/testing.md): tests that need many samples for their
+/// power, run by CI and before a release rather than before every commit.
+mod heavy {
+    use super::*;
+
+    #[test]
+    #[ignore = "heavy tier, run by CI: cargo test --profile suite --workspace --features inspector,cuda,embree --test suite -- --ignored ::heavy::"]
+    fn lvc_converges_to_bdpt_on_a_glossy_and_glass_scene() {
+        converges_to_bdpt(TestBox::GlossyGlass, LvcParams::default(), 4, "glossy+glass");
+    }
 }

@@ -31,6 +31,7 @@ mod optics;
 mod outputs;
 mod pdacrt_weights;
 mod point_light;
+mod reference;
 mod render;
 mod render_casters;
 mod rooms;

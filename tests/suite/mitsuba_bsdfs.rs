@@ -63,12 +63,20 @@ fn a_smooth_silver_floor_matches_mitsuba() {
     compare("conductor", 128, 0.006);
 }
 
-#[test]
-fn a_smooth_glass_slab_matches_mitsuba() {
-    compare("dielectric", 128, 0.006);
-}
+/// The heavy tier (README, docs/testing.md): tests that need many samples for their
+/// power, run by CI and before a release rather than before every commit.
+mod heavy {
+    use super::*;
 
-#[test]
-fn a_rough_glass_slab_matches_mitsuba() {
-    compare("roughdielectric", 128, 0.006);
+    #[test]
+    #[ignore = "heavy tier, run by CI: cargo test --profile suite --workspace --features inspector,cuda,embree --test suite -- --ignored ::heavy::"]
+    fn a_smooth_glass_slab_matches_mitsuba() {
+        compare("dielectric", 128, 0.006);
+    }
+
+    #[test]
+    #[ignore = "heavy tier, run by CI: cargo test --profile suite --workspace --features inspector,cuda,embree --test suite -- --ignored ::heavy::"]
+    fn a_rough_glass_slab_matches_mitsuba() {
+        compare("roughdielectric", 128, 0.006);
+    }
 }

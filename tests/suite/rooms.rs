@@ -66,12 +66,20 @@ fn agree(name: &str, runs_of: &[(&str, u32)]) {
     }
 }
 
-#[test]
-fn every_integrator_agrees_on_the_white_room() {
-    agree("white-room", &[("bdpt", 64), ("path", 64), ("light", 256), ("lvc", 64), ("cis", 32)]);
-}
+/// The heavy tier (README, docs/testing.md): tests that need many samples for their
+/// power, run by CI and before a release rather than before every commit.
+mod heavy {
+    use super::*;
 
-#[test]
-fn every_integrator_agrees_on_the_bedroom() {
-    agree("bedroom", &[("bdpt", 32), ("path", 64), ("light", 128), ("lvc", 32), ("cis", 32)]);
+    #[test]
+    #[ignore = "heavy tier, run by CI: cargo test --profile suite --workspace --features inspector,cuda,embree --test suite -- --ignored ::heavy::"]
+    fn every_integrator_agrees_on_the_white_room() {
+        agree("white-room", &[("bdpt", 64), ("path", 64), ("light", 256), ("lvc", 64), ("cis", 32)]);
+    }
+
+    #[test]
+    #[ignore = "heavy tier, run by CI: cargo test --profile suite --workspace --features inspector,cuda,embree --test suite -- --ignored ::heavy::"]
+    fn every_integrator_agrees_on_the_bedroom() {
+        agree("bedroom", &[("bdpt", 32), ("path", 64), ("light", 128), ("lvc", 32), ("cis", 32)]);
+    }
 }

@@ -149,18 +149,8 @@ fn weighted_strategies_of_each_depth_add_up_to_the_furnace(integrator: Integrato
 }
 
 #[test]
-fn bdpt_unweighted_strategies() {
-    every_unweighted_strategy_matches_the_furnace(Bdpt);
-}
-
-#[test]
 fn bdpt_weighted_strategies() {
     weighted_strategies_of_each_depth_add_up_to_the_furnace(Bdpt);
-}
-
-#[test]
-fn lvc_unweighted_strategies() {
-    every_unweighted_strategy_matches_the_furnace(Lvc);
 }
 
 #[test]
@@ -169,11 +159,30 @@ fn lvc_weighted_strategies() {
 }
 
 #[test]
-fn cis_unweighted_strategies() {
-    every_unweighted_strategy_matches_the_furnace(Cis);
-}
-
-#[test]
 fn cis_weighted_strategies() {
     weighted_strategies_of_each_depth_add_up_to_the_furnace(Cis);
+}
+
+/// The heavy tier (README, docs/testing.md): tests that need many samples for their
+/// power, run by CI and before a release rather than before every commit.
+mod heavy {
+    use super::*;
+
+    #[test]
+    #[ignore = "heavy tier, run by CI: cargo test --profile suite --workspace --features inspector,cuda,embree --test suite -- --ignored ::heavy::"]
+    fn bdpt_unweighted_strategies() {
+        every_unweighted_strategy_matches_the_furnace(Bdpt);
+    }
+
+    #[test]
+    #[ignore = "heavy tier, run by CI: cargo test --profile suite --workspace --features inspector,cuda,embree --test suite -- --ignored ::heavy::"]
+    fn lvc_unweighted_strategies() {
+        every_unweighted_strategy_matches_the_furnace(Lvc);
+    }
+
+    #[test]
+    #[ignore = "heavy tier, run by CI: cargo test --profile suite --workspace --features inspector,cuda,embree --test suite -- --ignored ::heavy::"]
+    fn cis_unweighted_strategies() {
+        every_unweighted_strategy_matches_the_furnace(Cis);
+    }
 }
