@@ -170,6 +170,15 @@ pub enum Error {
     /// A setting or option out of range, or two that conflict.
     #[error("{0}")]
     BadSetting(String),
+    /// An input (a scene, a render's size) that would need more memory than the budget
+    /// (`crate::limits::memory_budget`), refused before the large allocations.
+    #[error("{what} {over}")]
+    OverMemoryBudget {
+        /// The input: a file and line, or a render's size and integrator.
+        what: String,
+        /// The estimate and the budget ([`crate::limits::OverBudget`]).
+        over: String,
+    },
     /// An output image cannot be written.
     #[error("{path}: cannot write image: {msg}")]
     Output {

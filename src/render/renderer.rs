@@ -6,12 +6,12 @@ use super::context::{Context, Passes};
 use super::integrators::Integrator;
 use super::integrators::cis::CisLbdpt;
 use super::integrators::cis::kernels::MAX_CAMERA_VERTICES;
-use super::options::{Budget, IntegratorKind, RenderOptions, RenderStats};
+use super::options::{Budget, IntegratorKind, RENDER_FIXED_BYTES, RenderOptions, RenderStats};
 use crate::cast::{CastStats, CountingCaster, RayCaster};
 use crate::error::{Error, Result};
 use crate::film::Film;
 use crate::lights::Lights;
-use crate::limits::MAX_SECONDS;
+use crate::limits::{MAX_SECONDS, check_memory};
 use crate::scene::Scene;
 use std::time::{Duration, Instant};
 
@@ -32,6 +32,12 @@ impl<'a> Renderer<'a> {
     pub fn new(scene: &'a Scene, caster: &'a dyn RayCaster, opts: &RenderOptions) -> Result<Self> {
         scene.check_renderable()?;
         crate::film::check_size(opts.width, opts.height)?;
+        let pixels = opts.width as u64 * opts.height as u64;
+        let need = RENDER_FIXED_BYTES + pixels * opts.integrator.bytes_per_pixel();
+        check_memory(need).map_err(|over| Error::OverMemoryBudget {
+            what: format!("a {}x{} render with {}", opts.width, opts.height, opts.integrator.name()),
+            over,
+        })?;
         if let Budget::Seconds(s) = opts.budget
             && !(s > 0.0 && s <= MAX_SECONDS)
         {

@@ -7,6 +7,7 @@ use super::{
     models_dir,
 };
 use crate::error::{Error, Location, Result};
+use crate::limits::check_triangles;
 use glam::Vec3;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -250,9 +251,17 @@ pub const NAMED_SCENES: &[(&str, &str)] = &[
 /// Loads a scene: a `.toml` scene file, an `.obj`/`.obj.gz` file, `cornell` (the
 /// built-in box), the name of a built-in scene file ([`NAMED_SCENES`]: `bunny`,
 /// `dragon`, `conference`, `dabrovic-sponza`), or the name of a model in
-/// `$WARPRAY_MODELS` (`cornell-box`). An existing file wins over a name.
+/// `$WARPRAY_MODELS` (`cornell-box`). An existing file wins over a name. The scene
+/// passes the memory budget before a caster is built for it.
 pub fn load_scene(path: impl AsRef<Path>) -> Result<SceneDesc> {
-    let path = path.as_ref();
+    let (path, desc) = (path.as_ref(), load_any_scene(path.as_ref())?);
+    let n = desc.scene.triangle_count() as u64;
+    let what = || format!("{}: {n} triangles", path.display());
+    check_triangles(n).map(|_| desc).map_err(|over| Error::OverMemoryBudget { what: what(), over })
+}
+
+/// [`load_scene`] without the memory check.
+fn load_any_scene(path: &Path) -> Result<SceneDesc> {
     if path.as_os_str() == "cornell" {
         return Ok(SceneDesc { scene: cornell_box(), settings: RenderSettings::default() });
     }
@@ -263,7 +272,7 @@ pub fn load_scene(path: impl AsRef<Path>) -> Result<SceneDesc> {
             return parse_scene_file(Path::new(&format!("{name}.toml (built in)")), text);
         }
         if let Some(model) = super::find_model(name) {
-            return load_scene(model);
+            return load_any_scene(&model);
         }
         if !name.contains(['/', '\\', '.']) {
             let known: Vec<&str> = NAMED_SCENES.iter().map(|(n, _)| *n).collect();

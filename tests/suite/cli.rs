@@ -479,3 +479,66 @@ fn diff_checks_a_png_header_before_decoding() {
     assert_eq!(out.status.code(), Some(2), "{e}");
     assert!(e.contains("cannot read image") && e.contains("20000x20000"), "{e}");
 }
+
+/// Renders and scenes beyond the memory budget are refused before their large
+/// allocations, with the input, the estimate and the budget; just inside, they run.
+#[test]
+fn inputs_beyond_the_memory_budget_are_refused_before_allocating() {
+    let dir = scratch("budget");
+    let render = |budget: &str, size: &str, out: &std::path::Path| {
+        warpray()
+            .env("WARPRAY_MEMORY_BUDGET", budget)
+            .args(["render", "--integrator", "path", "--size", size, "--spp", "1", "--threads", "1", "-q", "-o"])
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    // 8192² (the largest size allowed) with path tracing needs about 33 GiB: refused at
+    // once under 16 GiB, and nothing is written.
+    let big = dir.join("big.exr");
+    let start = std::time::Instant::now();
+    let out = render("16G", "8192x8192", &big);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && !big.exists(), "{err}");
+    assert!(err.contains("8192x8192 render with path") && err.contains("16.0 GiB"), "{err}");
+    assert!(err.contains("WARPRAY_MEMORY_BUDGET"), "{err}");
+    assert!(start.elapsed().as_secs() < 10, "refused before rendering");
+    // 512²: 256 MiB + 512² × 520 B = 386 MiB. Refused at 380 MiB, rendered at 400 MiB.
+    let small = dir.join("small.exr");
+    let out = render("380M", "512x512", &small);
+    assert!(!out.status.success() && !small.exists(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = render("400M", "512x512", &small);
+    assert!(out.status.success() && small.exists(), "{}", String::from_utf8_lossy(&out.stderr));
+    // A budget that is not a size is an error naming the variable.
+    let out = render("lots", "16x16", &small);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("WARPRAY_MEMORY_BUDGET=\"lots\""), "{err}");
+
+    // A 1,000-sphere Mitsuba file (20.5 million triangles, about 9 GiB) under a 1 GiB
+    // budget stops at the sphere that crosses it (the 110th: 2,252,800 triangles), named
+    // by file and line, before tessellating the rest.
+    let spheres: String = (0..1000)
+        .map(|i| format!("<shape type=\"sphere\"><point name=\"center\" value=\"{i}, 0, 0\"/></shape>\n"))
+        .collect();
+    let xml = dir.join("spheres.xml");
+    std::fs::write(
+        &xml,
+        format!(
+            "<scene version=\"3.0.0\">\n<emitter type=\"point\"><point name=\"position\" value=\"0, 5, 0\"/></emitter>\n{spheres}</scene>\n"
+        ),
+    )
+    .unwrap();
+    let start = std::time::Instant::now();
+    let out = warpray()
+        .env("WARPRAY_MEMORY_BUDGET", "1G")
+        .args(["render"])
+        .arg(&xml)
+        .args(["--size", "16x16", "--spp", "1", "-q", "-o"])
+        .arg(dir.join("spheres.exr"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("spheres.xml:112") && err.contains("2252800 triangles") && err.contains("1.0 GiB"), "{err}");
+    assert!(start.elapsed().as_secs() < 30, "stopped at the budget");
+}

@@ -13,6 +13,7 @@ use super::file::{RenderSettings, SceneDesc};
 use super::{Camera, Material, ObjOptions, PointLight, Scene, load_obj};
 use crate::error::{Error, Location, Result};
 use crate::filter::Filter;
+use crate::limits::check_triangles;
 use glam::Vec3;
 use roxmltree::Node;
 use std::collections::HashMap;
@@ -366,6 +367,11 @@ impl Builder<'_, '_> {
             _ => return Err(doc.err(node, "shape not supported (obj, ply, rectangle, cube, sphere)")),
         };
         p.finish()?;
+        // Each shape's triangles pass the memory budget before they join the scene (a
+        // 170 kB file of 1,000 spheres made 20.5 million triangles and 6.2 GB).
+        let total = (self.scene.triangles.len() + mesh.1.len()) as u64;
+        check_triangles(total)
+            .map_err(|over| doc.err(node, format!("the scene's {total} triangles with this shape {over}")))?;
         let material = self.shape_material(node, emission)?;
         let base = self.scene.positions.len() as u32;
         if mesh.0.iter().any(|v| !v.is_finite()) {
