@@ -231,8 +231,9 @@ fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
     Ok((w, h))
 }
 
-/// Ctrl-C during a render: the first asks the render loop to stop after the pass it is
-/// in (the image is then written as usual), the second exits at once with status 130.
+/// Ctrl-C during a render or `converge`: the first asks the render loop to stop after
+/// the pass it is in (the image, or what `converge` measured, is then written as usual,
+/// and the command exits with status 130), the second exits at once with status 130.
 /// Images are written under a temporary name and renamed, so neither leaves a
 /// half-written file behind.
 mod interrupt {
@@ -244,7 +245,7 @@ mod interrupt {
     extern "C" fn on_sigint(_: libc::c_int) {
         // Only async-signal-safe calls here: an atomic, write(2) and _exit(2).
         if COUNT.fetch_add(1, Ordering::SeqCst) == 0 {
-            let msg = b"\ninterrupted: finishing this pass and writing the image (Ctrl-C again to quit now)\n";
+            let msg = b"\ninterrupted: finishing this pass and writing what was done (Ctrl-C again to quit now)\n";
             // SAFETY: write(2) on stderr with a valid buffer.
             unsafe { libc::write(2, msg.as_ptr().cast(), msg.len()) };
         } else {
@@ -535,7 +536,8 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
     pool.build().map_err(|e| Error::BadSetting(format!("thread pool: {e}")))
 }
 
-fn run_converge(args: ConvergeArgs) -> Result<()> {
+/// `converge`; true when Ctrl-C stopped it (what was measured is written all the same).
+fn run_converge(args: ConvergeArgs) -> Result<bool> {
     use warpray::converge::{
         ConvergeOptions, common_target, read_csv, read_exr, run, summarize, summary_table, write_chart, write_csv,
     };
@@ -572,7 +574,7 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
         }
         finish(&rows, &labels, &format!("{}: error against time", args.scene.display()))?;
         println!("wrote {}, {}", with_ext(".svg").display(), with_ext(".png").display());
-        return Ok(());
+        return Ok(false);
     }
     let desc = load_scene(&args.scene)?;
     let (width, height) = args.size;
@@ -602,6 +604,7 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
         image.max_depth = d;
     }
     let pool = thread_pool(args.threads)?;
+    interrupt::install();
     pool.install(|| {
         let caster = warpray::cast::BvhCaster::new(&desc.scene);
         let reference = match &args.reference {
@@ -630,9 +633,15 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
                 let bar = progress_bar(opts.budget);
                 let (film, _) = render(&desc.scene, &caster, &opts, |p, _| {
                     bar.set_position(p as u64);
-                    true
+                    !interrupt::requested()
                 })?;
                 bar.finish_and_clear();
+                if interrupt::requested() {
+                    // A partial reference would make every error below wrong: nothing is
+                    // written, as nothing was measured.
+                    eprintln!("interrupted while rendering the reference; nothing was measured or written");
+                    return Ok(true);
+                }
                 film.write(&with_ext("-reference.exr"), 1.0)?;
                 film.mean()
             }
@@ -648,14 +657,27 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
             filter: image.filter,
             filter_mode: image.filter_mode,
         };
-        let rows = run(&desc.scene, &caster, &reference, &opts, |r| {
-            eprintln!(
-                "{:>6} {:8.2} s {:6} spp  RMSE {:.5}  relMSE {:.5}",
-                r.integrator, r.seconds, r.spp, r.rmse, r.relmse
-            )
-        })?;
+        let rows = run(
+            &desc.scene,
+            &caster,
+            &reference,
+            &opts,
+            |r| {
+                eprintln!(
+                    "{:>6} {:8.2} s {:6} spp  RMSE {:.5}  relMSE {:.5}",
+                    r.integrator, r.seconds, r.spp, r.rmse, r.relmse
+                )
+            },
+            interrupt::requested,
+        )?;
+        let interrupted = interrupt::requested();
+        if interrupted {
+            eprintln!("interrupted: writing the {} measurements made", rows.len());
+        }
         write_csv(&with_ext(".csv"), &rows)?;
-        let labels: Vec<&str> = opts.integrators.iter().map(|k| k.label).collect();
+        // The integrators measured (all of them unless Ctrl-C came first).
+        let labels: Vec<&str> =
+            opts.integrators.iter().map(|k| k.label).filter(|l| rows.iter().any(|r| r.integrator == *l)).collect();
         finish(&rows, &labels, &format!("{}: error against time", desc.scene.source.display()))?;
         println!(
             "wrote {}, {}, {}",
@@ -663,7 +685,7 @@ fn run_converge(args: ConvergeArgs) -> Result<()> {
             with_ext(".svg").display(),
             with_ext(".png").display()
         );
-        Ok(())
+        Ok(interrupted)
     })
 }
 
@@ -684,7 +706,7 @@ fn main() -> ExitCode {
     let command = cli.command.unwrap_or(Command::Render(cli.render));
     let result = match command {
         Command::Render(args) => run_render(args).map(|i| if i { Stop::Interrupted } else { Stop::Done }),
-        Command::Converge(args) => run_converge(args).map(|()| Stop::Done),
+        Command::Converge(args) => run_converge(args).map(|i| if i { Stop::Interrupted } else { Stop::Done }),
         Command::Diff(args) => run_diff(args).map(|over| if over { Stop::Differs } else { Stop::Done }),
     };
     match result {

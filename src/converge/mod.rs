@@ -46,13 +46,16 @@ pub struct ConvergeOptions {
 }
 
 /// Renders with every integrator, measuring against `reference` (pixel order, the
-/// same size). `progress(integrator, checkpoint)` sees each row as it is made.
+/// same size). `progress(integrator, checkpoint)` sees each row as it is made. When
+/// `stop()` turns true (Ctrl-C) the render under way ends after its pass, that pass is
+/// measured, and the rows so far are returned without the integrators still to come.
 pub fn run(
     scene: &Scene,
     caster: &dyn RayCaster,
     reference: &[Vec3],
     opts: &ConvergeOptions,
     mut progress: impl FnMut(&Checkpoint),
+    stop: impl Fn() -> bool,
 ) -> Result<Vec<Checkpoint>> {
     if reference.len() != (opts.width * opts.height) as usize {
         return Err(Error::BadSetting(format!(
@@ -116,10 +119,13 @@ pub fn run(
         };
         let (film, _) = render(scene, caster, &render_opts, |_, film| {
             measure(film, &mut rows, false);
-            true
+            !stop()
         })?;
         if rows.last().is_none_or(|r| r.spp != film.passes || r.integrator != label) {
             measure(&film, &mut rows, true);
+        }
+        if stop() {
+            break;
         }
     }
     Ok(rows)

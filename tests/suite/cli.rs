@@ -542,3 +542,40 @@ fn inputs_beyond_the_memory_budget_are_refused_before_allocating() {
     assert!(err.contains("spheres.xml:112") && err.contains("2252800 triangles") && err.contains("1.0 GiB"), "{err}");
     assert!(start.elapsed().as_secs() < 30, "stopped at the budget");
 }
+
+/// Ctrl-C in `converge` ends the integrator under way after its pass and writes the CSV
+/// and charts of what was measured (the integrators still to come are left out), with
+/// status 130.
+#[test]
+fn ctrl_c_in_converge_writes_what_was_measured() {
+    let dir = scratch("converge-sigint");
+    let prefix = dir.join("c");
+    // Ten minutes per integrator: only Ctrl-C ends this in time.
+    let mut child = warpray()
+        .args(["converge", "--seconds", "600", "--size", "24x16", "--reference-spp", "4", "--threads", "1"])
+        .args(["--integrators", "path,bdpt", "-o"])
+        .arg(&prefix)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(2500));
+    // SAFETY: kill(2) on our own child.
+    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > deadline {
+            child.kill().unwrap();
+            panic!("converge did not stop within 60 s of Ctrl-C");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted: writing the"), "{stderr}");
+    let csv = std::fs::read_to_string(dir.join("c.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert!(!rows.is_empty() && rows.iter().all(|r| r.starts_with("path,")), "{csv}");
+    assert!(std::fs::read_to_string(dir.join("c.svg")).unwrap().contains("<svg"));
+    assert!(image::open(dir.join("c.png")).is_ok());
+}
