@@ -236,12 +236,30 @@ fn outputs_and_names_are_checked_before_any_work() {
 }
 
 #[cfg(unix)]
+/// Sends SIGINT to `child` after `ms` milliseconds and waits for it: a command that
+/// ignores Ctrl-C fails the test within 60 s rather than hanging it.
+fn ctrl_c_after(mut child: std::process::Child, ms: u64) -> std::process::Output {
+    std::thread::sleep(std::time::Duration::from_millis(ms));
+    // SAFETY: kill(2) on our own child.
+    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > deadline {
+            child.kill().unwrap();
+            panic!("the command did not stop within 60 s of Ctrl-C");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    child.wait_with_output().unwrap()
+}
+
+#[cfg(unix)]
 #[test]
 fn ctrl_c_finishes_the_pass_and_writes_what_was_rendered() {
     let dir = scratch("sigint");
     let (exr, png) = (dir.join("i.exr"), dir.join("i.png"));
     // Far more passes than can finish: only Ctrl-C ends this render.
-    let mut child = warpray()
+    let child = warpray()
         .args(["--size", "32x32", "--spp", "10000000", "--threads", "1", "-q", "-o"])
         .arg(&exr)
         .arg("-o")
@@ -249,19 +267,7 @@ fn ctrl_c_finishes_the_pass_and_writes_what_was_rendered() {
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(1500));
-    // SAFETY: kill(2) on our own child.
-    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
-    // A render that ignores Ctrl-C must fail this test, not hang it.
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-    while child.try_wait().unwrap().is_none() {
-        if std::time::Instant::now() > deadline {
-            child.kill().unwrap();
-            panic!("the render did not stop within 60 s of Ctrl-C");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(50));
-    }
-    let out = child.wait_with_output().unwrap();
+    let out = ctrl_c_after(child, 1500);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(130), "did not stop on Ctrl-C within 60 s? {stderr}");
     assert!(stderr.contains("interrupted after"), "{stderr}");
@@ -546,30 +552,20 @@ fn inputs_beyond_the_memory_budget_are_refused_before_allocating() {
 /// Ctrl-C in `converge` ends the integrator under way after its pass and writes the CSV
 /// and charts of what was measured (the integrators still to come are left out), with
 /// status 130.
+#[cfg(unix)]
 #[test]
 fn ctrl_c_in_converge_writes_what_was_measured() {
     let dir = scratch("converge-sigint");
     let prefix = dir.join("c");
     // Ten minutes per integrator: only Ctrl-C ends this in time.
-    let mut child = warpray()
+    let child = warpray()
         .args(["converge", "--seconds", "600", "--size", "24x16", "--reference-spp", "4", "--threads", "1"])
         .args(["--integrators", "path,bdpt", "-o"])
         .arg(&prefix)
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(2500));
-    // SAFETY: kill(2) on our own child.
-    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-    while child.try_wait().unwrap().is_none() {
-        if std::time::Instant::now() > deadline {
-            child.kill().unwrap();
-            panic!("converge did not stop within 60 s of Ctrl-C");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(50));
-    }
-    let out = child.wait_with_output().unwrap();
+    let out = ctrl_c_after(child, 2500);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(130), "{stderr}");
     assert!(stderr.contains("interrupted: writing the"), "{stderr}");
