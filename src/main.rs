@@ -539,7 +539,8 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
 /// `converge`; true when Ctrl-C stopped it (what was measured is written all the same).
 fn run_converge(args: ConvergeArgs) -> Result<bool> {
     use warpray::converge::{
-        ConvergeOptions, common_target, read_csv, read_exr, run, summarize, summary_table, write_chart, write_csv,
+        ConvergeOptions, common_target, read_csv, read_exr, reference_key, run, summarize, summary_table, write_chart,
+        write_csv,
     };
     let with_ext = |ext: &str| {
         let mut name = args.output.clone().into_os_string();
@@ -619,31 +620,27 @@ fn run_converge(args: ConvergeArgs) -> Result<bool> {
                 px
             }
             None => {
-                eprintln!(
-                    "rendering the reference: {} at {} spp ...",
-                    args.reference_integrator.name(),
-                    args.reference_spp
-                );
                 let opts = RenderOptions {
                     budget: Budget::Samples(args.reference_spp),
                     seed: args.seed ^ 0x5_eed0_f7ef,
                     integrator: args.reference_integrator,
                     ..image.clone()
                 };
-                let bar = progress_bar(opts.budget);
-                let (film, _) = render(&desc.scene, &caster, &opts, |p, _| {
-                    bar.set_position(p as u64);
-                    !interrupt::requested()
-                })?;
-                bar.finish_and_clear();
-                if interrupt::requested() {
-                    // A partial reference would make every error below wrong: nothing is
-                    // written, as nothing was measured.
-                    eprintln!("interrupted while rendering the reference; nothing was measured or written");
-                    return Ok(true);
+                // A reference this command rendered before for the same scene and
+                // settings is read back instead of rendered again.
+                let (cached, key) = (with_ext("-reference.exr"), reference_key(&desc.scene, &opts));
+                let same = |m: Vec<(String, String)>| m.iter().any(|(k, v)| k == "reference_key" && *v == key);
+                let reuse = cached.is_file() && warpray::film::read_exr_metadata(&cached).is_ok_and(same);
+                match reuse.then(|| read_exr(&cached)).transpose()? {
+                    Some((w, h, px)) if (w, h) == (width, height) => {
+                        eprintln!("reusing {} (same scene and settings; delete it to render again)", cached.display());
+                        px
+                    }
+                    _ => match render_reference(&desc.scene, &caster, &opts, &cached, key)? {
+                        Some(px) => px,
+                        None => return Ok(true),
+                    },
                 }
-                film.write(&with_ext("-reference.exr"), 1.0)?;
-                film.mean()
             }
         };
         let opts = ConvergeOptions {
@@ -687,6 +684,35 @@ fn run_converge(args: ConvergeArgs) -> Result<bool> {
         );
         Ok(interrupted)
     })
+}
+
+/// Renders `converge`'s reference with `opts`, writes it to `path` with its `key`
+/// (`converge::reference_key`) and returns its pixels; `None` when Ctrl-C stopped it: a
+/// partial reference would make every error against it wrong, so nothing is written.
+fn render_reference(
+    scene: &warpray::scene::Scene,
+    caster: &dyn RayCaster,
+    opts: &RenderOptions,
+    path: &std::path::Path,
+    key: String,
+) -> Result<Option<Vec<warpray::glam::Vec3>>> {
+    let spp = match opts.budget {
+        Budget::Samples(n) => n,
+        Budget::Seconds(_) => unreachable!("converge renders its reference to a sample count"),
+    };
+    eprintln!("rendering the reference: {} at {spp} spp ...", opts.integrator.name());
+    let bar = progress_bar(opts.budget);
+    let (film, _) = render(scene, caster, opts, |p, _| {
+        bar.set_position(p as u64);
+        !interrupt::requested()
+    })?;
+    bar.finish_and_clear();
+    if interrupt::requested() {
+        eprintln!("interrupted while rendering the reference; nothing was measured or written");
+        return Ok(None);
+    }
+    film.write_with(path, 1.0, &[("reference_key", key)])?;
+    Ok(Some(film.mean()))
 }
 
 fn progress_bar(budget: Budget) -> ProgressBar {

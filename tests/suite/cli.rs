@@ -575,3 +575,31 @@ fn ctrl_c_in_converge_writes_what_was_measured() {
     assert!(std::fs::read_to_string(dir.join("c.svg")).unwrap().contains("<svg"));
     assert!(image::open(dir.join("c.png")).is_ok());
 }
+
+/// `converge` reuses the reference it rendered for the same scene and settings, and
+/// renders a new one when a setting that changes it differs.
+#[test]
+fn converge_reuses_its_reference_for_the_same_scene_and_settings() {
+    let dir = scratch("converge-cache");
+    let run = |spp: &str| {
+        let out = warpray()
+            .args(["converge", "--seconds", "0.1", "--size", "16x12", "--integrators", "path", "--reference-spp", spp])
+            .arg("-o")
+            .arg(dir.join("c"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{err}");
+        err
+    };
+    let reference = dir.join("c-reference.exr");
+    assert!(run("8").contains("rendering the reference: path at 8 spp"));
+    let first = std::fs::read(&reference).unwrap();
+    let key = metadata(&reference)["reference_key"].clone();
+    let again = run("8");
+    assert!(again.contains("reusing") && !again.contains("rendering the reference"), "{again}");
+    assert_eq!(std::fs::read(&reference).unwrap(), first, "the reused reference is left as it was");
+    let other = run("9");
+    assert!(other.contains("rendering the reference: path at 9 spp"), "{other}");
+    assert_ne!(metadata(&reference)["reference_key"], key);
+}
