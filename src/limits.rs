@@ -93,6 +93,12 @@ fn parse_size(s: &str) -> Option<u64> {
 /// The machine's memory in bytes, where Linux says: the smaller of `MemTotal` and the
 /// cgroup's `memory.max`.
 fn machine_memory() -> Option<u64> {
+    static MEMORY: std::sync::OnceLock<Option<u64>> = std::sync::OnceLock::new();
+    *MEMORY.get_or_init(read_machine_memory)
+}
+
+/// [`machine_memory`], read from the files (once per process).
+fn read_machine_memory() -> Option<u64> {
     let total = std::fs::read_to_string("/proc/meminfo").ok().and_then(|m| {
         let line = m.lines().find(|l| l.starts_with("MemTotal:"))?;
         line.split_whitespace().nth(1)?.parse::<u64>().ok().map(|kib| kib << 10)

@@ -636,10 +636,17 @@ fn run_converge(args: ConvergeArgs) -> Result<bool> {
                         eprintln!("reusing {} (same scene and settings; delete it to render again)", cached.display());
                         px
                     }
-                    _ => match render_reference(&desc.scene, &caster, &opts, &cached, key)? {
-                        Some(px) => px,
-                        None => return Ok(true),
-                    },
+                    _ => {
+                        eprintln!(
+                            "rendering the reference: {} at {} spp ...",
+                            opts.integrator.name(),
+                            args.reference_spp
+                        );
+                        match render_reference(&desc.scene, &caster, &opts, &cached, key)? {
+                            Some(px) => px,
+                            None => return Ok(true),
+                        }
+                    }
                 }
             }
         };
@@ -696,11 +703,6 @@ fn render_reference(
     path: &std::path::Path,
     key: String,
 ) -> Result<Option<Vec<warpray::glam::Vec3>>> {
-    let spp = match opts.budget {
-        Budget::Samples(n) => n,
-        Budget::Seconds(_) => unreachable!("converge renders its reference to a sample count"),
-    };
-    eprintln!("rendering the reference: {} at {spp} spp ...", opts.integrator.name());
     let bar = progress_bar(opts.budget);
     let (film, _) = render(scene, caster, opts, |p, _| {
         bar.set_position(p as u64);

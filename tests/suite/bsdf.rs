@@ -95,8 +95,8 @@ fn cell_integral(m: &Material, wo: Vec3, c: usize, sub: usize) -> f64 {
 /// disagree (narrow transmission lobes near the poles need a fine rule): 16² and 32²,
 /// else 384². (The midpoint rule's error falls as the square of the step, so where the
 /// two agree to 1e-3 the finer is within about a third of that; an expected count off
-/// by 3e-4 is far below the 3 % noise of a cell's ~900 samples. A first pair of 8² and
-/// 16² let a rough glass lobe at grazing incidence through.)
+/// by 3e-4 is far below the 3 % noise of a cell's ~900 samples. Coarser pairs, 8² and
+/// 16², let a rough glass lobe at grazing incidence through.)
 fn expected(m: &Material, wo: Vec3) -> Vec<f64> {
     (0..Z_RES * PHI_RES)
         .map(|c| {
