@@ -7,7 +7,7 @@
 //! ```text
 //! WARPRAY_MODELS=../shared/models cargo run --release --features embree --example dacrt_tables -- \
 //!     [--size 1024] [--scenes bunny,conference,dragon] \
-//!     [--casters bvh,dacrt,pdacrt,embree,embree-fast] [--rounds 5] \
+//!     [--casters bvh,bvh4,dacrt,pdacrt,embree,embree-fast] [--rounds 5] \
 //!     [--threads N] [--scaling 1,2,4,8,16] [--ao 8] [--repeat 1] [--sweep] [--json] \
 //!     [--pdacrt-chunk RAYS] [--dacrt-top-cell TRIANGLES] [--dacrt-groups-per-thread N]
 //!     [--dacrt-packet RAYS]
@@ -26,7 +26,7 @@
 
 use clap::Parser;
 use warpray::cast::batches::interior_camera;
-use warpray::cast::{BvhBuild, BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster, Traversal};
+use warpray::cast::{Bvh4, BvhBuild, BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster, Traversal};
 use warpray::geometry::{Hit, Ray};
 use warpray::machine::median;
 use warpray::pdacrt::{Pdacrt, PdacrtParams};
@@ -172,6 +172,7 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
             };
             Box::new(BvhCaster::with_build(s.triangle_vertices(), b).with_traversal(Traversal::Fast))
         }
+        "bvh4" => Box::new(Bvh4::new(s)),
         "dacrt" => {
             let mut d = Dacrt::new(s);
             let t = TUNABLES.get().copied().unwrap_or_default();
@@ -200,9 +201,10 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
 
 /// The casters this build can measure.
 #[cfg(feature = "embree")]
-const KNOWN: &[&str] = &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "dacrt", "pdacrt", "embree", "embree-fast"];
+const KNOWN: &[&str] =
+    &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "bvh4", "dacrt", "pdacrt", "embree", "embree-fast"];
 #[cfg(not(feature = "embree"))]
-const KNOWN: &[&str] = &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "dacrt", "pdacrt"];
+const KNOWN: &[&str] = &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "bvh4", "dacrt", "pdacrt"];
 
 /// One row per cell from the rounds' rows: build, trace and total each the median of
 /// its own values; the stages of the round whose trace was nearest the median.

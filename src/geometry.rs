@@ -81,6 +81,13 @@ impl Hit {
     pub fn is_hit(&self) -> bool {
         self.prim != Hit::NONE
     }
+
+    /// Whether a hit at `t` on triangle `prim` replaces this one: it is closer, or as
+    /// close on a smaller id (brute force's answer on ties, which every caster gives).
+    #[inline]
+    pub fn loses_to(&self, t: f32, prim: u32) -> bool {
+        t < self.t || (t == self.t && prim < self.prim)
+    }
 }
 
 impl Default for Hit {

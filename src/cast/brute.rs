@@ -1,10 +1,9 @@
 //! Brute force: every ray against every triangle. O(rays × triangles); the oracle that
 //! every other caster is tested against, and the leaf stage's reference.
 
-use super::caster::{CastStats, RayCaster, Triangles, any_hit_ids, intersect_ids, timed, triangles_bytes};
+use super::caster::{CastStats, RayCaster, Triangles, any_hit_ids, intersect_ids, per_ray, triangles_bytes};
 use crate::geometry::{Hit, Ray, RayShear};
 use crate::scene::Scene;
-use rayon::prelude::*;
 
 /// Every ray against every triangle: slow, simple, and the oracle the other casters are tested against.
 pub struct BruteForce {
@@ -29,41 +28,21 @@ impl RayCaster for BruteForce {
     }
 
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
-        assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
         let n = self.tris.len() as u32;
-        timed(rays.len(), 0, || {
-            rays.par_iter()
-                .zip(hits.par_iter_mut())
-                .with_min_len(16)
-                .map(|(ray, hit)| {
-                    *hit = Hit::MISS;
-                    if !ray.is_valid() {
-                        return 0;
-                    }
-                    intersect_ids(&self.tris, 0..n, ray, &RayShear::new(ray.dir), hit);
-                    n as u64
-                })
-                .sum()
+        per_ray(rays, hits, |ray| {
+            let mut hit = Hit::MISS;
+            if !ray.is_valid() {
+                return (hit, 0);
+            }
+            intersect_ids(&self.tris, 0..n, ray, &RayShear::new(ray.dir), &mut hit);
+            (hit, n as u64)
         })
     }
 
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
-        assert_eq!(rays.len(), out.len(), "one result slot per ray");
         let n = self.tris.len() as u32;
-        timed(rays.len(), 0, || {
-            rays.par_iter()
-                .zip(out.par_iter_mut())
-                .with_min_len(16)
-                .map(|(ray, o)| {
-                    let (hit, tests) = if ray.is_valid() {
-                        any_hit_ids(&self.tris, 0..n, ray, &RayShear::new(ray.dir))
-                    } else {
-                        (false, 0)
-                    };
-                    *o = hit;
-                    tests
-                })
-                .sum()
+        per_ray(rays, out, |ray| {
+            if ray.is_valid() { any_hit_ids(&self.tris, 0..n, ray, &RayShear::new(ray.dir)) } else { (false, 0) }
         })
     }
 

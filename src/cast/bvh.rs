@@ -17,7 +17,7 @@
 //! over the same CWBVH nodes, child boxes decoded and rounded outward, tested with
 //! warpray's conservative slab test, which decides a zero component by position.
 
-use super::caster::{CastStats, RayCaster, Triangles, any_hit_ids, timed, triangles_bytes};
+use super::caster::{CastStats, RayCaster, Triangles, any_hit_ids, per_ray, triangles_bytes};
 use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, inv_dir};
 use crate::scene::Scene;
 use glam::{Vec3, Vec3A};
@@ -97,7 +97,7 @@ impl BvhCaster {
             let [a, b, c] = self.tris[prim as usize];
             let far = best.t.next_up().min(ray.t_max);
             if let Some((t, u, v)) = intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, far)
-                && (t < best.t || (t == best.t && prim < best.prim))
+                && best.loses_to(t, prim)
             {
                 *best = Hit { t, prim, u, v };
             }
@@ -354,7 +354,7 @@ impl BvhCaster {
                     let far = if any_hit { ray.t_max } else { best.t.next_up().min(ray.t_max) };
                     if let Some((t, u, v)) = intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, far) {
                         // Equal distances: the smaller triangle id, as brute force keeps.
-                        if t < best.t || (t == best.t && prim < best.prim) {
+                        if best.loses_to(t, prim) {
                             best = Hit { t, prim, u, v };
                         }
                         if any_hit {
@@ -379,85 +379,67 @@ impl RayCaster for BvhCaster {
     }
 
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
-        assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
-        timed(rays.len(), 0, || {
-            rays.par_iter()
-                .zip(hits.par_iter_mut())
-                .with_min_len(64)
-                .map(|(ray, hit)| {
-                    let (h, tests) = match &self.bvh {
-                        Some(bvh)
-                            if ray.is_valid()
-                                && (self.traversal == Traversal::Robust || self.needs_robust_traversal(ray)) =>
-                        {
-                            self.traverse_robust(bvh, ray, false)
-                        }
-                        Some(bvh) if ray.is_valid() => match self.closest_one(bvh, ray) {
-                            // obvhs' node test can reject a box the ray enters exactly
-                            // at a corner (a ray through a shared vertex): check misses.
-                            (h, n) if !h.is_hit() && self.traversal == Traversal::Checked => {
-                                let (h, m) = self.traverse_robust(bvh, ray, false);
-                                (h, n + m)
-                            }
-                            found => found,
-                        },
-                        _ => (Hit::MISS, 0),
-                    };
-                    let (mut h, mut tests) = (h, tests);
-                    if ray.is_valid() && !self.outliers.is_empty() {
-                        tests += self.closest_outliers(ray, &mut h);
+        per_ray(rays, hits, |ray| {
+            let (h, tests) = match &self.bvh {
+                Some(bvh)
+                    if ray.is_valid() && (self.traversal == Traversal::Robust || self.needs_robust_traversal(ray)) =>
+                {
+                    self.traverse_robust(bvh, ray, false)
+                }
+                Some(bvh) if ray.is_valid() => match self.closest_one(bvh, ray) {
+                    // obvhs' node test can reject a box the ray enters exactly
+                    // at a corner (a ray through a shared vertex): check misses.
+                    (h, n) if !h.is_hit() && self.traversal == Traversal::Checked => {
+                        let (h, m) = self.traverse_robust(bvh, ray, false);
+                        (h, n + m)
                     }
-                    *hit = h;
-                    tests
-                })
-                .sum()
+                    found => found,
+                },
+                _ => (Hit::MISS, 0),
+            };
+            let (mut h, mut tests) = (h, tests);
+            if ray.is_valid() && !self.outliers.is_empty() {
+                tests += self.closest_outliers(ray, &mut h);
+            }
+            (h, tests)
         })
     }
 
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
-        assert_eq!(rays.len(), out.len(), "one result slot per ray");
-        timed(rays.len(), 0, || {
-            rays.par_iter()
-                .zip(out.par_iter_mut())
-                .with_min_len(64)
-                .map(|(ray, o)| {
-                    let mut tests = 0u64;
-                    *o = match &self.bvh {
-                        Some(bvh)
-                            if ray.is_valid()
-                                && (self.traversal == Traversal::Robust || self.needs_robust_traversal(ray)) =>
-                        {
-                            let (hit, n) = self.traverse_robust(bvh, ray, true);
-                            tests = n;
-                            hit.is_hit()
-                        }
-                        Some(bvh) if ray.is_valid() => {
-                            let shear = RayShear::new(ray.dir);
-                            let blocked = !bvh.ray_traverse_miss(Self::obvhs_ray(ray), |_, id| {
-                                tests += 1;
-                                let [a, b, c] = self.tris[self.prim(bvh, id) as usize];
-                                // Any hit in the real interval counts; report it inside obvhs'.
-                                intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, ray.t_max)
-                                    .map_or(f32::INFINITY, |_| ray.t_min + NODE_EPSILON_SHIFT)
-                            });
-                            // As for closest hits: an unblocked answer is checked.
-                            blocked
-                                || (self.traversal == Traversal::Checked && {
-                                    let (hit, n) = self.traverse_robust(bvh, ray, true);
-                                    tests += n;
-                                    hit.is_hit()
-                                })
-                        }
-                        _ => false,
-                    } || (ray.is_valid() && !self.outliers.is_empty() && {
-                        let (hit, n) =
-                            any_hit_ids(&self.tris, self.outliers.iter().copied(), ray, &RayShear::new(ray.dir));
-                        tests += n;
-                        hit
+        per_ray(rays, out, |ray| {
+            let mut tests = 0u64;
+            let blocked = match &self.bvh {
+                Some(bvh)
+                    if ray.is_valid() && (self.traversal == Traversal::Robust || self.needs_robust_traversal(ray)) =>
+                {
+                    let (hit, n) = self.traverse_robust(bvh, ray, true);
+                    tests = n;
+                    hit.is_hit()
+                }
+                Some(bvh) if ray.is_valid() => {
+                    let shear = RayShear::new(ray.dir);
+                    let blocked = !bvh.ray_traverse_miss(Self::obvhs_ray(ray), |_, id| {
+                        tests += 1;
+                        let [a, b, c] = self.tris[self.prim(bvh, id) as usize];
+                        // Any hit in the real interval counts; report it inside obvhs'.
+                        intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, ray.t_max)
+                            .map_or(f32::INFINITY, |_| ray.t_min + NODE_EPSILON_SHIFT)
                     });
-                    tests
-                })
-                .sum()
+                    // As for closest hits: an unblocked answer is checked.
+                    blocked
+                        || (self.traversal == Traversal::Checked && {
+                            let (hit, n) = self.traverse_robust(bvh, ray, true);
+                            tests += n;
+                            hit.is_hit()
+                        })
+                }
+                _ => false,
+            } || (ray.is_valid() && !self.outliers.is_empty() && {
+                let (hit, n) = any_hit_ids(&self.tris, self.outliers.iter().copied(), ray, &RayShear::new(ray.dir));
+                tests += n;
+                hit
+            });
+            (blocked, tests)
         })
     }
 

@@ -99,6 +99,24 @@ pub(crate) fn timed(rays: usize, peak_working_bytes: usize, f: impl FnOnce() -> 
     CastStats { rays, seconds: start.elapsed().as_secs_f64(), peak_working_bytes, tests }
 }
 
+/// Answers every ray of a batch in parallel with `one` (its answer and the tests it
+/// made), timed: the loop of the casters that take rays one at a time.
+pub(crate) fn per_ray<T: Send>(rays: &[Ray], out: &mut [T], one: impl Fn(&Ray) -> (T, u64) + Sync + Send) -> CastStats {
+    assert_eq!(rays.len(), out.len(), "one result slot per ray");
+    timed(rays.len(), 0, || {
+        use rayon::prelude::*;
+        rays.par_iter()
+            .zip(out.par_iter_mut())
+            .with_min_len(64)
+            .map(|(ray, o)| {
+                let (answer, tests) = one(ray);
+                *o = answer;
+                tests
+            })
+            .sum()
+    })
+}
+
 /// Wraps a caster and adds up every call made through it, from any thread: what a
 /// render reports as rays cast, seconds inside the caster (summed over calls, so calls
 /// made in parallel each count their own wall time), tests and peak working bytes.

@@ -6,13 +6,14 @@
 //! have a zero direction never hit anything.
 //!
 //! Casters here: [`BruteForce`] (the test oracle), [`BvhCaster`] (obvhs' compressed
-//! wide BVH), [`Dacrt`] (divide-and-conquer, no stored structure) and
+//! wide BVH), [`Bvh4`] (warpray's own 4-wide BVH), [`Dacrt`] (divide-and-conquer, no stored structure) and
 //! [`pdacrt::Pdacrt`] (DACRT breadth-first on the `simt` emulator), and with the cargo
 //! feature `embree`, [`embree::EmbreeCaster`] (Intel's Embree, the CPU baseline).
 
 pub mod batches;
 mod brute;
 mod bvh;
+mod bvh4;
 mod caster;
 mod dacrt;
 #[cfg(feature = "embree")]
@@ -21,6 +22,7 @@ pub mod pdacrt;
 
 pub use brute::BruteForce;
 pub use bvh::{BvhBuild, BvhCaster, Traversal};
+pub use bvh4::Bvh4;
 pub use caster::{CastStats, CountingCaster, RayCaster, Triangles, any_hit_ids, intersect_ids};
 pub use dacrt::{Dacrt, DacrtParams};
 
@@ -32,6 +34,8 @@ use crate::scene::Scene;
 pub enum CasterKind {
     /// obvhs compressed wide BVH (CWBVH), built in parallel.
     Bvh,
+    /// warpray's own 4-wide BVH: binned SAH build in parallel, SIMD box and triangle tests.
+    Bvh4,
     /// Every ray against every triangle: the test oracle.
     Brute,
     /// Divide-and-conquer ray tracing (Mora 2011), parallel at the top levels.
@@ -49,6 +53,7 @@ impl CasterKind {
     pub fn build(self, scene: &Scene) -> crate::error::Result<Box<dyn RayCaster>> {
         Ok(match self {
             CasterKind::Bvh => Box::new(BvhCaster::new(scene)),
+            CasterKind::Bvh4 => Box::new(Bvh4::new(scene)),
             CasterKind::Brute => Box::new(BruteForce::new(scene)),
             CasterKind::Dacrt => Box::new(Dacrt::new(scene)),
             CasterKind::Pdacrt => Box::new(crate::cast::pdacrt::Pdacrt::new(scene)),
@@ -61,6 +66,7 @@ impl CasterKind {
     pub fn all() -> &'static [CasterKind] {
         &[
             CasterKind::Bvh,
+            CasterKind::Bvh4,
             CasterKind::Brute,
             CasterKind::Dacrt,
             CasterKind::Pdacrt,

@@ -1,6 +1,7 @@
 //! Layouts for the casters' SIMD lanes (SSE, part of x86-64's baseline, so no
-//! run-time dispatch is needed): [`RaySlab`], a ray packed for box tests, and
-//! [`Triangles4`], the watertight triangle test on four triangles at once.
+//! run-time dispatch is needed): [`RaySlab`], a ray packed for box tests, [`Boxes4`],
+//! four boxes tested at once, and [`Triangles4`], the watertight triangle test on four
+//! triangles at once.
 //!
 //! Every lane runs the scalar test's operations in the scalar test's order — the shear
 //! as glam's three-term dot product `(x·x' + y·y') + z·z'`, the edge functions, the
@@ -59,6 +60,70 @@ impl RaySlab {
         let near = t0.min(t1).max_element().max(self.origin_t_min.w);
         let far = (t0.max(t1).min_element() * SLAB_WIDEN).min(t_far);
         near <= far
+    }
+}
+
+/// Four boxes in structure-of-arrays form (a wide BVH node's children): `min[axis]`
+/// and `max[axis]` hold that coordinate of the four boxes. Unused lanes are masked off
+/// by the caller.
+#[derive(Clone, Copy, Debug)]
+pub struct Boxes4 {
+    min: [Vec4; 3],
+    max: [Vec4; 3],
+}
+
+impl Boxes4 {
+    /// Up to four boxes (at least one); lanes past the slice's end repeat box 0.
+    pub fn new(boxes: &[Aabb]) -> Boxes4 {
+        debug_assert!(!boxes.is_empty() && boxes.len() <= 4);
+        let b = |k: usize| &boxes[if k < boxes.len() { k } else { 0 }];
+        let lanes = |corner: fn(&Aabb) -> Vec3, a: usize| Vec4::from_array([0, 1, 2, 3].map(|k| corner(b(k))[a]));
+        Boxes4 { min: [0, 1, 2].map(|a| lanes(|b| b.min, a)), max: [0, 1, 2].map(|a| lanes(|b| b.max, a)) }
+    }
+
+    /// Box `k`.
+    pub fn get(&self, k: usize) -> Aabb {
+        Aabb {
+            min: Vec3::new(self.min[0][k], self.min[1][k], self.min[2][k]),
+            max: Vec3::new(self.max[0][k], self.max[1][k], self.max[2][k]),
+        }
+    }
+
+    /// Which of the four boxes the ray, cut to `(t_min, t_far)`, enters (bit `k` for
+    /// box `k`), and the entry distances: lane by lane exactly [`Aabb::intersect`]'s
+    /// answer (the same operations as [`RaySlab::enters`]; a ray with a zero direction
+    /// component takes `intersect` itself, box by box).
+    #[inline]
+    pub fn enters(&self, ray: &RaySlab, t_far: f32) -> (u32, Vec4) {
+        let inv = ray.inv_t_max;
+        if !Vec3A::from_vec4(inv).is_finite() {
+            return self.enters_by_position(ray, t_far);
+        }
+        let o = ray.origin_t_min;
+        let slab = |a: usize| {
+            let (o, i) = (Vec4::splat(o[a]), Vec4::splat(inv[a]));
+            let (t0, t1) = ((self.min[a] - o) * i, (self.max[a] - o) * i);
+            (t0.min(t1), t0.max(t1))
+        };
+        let ((n0, f0), (n1, f1), (n2, f2)) = (slab(0), slab(1), slab(2));
+        // Widening each axis' exit and then taking the minimum gives the same value as
+        // `intersect`'s per-axis widening: rounding a product is monotone.
+        let near = n0.max(n1).max(n2).max(Vec4::splat(o.w));
+        let far = (f0.min(f1).min(f2) * SLAB_WIDEN).min(Vec4::splat(t_far));
+        (near.cmple(far).bitmask(), near)
+    }
+
+    #[cold]
+    fn enters_by_position(&self, ray: &RaySlab, t_far: f32) -> (u32, Vec4) {
+        let (mut mask, mut near) = (0, [f32::INFINITY; 4]);
+        for (k, n) in near.iter_mut().enumerate() {
+            let o = ray.origin_t_min;
+            if let Some((t, _)) = self.get(k).intersect(o.truncate(), ray.inv_dir(), o.w, t_far) {
+                mask |= 1 << k;
+                *n = t;
+            }
+        }
+        (mask, Vec4::from_array(near))
     }
 }
 
@@ -203,6 +268,39 @@ mod tests {
         }
         // Both answers occur often (the check is not one-sided).
         assert!(entered > agree / 10 && entered < agree * 9 / 10, "{entered} of {agree}");
+    }
+
+    #[test]
+    fn four_box_lanes_answer_as_the_box_test() {
+        // The grid of the packed slab test: origins on faces, zero components, ties.
+        let mut r = Rng::for_sample(12, 0, 0);
+        let mut grid = || (r.uniform() * 8.0).floor() * 0.25 - 1.0;
+        let (mut lanes, mut entered) = (0, 0);
+        for trial in 0..50_000 {
+            let boxes: Vec<Aabb> = (0..1 + trial % 4)
+                .map(|_| {
+                    let (a, b) = (Vec3::new(grid(), grid(), grid()), Vec3::new(grid(), grid(), grid()));
+                    Aabb { min: a.min(b), max: a.max(b) }
+                })
+                .collect();
+            let d = Vec3::new(grid(), grid(), grid());
+            if d == Vec3::ZERO {
+                continue;
+            }
+            let ray = Ray { origin: Vec3::new(grid(), grid(), grid()), dir: d, t_min: grid().max(0.0), t_max: 8.0 };
+            let t_far = [ray.t_max, grid() + 1.0][trial % 2];
+            let (mask, near) = Boxes4::new(&boxes).enters(&RaySlab::new(&ray), t_far);
+            for (k, b) in boxes.iter().enumerate() {
+                let want = b.intersect(ray.origin, inv_dir(d), ray.t_min, t_far);
+                assert_eq!(mask >> k & 1 == 1, want.is_some(), "{ray:?} {b:?} t_far {t_far}");
+                if let Some((t, _)) = want {
+                    assert_eq!(near[k].to_bits(), t.to_bits(), "entry distance of {b:?} for {ray:?}");
+                }
+                lanes += 1;
+                entered += want.is_some() as usize;
+            }
+        }
+        assert!(entered > lanes / 10 && entered < lanes * 9 / 10, "{entered} of {lanes}");
     }
 
     #[test]

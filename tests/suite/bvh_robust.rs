@@ -1,17 +1,30 @@
-//! The BVH caster never misses a legal ray: signed zeros and axis-parallel directions,
-//! origins on node faces, rays from inside closed meshes, extreme coordinates and
-//! coincident triangles (each a case that obvhs 0.4's own traversal or build got wrong).
+//! The BVH casters (obvhs' and warpray's 4-wide one) never miss a legal ray: signed
+//! zeros and axis-parallel directions, origins on node faces, rays from inside closed
+//! meshes, extreme coordinates and coincident triangles (each a case that obvhs 0.4's
+//! own traversal or build got wrong).
 
 use crate::common::*;
-use warpray::cast::{BruteForce, BvhCaster, RayCaster};
+use warpray::cast::{BruteForce, Bvh4, BvhCaster, RayCaster};
 use warpray::geometry::{Hit, Ray};
 use warpray::glam::Vec3;
 use warpray::scene::cornell_box;
 
-/// Same hit or miss as brute force, the same distance, and the same occlusion.
+/// Both BVH casters over a triangle list.
+fn bvhs(tris: &[[Vec3; 3]]) -> [Box<dyn RayCaster>; 2] {
+    [Box::new(BvhCaster::from_triangles(tris.to_vec())), Box::new(Bvh4::from_triangles(tris.to_vec()))]
+}
+
+/// Same hit or miss as brute force, the same distance, and the same occlusion, for
+/// both BVH casters.
 fn agree(tris: &[[Vec3; 3]], rays: &[Ray], what: &str) {
     let brute = BruteForce::from_triangles(tris.to_vec());
-    let bvh = BvhCaster::from_triangles(tris.to_vec());
+    for bvh in bvhs(tris) {
+        agree_with(&brute, bvh.as_ref(), rays, &format!("{what} ({})", bvh.name()));
+    }
+}
+
+/// [`agree`] for one caster.
+fn agree_with(brute: &BruteForce, bvh: &dyn RayCaster, rays: &[Ray], what: &str) {
     let (mut want, mut got) = (vec![Hit::MISS; rays.len()], vec![Hit::MISS; rays.len()]);
     brute.closest(rays, &mut want);
     bvh.closest(rays, &mut got);
@@ -117,7 +130,6 @@ fn rays_from_inside_closed_spheres_never_escape() {
     for sub in 3..=6 {
         let (v, f) = icosphere(sub);
         let tris: Vec<[Vec3; 3]> = f.iter().map(|t| t.map(|i| v[i as usize])).collect();
-        let bvh = BvhCaster::from_triangles(tris);
         let mut r = rng(40 + sub as u64);
         let mut rays: Vec<Ray> = (0..20_000)
             .map(|_| Ray::new(random_in_box(&mut r, Vec3::splat(-0.5), Vec3::splat(0.5)), random_dir(&mut r)))
@@ -126,13 +138,21 @@ fn rays_from_inside_closed_spheres_never_escape() {
         // the triangles that share it.
         rays.extend(v.iter().map(|&p| Ray::new(Vec3::ZERO, p)));
         rays.extend(axis_directions().into_iter().map(|d| Ray::new(Vec3::ZERO, d)));
-        let mut hits = vec![Hit::MISS; rays.len()];
-        bvh.closest(&rays, &mut hits);
-        let escaped: Vec<&Ray> = rays.iter().zip(&hits).filter(|(_, h)| !h.is_hit()).map(|(r, _)| r).collect();
-        assert!(escaped.is_empty(), "subdivision {sub}: {} rays escaped, first {:?}", escaped.len(), escaped[0]);
-        let mut blocked = vec![false; rays.len()];
-        bvh.occluded(&rays, &mut blocked);
-        assert!(blocked.iter().all(|&b| b), "subdivision {sub}: an occlusion ray escaped");
+        for bvh in bvhs(&tris) {
+            let name = bvh.name();
+            let mut hits = vec![Hit::MISS; rays.len()];
+            bvh.closest(&rays, &mut hits);
+            let escaped: Vec<&Ray> = rays.iter().zip(&hits).filter(|(_, h)| !h.is_hit()).map(|(r, _)| r).collect();
+            assert!(
+                escaped.is_empty(),
+                "{name}, subdivision {sub}: {} rays escaped, first {:?}",
+                escaped.len(),
+                escaped[0]
+            );
+            let mut blocked = vec![false; rays.len()];
+            bvh.occluded(&rays, &mut blocked);
+            assert!(blocked.iter().all(|&b| b), "{name}, subdivision {sub}: an occlusion ray escaped");
+        }
     }
 }
 

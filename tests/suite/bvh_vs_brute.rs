@@ -4,7 +4,7 @@
 //! and a uniform sample).
 
 use crate::common::*;
-use warpray::cast::{BruteForce, BvhCaster, Dacrt, RayCaster};
+use warpray::cast::{BruteForce, Bvh4, BvhCaster, Dacrt, RayCaster};
 use warpray::geometry::{Hit, Ray};
 use warpray::glam::Vec3;
 use warpray::scene::{ObjOptions, Scene, cornell_box, load_obj};
@@ -123,7 +123,8 @@ fn rays_at_shared_edges_and_vertices_of_a_closed_mesh_never_miss() {
     let (v, f) = icosphere(3);
     let tris: Vec<[Vec3; 3]> = f.iter().map(|t| t.map(|i| v[i as usize])).collect();
     let scene = scene_from_triangles(&tris);
-    let casters: [Box<dyn RayCaster>; 2] = [Box::new(BruteForce::new(&scene)), Box::new(BvhCaster::new(&scene))];
+    let casters: [Box<dyn RayCaster>; 3] =
+        [Box::new(BruteForce::new(&scene)), Box::new(BvhCaster::new(&scene)), Box::new(Bvh4::new(&scene))];
 
     // Targets: every vertex and every edge midpoint (points of the surface shared by
     // several triangles), seen from random outside points and from the centre.
@@ -168,7 +169,8 @@ fn rays_at_shared_edges_and_vertices_of_a_closed_mesh_never_miss() {
 #[test]
 fn empty_batches_invalid_rays_and_empty_scenes_are_harmless() {
     let scene = cornell_box();
-    let casters: [Box<dyn RayCaster>; 2] = [Box::new(BruteForce::new(&scene)), Box::new(BvhCaster::new(&scene))];
+    let casters: [Box<dyn RayCaster>; 3] =
+        [Box::new(BruteForce::new(&scene)), Box::new(BvhCaster::new(&scene)), Box::new(Bvh4::new(&scene))];
     for c in &casters {
         let stats = c.closest(&[], &mut []);
         assert_eq!(stats.rays, 0);
@@ -184,8 +186,11 @@ fn empty_batches_invalid_rays_and_empty_scenes_are_harmless() {
         c.occluded(&bad, &mut occ);
         assert!(occ.iter().all(|&o| !o));
     }
-    let empty = BvhCaster::from_triangles(Vec::new());
-    let mut hits = [Hit::MISS];
-    empty.closest(&[Ray::new(Vec3::ZERO, Vec3::X)], &mut hits);
-    assert!(!hits[0].is_hit());
+    let empties: [Box<dyn RayCaster>; 2] =
+        [Box::new(BvhCaster::from_triangles(Vec::new())), Box::new(Bvh4::from_triangles(Vec::new()))];
+    for empty in empties {
+        let mut hits = [Hit::MISS];
+        empty.closest(&[Ray::new(Vec3::ZERO, Vec3::X)], &mut hits);
+        assert!(!hits[0].is_hit(), "{}", empty.name());
+    }
 }

@@ -1,9 +1,9 @@
-//! Divide-and-conquer casters (serial DACRT, PDACRT) against brute force and the BVH: same closest triangle
+//! Divide-and-conquer casters (serial DACRT, PDACRT) and the 4-wide BVH against brute force and the obvhs BVH: same closest triangle
 //! (ties by distance), same distance, same occlusion, on primary, shadow, specular and
 //! ambient-occlusion batches over real scenes, and on adversarial input.
 
 use crate::common::*;
-use warpray::cast::{BruteForce, BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster};
+use warpray::cast::{BruteForce, Bvh4, BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster};
 use warpray::geometry::{Hit, Ray};
 use warpray::glam::Vec3;
 use warpray::pdacrt::{Pdacrt, PdacrtParams};
@@ -38,6 +38,8 @@ fn casters_under_test(scene: &Scene, measured: bool) -> Vec<Box<dyn RayCaster>> 
             rayon::ThreadPoolBuilder::new().num_threads(4).build().expect("a pool of 4 threads"),
         )),
         Box::new(Pdacrt::new(scene)),
+        // The 4-wide BVH meets the same batches and adversarial sets.
+        Box::new(Bvh4::new(scene)),
     ];
     if measured {
         casters.push(Box::new(Pdacrt::from_triangles(
@@ -358,7 +360,7 @@ fn dacrt_reports_its_stages() {
 }
 
 #[test]
-fn dacrt_and_pdacrt_keep_the_smallest_key_where_triangles_tie() {
+fn dacrt_pdacrt_and_bvh4_keep_the_smallest_key_where_triangles_tie() {
     // Rays aimed exactly at corners and edge midpoints, where several triangles are hit
     // at one distance and the smallest id must win (brute force's answer), bit for bit.
     // A box culled at the best distance itself, unwidened, loses some of these ties: a
@@ -377,7 +379,8 @@ fn dacrt_and_pdacrt_keep_the_smallest_key_where_triangles_tie() {
         BruteForce::new(&scene).closest(&rays, &mut want);
         let tiny = PdacrtParams { leaf_rays: 4, leaf_triangles: 2, ..PdacrtParams::default() };
         let tiny_dacrt = DacrtParams { leaf_rays: 1, leaf_triangles: 1, ..DacrtParams::default() };
-        let casters: [(&str, Box<dyn RayCaster>); 4] = [
+        let casters: [(&str, Box<dyn RayCaster>); 5] = [
+            ("bvh4", Box::new(Bvh4::from_triangles(tris.clone()))),
             ("pdacrt", Box::new(Pdacrt::from_triangles(&tris, PdacrtParams::default()))),
             ("pdacrt, tiny leaves", Box::new(Pdacrt::from_triangles(&tris, tiny))),
             ("dacrt", Box::new(Dacrt::from_triangles(tris.clone(), DacrtParams::default()))),

@@ -1,0 +1,194 @@
+//! warpray's own BVH: four children per node, built by binned SAH in parallel
+//! (`build.rs`), traversed one ray at a time with the four child boxes tested on SIMD
+//! lanes ([`Boxes4`]) and each leaf's up to four triangles tested at once
+//! ([`Triangles4`]).
+//!
+//! It needs none of the obvhs caster's defences: the child boxes are the triangles'
+//! exact bounds and the box test is warpray's conservative slab test (exits widened by
+//! `SLAB_WIDEN`, zero direction components decided by position), lane for lane
+//! [`Aabb::intersect`](crate::geometry::Aabb::intersect), so no box a ray enters is
+//! rejected, from any origin. Ties go to the smaller id, and triangles with a
+//! coordinate that is not finite are tested against every ray, so the answers are
+//! brute force's. Exact copies of a triangle are dropped where the builder finds them
+//! (among triangles whose centroids coincide): they could never be the answer.
+
+mod build;
+mod node;
+
+use super::caster::{CastStats, RayCaster, Triangles, per_ray};
+use crate::geometry::lanes::RaySlab;
+use crate::geometry::{Hit, Ray, RayShear, cull_distance};
+use crate::scene::Scene;
+use glam::Vec3;
+use node::{LEAF, LEAF_SIZE, Leaf, MAX_DEPTH, Node, leaf_of};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Stack entries a traversal may need: three pending siblings per level, and the root.
+const STACK: usize = 3 * MAX_DEPTH + 1;
+
+/// The 4-wide BVH caster.
+pub struct Bvh4 {
+    nodes: Vec<Node>,
+    leaves: Vec<Leaf>,
+    /// The root's code; `None` for a scene with no finite triangle.
+    root: Option<u32>,
+    /// Triangles with a coordinate that is not finite, in leaves tested by every ray
+    /// (with their triangle counts).
+    outliers: Vec<(Leaf, usize)>,
+    build_seconds: f64,
+}
+
+impl Bvh4 {
+    /// Builds the BVH of a scene's triangles.
+    pub fn new(scene: &Scene) -> Self {
+        Self::from_triangles(scene.triangle_vertices())
+    }
+
+    /// Builds the BVH of a triangle list.
+    pub fn from_triangles(tris: Triangles) -> Self {
+        let start = Instant::now();
+        let finite = |t: &[Vec3; 3]| t.iter().all(|v| v.is_finite());
+        let outlier_ids: Vec<u32> = (0..tris.len() as u32).filter(|&i| !finite(&tris[i as usize])).collect();
+        let outliers = outlier_ids.chunks(LEAF_SIZE).map(|c| (Leaf::new(&tris, c), c.len())).collect();
+        let ids: Vec<u32> = (0..tris.len() as u32).into_par_iter().filter(|&i| finite(&tris[i as usize])).collect();
+        let (nodes, leaves, root) = if ids.is_empty() {
+            (Vec::new(), Vec::new(), None)
+        } else {
+            let b = build::build(&tris, &ids);
+            (b.nodes, b.leaves, Some(b.root))
+        };
+        Bvh4 { nodes, leaves, root, outliers, build_seconds: start.elapsed().as_secs_f64() }
+    }
+
+    /// How many nodes and leaves the tree has.
+    pub fn shape(&self) -> (usize, usize) {
+        (self.nodes.len(), self.leaves.len())
+    }
+
+    /// Closest hit of one (valid) ray and the triangles it tested.
+    fn closest_one(&self, ray: &Ray) -> (Hit, u64) {
+        let shear = RayShear::new(ray.dir);
+        let mut best = Hit::MISS;
+        let mut tests = 0u64;
+        // A leaf's triangles count when they hit before the best so far or tie with it.
+        let mut leaf = |leaf: &Leaf, len: usize, best: &mut Hit| {
+            let far = if best.is_hit() { best.t.next_up().min(ray.t_max) } else { ray.t_max };
+            let (h, ids) = (leaf.tris.test(ray.origin, &shear, ray.t_min, far), &leaf.ids);
+            let mut mask = h.mask & ((1 << len) - 1);
+            while mask != 0 {
+                let k = mask.trailing_zeros() as usize;
+                if best.loses_to(h.t[k], ids[k]) {
+                    *best = Hit { t: h.t[k], prim: ids[k], u: h.u[k], v: h.v[k] };
+                }
+                mask &= mask - 1;
+            }
+            tests += len as u64;
+        };
+        for (l, len) in &self.outliers {
+            leaf(l, *len, &mut best);
+        }
+        let Some(root) = self.root else { return (best, tests) };
+        let slab = RaySlab::new(ray);
+        let mut stack = [(0u32, 0f32); STACK];
+        stack[0] = (root, f32::NEG_INFINITY);
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let (code, near) = stack[top];
+            // Boxes are cut at the best hit widened as box exits are, so a box entered
+            // exactly at the best distance (a tie) is still visited.
+            let cull = cull_distance(best.t.min(ray.t_max));
+            if near > cull {
+                continue;
+            }
+            if code & LEAF != 0 {
+                let (l, len) = leaf_of(code);
+                leaf(&self.leaves[l], len, &mut best);
+                continue;
+            }
+            let node = &self.nodes[code as usize];
+            let (mask, nears) = node.boxes.enters(&slab, cull);
+            let mut mask = mask & ((1 << node.children) - 1);
+            // Push the entered children farthest first, so the nearest is taken next.
+            let first = top;
+            while mask != 0 {
+                let k = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let entry = (node.child[k], nears[k]);
+                let mut at = top;
+                while at > first && stack[at - 1].1 < entry.1 {
+                    stack[at] = stack[at - 1];
+                    at -= 1;
+                }
+                stack[at] = entry;
+                top += 1;
+            }
+        }
+        (best, tests)
+    }
+
+    /// Whether anything lies on one (valid) ray within its interval, and the
+    /// triangles tested.
+    fn occluded_one(&self, ray: &Ray) -> (bool, u64) {
+        let shear = RayShear::new(ray.dir);
+        let mut tests = 0u64;
+        let mut leaf = |leaf: &Leaf, len: usize| {
+            tests += len as u64;
+            leaf.tris.test(ray.origin, &shear, ray.t_min, ray.t_max).mask & ((1 << len) - 1) != 0
+        };
+        if self.outliers.iter().any(|(l, len)| leaf(l, *len)) {
+            return (true, tests);
+        }
+        let Some(root) = self.root else { return (false, tests) };
+        let slab = RaySlab::new(ray);
+        let cull = cull_distance(ray.t_max);
+        let mut stack = [0u32; STACK];
+        stack[0] = root;
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let code = stack[top];
+            if code & LEAF != 0 {
+                let (l, len) = leaf_of(code);
+                if leaf(&self.leaves[l], len) {
+                    return (true, tests);
+                }
+                continue;
+            }
+            let node = &self.nodes[code as usize];
+            let mut mask = node.boxes.enters(&slab, cull).0 & ((1 << node.children) - 1);
+            while mask != 0 {
+                stack[top] = node.child[mask.trailing_zeros() as usize];
+                top += 1;
+                mask &= mask - 1;
+            }
+        }
+        (false, tests)
+    }
+}
+
+impl RayCaster for Bvh4 {
+    fn name(&self) -> &'static str {
+        "bvh4"
+    }
+
+    fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
+        per_ray(rays, hits, |ray| if ray.is_valid() { self.closest_one(ray) } else { (Hit::MISS, 0) })
+    }
+
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
+        per_ray(rays, out, |ray| if ray.is_valid() { self.occluded_one(ray) } else { (false, 0) })
+    }
+
+    fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.nodes.len() * size_of::<Node>()
+            + self.leaves.len() * size_of::<Leaf>()
+            + self.outliers.len() * size_of::<(Leaf, usize)>()
+    }
+
+    fn build_seconds(&self) -> f64 {
+        self.build_seconds
+    }
+}
