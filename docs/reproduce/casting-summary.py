@@ -29,10 +29,10 @@ if machine:
           f"{' '.join(machine['extensions'])}; binary compiled for "
           f"{' '.join(machine['compiled_for']) or 'baseline x86-64'}\n")
 cell = {(r["scene"], r["batch"], r["caster"]): r for r in t if r["threads"] == 16}
-casters = [c for c in ["embree", "embree-fast", "bvh", "dacrt", "pdacrt"] if any(k[2] == c for k in cell)]
+casters = [c for c in ["embree", "embree-fast", "bvh", "bvh4", "dacrt", "pdacrt"] if any(k[2] == c for k in cell)]
 print("| scene | batch | rays | " + " | ".join(f"{c} ms" for c in casters)
-      + " | DACRT ÷ Embree | DACRT ÷ Embree fastest | BVH ÷ Embree | DACRT tests/ray | DACRT ns/test |")
-print("|---|---|---:|" + "---:|" * (len(casters) + 5))
+      + " | DACRT ÷ Embree | DACRT ÷ Embree fastest | BVH ÷ Embree | BVH4 ÷ Embree | DACRT tests/ray | DACRT ns/test |")
+print("|---|---|---:|" + "---:|" * (len(casters) + 6))
 for scene in ["bunny", "conference", "dragon"]:
     for batch in ["primary", "shadow", "specular", "ao"]:
         if (scene, batch, "dacrt") not in cell:
@@ -45,7 +45,7 @@ for scene in ["bunny", "conference", "dragon"]:
         ns = d["trace_ms"] * 1e6 * d["threads"] / max(d["tests"], 1)
         print(f"| {scene} | {batch} | {d['rays']} | "
               + " | ".join(f"{v['build_ms']:.1f} + {v['trace_ms']:.1f} = {v['total_ms']:.1f}" for v in c.values())
-              + f" | {ratio('dacrt', 'embree')} | {ratio('dacrt', 'embree-fast')} | {ratio('bvh', 'embree')}"
+              + f" | {ratio('dacrt', 'embree')} | {ratio('dacrt', 'embree-fast')} | {ratio('bvh', 'embree')} | {ratio('bvh4', 'embree')}"
               + f" | {d['tests'] / d['rays']:.1f} | {ns:.1f} |")
 
 _, s = rows("casting-dragon-1-vs-16t.jsonl")
@@ -53,7 +53,7 @@ if s:
     print("\nThread scaling, dragon (1 and 16 threads, medians of the rounds):\n")
     print("| caster | batch | 1 thread ms | 16 threads ms | speed-up |")
     print("|---|---|---:|---:|---:|")
-    for c in ["dacrt", "embree", "embree-fast"]:
+    for c in ["bvh4", "dacrt", "embree", "embree-fast"]:
         for b in ["primary", "shadow"]:
             one = [r for r in s if r["caster"] == c and r["batch"] == b and r["threads"] == 1]
             six = [r for r in s if r["caster"] == c and r["batch"] == b and r["threads"] == 16]
@@ -70,7 +70,7 @@ for sec in ["shadow", "diffuse"]:
     print("|---:|---|---:|---:|---:|---:|---:|")
     for th in sorted({r["threads"] for r in a}):
         med = {}
-        for c in ["bvh", "dacrt", "pdacrt", "embree", "embree-fast", "embree-refit"]:
+        for c in ["bvh", "bvh4", "dacrt", "pdacrt", "embree", "embree-fast", "embree-refit"]:
             m = [r for r in a if r["threads"] == th and r["caster"] == c]
             if m:
                 med[c] = {k: statistics.median(r[k] for r in m) for k in ["setup_ms", "primary_ms", "secondary_ms", "total_ms"]}

@@ -240,3 +240,25 @@ fn every_traversal_mode_agrees_with_brute_force_on_ordinary_rays() {
         assert_eq!(occ, want_occ, "{mode:?}: occlusion");
     }
 }
+
+#[test]
+fn a_fan_of_two_hundred_thousand_slivers() {
+    // A convex polygon of 200,000 corners, fan-triangulated as the PLY and OBJ loaders
+    // do: every triangle shares corner 0 and spans the whole polygon, so every box
+    // overlaps every other (obvhs' PLOC build took over a minute on it, quadratic).
+    // warpray's 4-wide BVH builds it by binned SAH in O(n log n); its answers are
+    // brute force's.
+    let n = 200_000;
+    let corner = |k: usize| {
+        let a = std::f32::consts::TAU * k as f32 / n as f32;
+        Vec3::new(a.cos(), a.sin(), 0.0)
+    };
+    let tris: Vec<[Vec3; 3]> = (1..n - 1).map(|k| [corner(0), corner(k), corner(k + 1)]).collect();
+    let mut r = rng(31);
+    let rays: Vec<Ray> = (0..200)
+        .map(|_| Ray::new(random_in_box(&mut r, Vec3::new(-1.0, -1.0, 1.0), Vec3::new(1.0, 1.0, 2.0)), -Vec3::Z))
+        .collect();
+    let brute = BruteForce::from_triangles(tris.clone());
+    let bvh4 = Bvh4::from_triangles(tris);
+    agree_with(&brute, &bvh4, &rays, "fan of slivers (bvh4)");
+}

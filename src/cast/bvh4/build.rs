@@ -13,7 +13,7 @@
 //! past `SAH_DEPTH` levels every split halves by count, so the tree is at most
 //! `MAX_DEPTH` levels deep whatever the geometry (`node.rs`).
 
-use super::node::{LEAF_SIZE, Leaf, Node, SAH_DEPTH, leaf_code};
+use super::node::{LEAF, LEAF_SIZE, Leaf, Node, SAH_DEPTH, leaf_code, leaf_of};
 use crate::geometry::Aabb;
 use crate::geometry::lanes::Boxes4;
 use glam::{Vec3, Vec3A};
@@ -149,14 +149,15 @@ impl<T> Slots<T> {
         Slots { ptr: vec.as_mut_ptr(), capacity, next: AtomicUsize::new(0), vec }
     }
 
-    fn reserve(&self) -> usize {
-        let i = self.next.fetch_add(1, Relaxed);
-        assert!(i < self.capacity, "bvh4: more slots than the bound of {}", self.capacity);
+    /// Reserves `k` consecutive slots; returns the first.
+    fn reserve(&self, k: usize) -> usize {
+        let i = self.next.fetch_add(k, Relaxed);
+        assert!(i + k <= self.capacity, "bvh4: more slots than the bound of {}", self.capacity);
         i
     }
 
     fn write(&self, i: usize, value: T) {
-        debug_assert!(i < self.next.load(Relaxed));
+        assert!(i < self.capacity);
         // SAFETY: `i` was reserved (so it is within the capacity) and is written once.
         unsafe { self.ptr.add(i).write(value) }
     }
@@ -229,23 +230,91 @@ impl Builder<'_> {
     }
 
     /// Builds the subtree over `refs` (the span's references, `span.start..span.end` of
-    /// the whole list) and returns its child code.
-    fn subtree(&self, refs: &mut [PrimRef], mut span: Span, depth: usize) -> u32 {
-        if span.len() > LEAF_SIZE && span.centroids.min == span.centroids.max {
-            // No plane separates these triangles: drop exact copies before halving by
-            // count (a copy is never the answer: the smallest id wins ties).
-            span.end = span.start + drop_copies(self.tris, refs);
+    /// the whole list) and returns its child code: the top of the tree on every thread,
+    /// writing to the shared slots node by node; subtrees below
+    /// [`PARALLEL_CHILDREN`] on one thread into lists of their own, copied to the slots
+    /// in one block (one atomic step per subtree, not per node).
+    fn subtree(&self, refs: &mut [PrimRef], span: Span, depth: usize) -> u32 {
+        let span = without_copies(self.tris, refs, span);
+        let refs = &mut refs[..span.len()];
+        if span.len() < PARALLEL_CHILDREN {
+            let mut local = Local::default();
+            let root = self.local_subtree(refs, span, depth, &mut local);
+            return self.flush(local, root);
         }
+        let (kids, n) = self.kids(refs, span, depth);
+        let index = self.nodes.reserve(1);
+        let mut codes = [0u32; 4];
+        self.children(refs, &kids[..n], &mut codes[..n], depth + 1);
+        self.nodes.write(index, node(&kids[..n], codes));
+        index as u32
+    }
+
+    /// Builds the subtrees of consecutive spans that together cover `refs`, in
+    /// parallel halves.
+    fn children(&self, refs: &mut [PrimRef], kids: &[Span], codes: &mut [u32], depth: usize) {
+        if kids.len() == 1 {
+            codes[0] = self.subtree(refs, kids[0], depth);
+            return;
+        }
+        let h = kids.len() / 2;
+        let (r0, r1) = refs.split_at_mut(kids[h].start - kids[0].start);
+        let (c0, c1) = codes.split_at_mut(h);
+        rayon::join(|| self.children(r0, &kids[..h], c0, depth), || self.children(r1, &kids[h..], c1, depth));
+    }
+
+    /// [`Builder::subtree`] on one thread, into `out` (codes index `out`'s lists).
+    fn local_subtree(&self, refs: &mut [PrimRef], span: Span, depth: usize, out: &mut Local) -> u32 {
+        let span = without_copies(self.tris, refs, span);
         let refs = &mut refs[..span.len()];
         if span.len() <= LEAF_SIZE {
-            return self.leaf(refs);
+            let mut ids = [0u32; LEAF_SIZE];
+            refs.iter().zip(&mut ids).for_each(|(r, id)| *id = r.id);
+            out.leaves.push(Leaf::new(self.tris, &ids[..refs.len()]));
+            return leaf_code(out.leaves.len() - 1, refs.len());
         }
+        let (kids, n) = self.kids(refs, span, depth);
+        let index = out.nodes.len();
+        out.nodes.push(node(&kids[..n], [0; 4]));
+        let mut rest = refs;
+        for k in 0..n {
+            let (part, tail) = rest.split_at_mut(kids[k].len());
+            rest = tail;
+            out.nodes[index].child[k] = self.local_subtree(part, kids[k], depth + 1, out);
+        }
+        index as u32
+    }
+
+    /// Copies a subtree built on one thread into the shared slots, moving its codes by
+    /// where its block lands; returns its root's code there.
+    fn flush(&self, local: Local, root: u32) -> u32 {
+        let node_base = self.nodes.reserve(local.nodes.len());
+        let leaf_base = self.leaves.reserve(local.leaves.len());
+        let moved = |code: u32| match code & LEAF {
+            0 => code + node_base as u32,
+            _ => {
+                let (leaf, len) = leaf_of(code);
+                leaf_code(leaf_base + leaf, len)
+            }
+        };
+        for (i, mut n) in local.nodes.into_iter().enumerate() {
+            n.child = n.child.map(moved);
+            self.nodes.write(node_base + i, n);
+        }
+        for (i, l) in local.leaves.into_iter().enumerate() {
+            self.leaves.write(leaf_base + i, l);
+        }
+        moved(root)
+    }
+
+    /// A node's children: the span split, the child of largest area first (of most
+    /// triangles past the SAH levels), until there are four or none can be split.
+    fn kids(&self, refs: &mut [PrimRef], span: Span, depth: usize) -> ([Span; 4], usize) {
         let base = span.start;
         let by_count = depth >= SAH_DEPTH;
         let mut kids = [span; 4];
         let mut n = 1;
         while n < 4 {
-            // The child to split: the largest in area (in count past the SAH levels).
             let weight = |s: &Span| if by_count { s.len() as f32 } else { s.bounds.area() };
             let Some(k) = (0..n)
                 .filter(|&k| kids[k].len() > LEAF_SIZE)
@@ -259,45 +328,7 @@ impl Builder<'_> {
             (kids[k], kids[k + 1]) = (lo, hi);
             n += 1;
         }
-        let index = self.nodes.reserve();
-        let mut codes = [0u32; 4];
-        self.children(refs, &kids[..n], &mut codes[..n], depth + 1, span.len() >= PARALLEL_CHILDREN);
-        let boxes = kids[..n].iter().map(|s| s.bounds.aabb());
-        let mut arr = [Aabb::EMPTY; 4];
-        arr.iter_mut().zip(boxes).for_each(|(a, b)| *a = b);
-        self.nodes.write(index, Node { boxes: Boxes4::new(&arr[..n]), child: codes, children: n as u32 });
-        index as u32
-    }
-
-    /// Builds the subtrees of consecutive spans that together cover `refs`, in
-    /// parallel halves when `parallel`.
-    fn children(&self, refs: &mut [PrimRef], kids: &[Span], codes: &mut [u32], depth: usize, parallel: bool) {
-        if kids.len() == 1 {
-            codes[0] = self.subtree(refs, kids[0], depth);
-            return;
-        }
-        let h = kids.len() / 2;
-        let (r0, r1) = refs.split_at_mut(kids[h].start - kids[0].start);
-        let (c0, c1) = codes.split_at_mut(h);
-        let (mut left, mut right) = (
-            || self.children(r0, &kids[..h], c0, depth, parallel),
-            || self.children(r1, &kids[h..], c1, depth, parallel),
-        );
-        if parallel {
-            rayon::join(left, right);
-        } else {
-            left();
-            right();
-        }
-    }
-
-    /// A leaf of the listed references (one to four).
-    fn leaf(&self, refs: &[PrimRef]) -> u32 {
-        let mut ids = [0u32; LEAF_SIZE];
-        refs.iter().zip(&mut ids).for_each(|(r, id)| *id = r.id);
-        let index = self.leaves.reserve();
-        self.leaves.write(index, Leaf::new(self.tris, &ids[..refs.len()]));
-        leaf_code(index, refs.len())
+        (kids, n)
     }
 
     /// Splits a span in two (both non-empty), reordering its references: at the
@@ -345,6 +376,30 @@ impl Builder<'_> {
         let (l, r) = refs.split_at(mid);
         (self.extent(l).span(span.start), self.extent(r).span(span.start + mid))
     }
+}
+
+/// A subtree built on one thread: its nodes (its root first) and leaves.
+#[derive(Default)]
+struct Local {
+    nodes: Vec<Node>,
+    leaves: Vec<Leaf>,
+}
+
+/// The node over `kids` with child codes `codes`.
+fn node(kids: &[Span], codes: [u32; 4]) -> Node {
+    let mut boxes = [Aabb::EMPTY; 4];
+    boxes.iter_mut().zip(kids).for_each(|(b, s)| *b = s.bounds.aabb());
+    Node { boxes: Boxes4::new(&boxes[..kids.len()]), child: codes, children: kids.len() as u32 }
+}
+
+/// The span without exact copies where no plane can separate its triangles (all
+/// centroids coincide): halving by count would keep them all, and a copy is never the
+/// answer (the smallest id wins ties).
+fn without_copies(tris: &[[Vec3; 3]], refs: &mut [PrimRef], mut span: Span) -> Span {
+    if span.len() > LEAF_SIZE && span.centroids.min == span.centroids.max {
+        span.end = span.start + drop_copies(tris, refs);
+    }
+    span
 }
 
 /// A split plane: between bins `bin - 1` and `bin` of `bins` on `axis`, the bins
