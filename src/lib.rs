@@ -11,9 +11,9 @@
 //! ```
 //! use warpray::prelude::*;
 //!
-//! // The built-in Cornell box, a BVH caster, and a tiny progressive render.
+//! // The built-in Cornell box, the default BVH caster, and a tiny progressive render.
 //! let scene = cornell_box();
-//! let caster = BvhCaster::new(&scene);
+//! let caster = Bvh4::new(&scene);
 //! let opts = RenderOptions { width: 32, height: 32, budget: Budget::Samples(4), ..Default::default() };
 //! let (film, stats) = render(&scene, &caster, &opts, |_, _| true).unwrap();
 //! assert_eq!(film.passes, 4);
@@ -61,7 +61,7 @@ pub struct ReadmeDoctests;
 /// The names most programs need.
 pub mod prelude {
     pub use crate::cast::pdacrt::Pdacrt;
-    pub use crate::cast::{BruteForce, BvhCaster, CastStats, CasterKind, Dacrt, RayCaster};
+    pub use crate::cast::{BruteForce, Bvh4, BvhCaster, CastStats, CasterKind, Dacrt, RayCaster};
     pub use crate::error::{Error, Result};
     pub use crate::film::Film;
     pub use crate::geometry::{Aabb, Hit, Ray};

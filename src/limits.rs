@@ -10,10 +10,10 @@ pub const MAX_SECONDS: f64 = 1.0e7;
 /// integrator supports is `MAX_PATH_VERTICES - 2`.
 pub const MAX_PATH_VERTICES: usize = 64;
 
-/// Bytes a loaded scene takes per triangle with the default caster built: 480, peak
-/// resident memory measured 2026-12-02 (`/usr/bin/time -f %M`, 16² path render): the
-/// dragon (871K triangles) 329 MB with the BVH, 132 MB with DACRT; the bunny (69K)
-/// 39 MB; rounded up by a quarter.
+/// Bytes a loaded scene takes per triangle with a caster built: 480, peak resident
+/// memory (`/usr/bin/time -f %M`, 16² path render) with the hungriest caster, obvhs'
+/// BVH: the dragon (871K triangles) 329 MB (188 MB with the default BVH4, 132 MB with
+/// DACRT); the bunny (69K) 39 MB; rounded up by a quarter.
 pub const BYTES_PER_TRIANGLE: u64 = 480;
 
 /// The environment variable that sets the memory budget: bytes, or a number with a

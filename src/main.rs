@@ -176,15 +176,15 @@ struct RenderArgs {
     /// Random seed; the same seed gives the same image at any thread count.
     #[arg(long)]
     seed: Option<u64>,
-    /// Ray caster.
-    #[arg(long, value_enum, default_value = "bvh")]
+    /// Ray caster: `bvh4`, warpray's own BVH, by default (docs/bvh.md).
+    #[arg(long, value_enum, default_value = "bvh4")]
     caster: CasterKind,
     /// With `--integrator lvc`: the same as `--integrator lvc-mk`, LVC-BDPT as
     /// megakernels on the simt device (one thread per subpath, rays traced one at a
     /// time); the image is the same.
     #[arg(long)]
     megakernel: bool,
-    /// How the BVH caster traverses: `fast` is obvhs' traversal over boxes padded so
+    /// How the obvhs BVH caster (`--caster bvh`) traverses: `fast` is obvhs' traversal over boxes padded so
     /// that its rounding never rejects a box a ray enters (docs/bvh.md); `checked`
     /// also re-checks every miss and unblocked shadow ray with the robust traversal;
     /// `robust` is the robust traversal for every ray.
@@ -607,7 +607,7 @@ fn run_converge(args: ConvergeArgs) -> Result<bool> {
     let pool = thread_pool(args.threads)?;
     interrupt::install();
     pool.install(|| {
-        let caster = warpray::cast::BvhCaster::new(&desc.scene);
+        let caster = warpray::cast::Bvh4::new(&desc.scene);
         let reference = match &args.reference {
             Some(path) => {
                 let (w, h, px) = read_exr(path)?;

@@ -129,12 +129,14 @@ impl BvhCaster {
             tests += 1;
             let prim = self.prim(bvh, id);
             let [a, b, c] = self.tris[prim as usize];
-            match intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, best.t.min(ray.t_max)) {
-                Some((t, u, v)) => {
+            // Up to one ulp past the best hit, so that a tie with a smaller id wins.
+            let far = if best.is_hit() { best.t.next_up().min(ray.t_max) } else { ray.t_max };
+            match intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, far) {
+                Some((t, u, v)) if best.loses_to(t, prim) => {
                     best = Hit { t, prim, u, v };
                     t + NODE_EPSILON_SHIFT
                 }
-                None => f32::INFINITY,
+                _ => f32::INFINITY,
             }
         });
         (best, tests)

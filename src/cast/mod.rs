@@ -34,7 +34,8 @@ use crate::scene::Scene;
 pub enum CasterKind {
     /// obvhs compressed wide BVH (CWBVH), built in parallel.
     Bvh,
-    /// warpray's own 4-wide BVH: binned SAH build in parallel, SIMD box and triangle tests.
+    /// warpray's own 4-wide BVH: binned SAH build in parallel, SIMD box and triangle
+    /// tests. The renderer's default.
     Bvh4,
     /// Every ray against every triangle: the test oracle.
     Brute,

@@ -89,20 +89,22 @@ impl Boxes4 {
         }
     }
 
-    /// Which of the four boxes the ray, cut to `(t_min, t_far)`, enters (bit `k` for
-    /// box `k`), and the entry distances: lane by lane exactly [`Aabb::intersect`]'s
-    /// answer (the same operations as [`RaySlab::enters`]; a ray with a zero direction
-    /// component takes `intersect` itself, box by box).
+    /// Which of the four boxes, each grown by `grow` on every side, the ray cut to
+    /// `(t_min, t_far)` enters (bit `k` for box `k`), and the entry distances: lane by
+    /// lane exactly [`Aabb::intersect`]'s answer for the grown box (the same operations
+    /// as [`RaySlab::enters`]; a ray with a zero direction component takes `intersect`
+    /// itself, box by box).
     #[inline]
-    pub fn enters(&self, ray: &RaySlab, t_far: f32) -> (u32, Vec4) {
+    pub fn enters(&self, ray: &RaySlab, t_far: f32, grow: f32) -> (u32, Vec4) {
         let inv = ray.inv_t_max;
         if !Vec3A::from_vec4(inv).is_finite() {
-            return self.enters_by_position(ray, t_far);
+            return self.enters_by_position(ray, t_far, grow);
         }
         let o = ray.origin_t_min;
+        let g = Vec4::splat(grow);
         let slab = |a: usize| {
             let (o, i) = (Vec4::splat(o[a]), Vec4::splat(inv[a]));
-            let (t0, t1) = ((self.min[a] - o) * i, (self.max[a] - o) * i);
+            let (t0, t1) = ((self.min[a] - g - o) * i, (self.max[a] + g - o) * i);
             (t0.min(t1), t0.max(t1))
         };
         let ((n0, f0), (n1, f1), (n2, f2)) = (slab(0), slab(1), slab(2));
@@ -114,11 +116,13 @@ impl Boxes4 {
     }
 
     #[cold]
-    fn enters_by_position(&self, ray: &RaySlab, t_far: f32) -> (u32, Vec4) {
+    fn enters_by_position(&self, ray: &RaySlab, t_far: f32, grow: f32) -> (u32, Vec4) {
         let (mut mask, mut near) = (0, [f32::INFINITY; 4]);
         for (k, n) in near.iter_mut().enumerate() {
             let o = ray.origin_t_min;
-            if let Some((t, _)) = self.get(k).intersect(o.truncate(), ray.inv_dir(), o.w, t_far) {
+            let b = self.get(k);
+            let grown = Aabb { min: b.min - grow, max: b.max + grow };
+            if let Some((t, _)) = grown.intersect(o.truncate(), ray.inv_dir(), o.w, t_far) {
                 mask |= 1 << k;
                 *n = t;
             }
@@ -289,9 +293,11 @@ mod tests {
             }
             let ray = Ray { origin: Vec3::new(grid(), grid(), grid()), dir: d, t_min: grid().max(0.0), t_max: 8.0 };
             let t_far = [ray.t_max, grid() + 1.0][trial % 2];
-            let (mask, near) = Boxes4::new(&boxes).enters(&RaySlab::new(&ray), t_far);
+            let grow = [0.0, 0.125][trial % 3 / 2];
+            let (mask, near) = Boxes4::new(&boxes).enters(&RaySlab::new(&ray), t_far, grow);
             for (k, b) in boxes.iter().enumerate() {
-                let want = b.intersect(ray.origin, inv_dir(d), ray.t_min, t_far);
+                let grown = Aabb { min: b.min - grow, max: b.max + grow };
+                let want = grown.intersect(ray.origin, inv_dir(d), ray.t_min, t_far);
                 assert_eq!(mask >> k & 1 == 1, want.is_some(), "{ray:?} {b:?} t_far {t_far}");
                 if let Some((t, _)) = want {
                     assert_eq!(near[k].to_bits(), t.to_bits(), "entry distance of {b:?} for {ray:?}");

@@ -3,7 +3,7 @@
 
 use super::shared::{Series, Shared, lock};
 use crate::cast::pdacrt::{Pdacrt, PdacrtParams};
-use crate::cast::{BvhCaster, CasterKind, RayCaster};
+use crate::cast::{Bvh4, CasterKind, RayCaster};
 use crate::converge::rmse;
 use crate::geometry::Hit;
 use crate::render::CisParams;
@@ -106,7 +106,7 @@ impl Job {
         let mut effect = None;
         if scene.camera.aperture_radius == 0.0 {
             lock(shared).status = "analysing (2 of 2): one CIS-LBDPT pass unsorted and sorted".into();
-            let bvh = BvhCaster::new(scene);
+            let bvh = Bvh4::new(scene);
             let mut eff = [0.0; 2];
             for (k, sort) in [false, true].into_iter().enumerate() {
                 let o = RenderOptions {
@@ -149,7 +149,7 @@ impl Job {
             return Ok(Some(r.2.clone()));
         }
         lock(shared).status = "rendering the reference (path tracing): 0/256 spp".into();
-        let bvh = BvhCaster::new(scene);
+        let bvh = Bvh4::new(scene);
         let o = RenderOptions::for_scene(
             settings,
             RenderOptions {

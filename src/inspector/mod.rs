@@ -125,7 +125,7 @@ impl Inspector {
             scenes,
             scene: 0,
             integrator: Variant::of(IntegratorKind::Path),
-            caster: CasterKind::Bvh,
+            caster: CasterKind::Bvh4,
             spp: 64,
             size: 128,
             panel: Panel::Image,

@@ -262,3 +262,37 @@ fn a_fan_of_two_hundred_thousand_slivers() {
     let bvh4 = Bvh4::from_triangles(tris);
     agree_with(&brute, &bvh4, &rays, "fan of slivers (bvh4)");
 }
+
+#[test]
+fn hits_the_watertight_test_reports_just_off_a_large_floor() {
+    // From the conference room: a ray starting 3e-5 under its floor (coordinates near
+    // 1,000) and leaving it is reported hit by the watertight test at t = 3.8e-5,
+    // outside the floor's exact box. A BVH whose boxes are exact loses it; brute force
+    // and every other caster report it. Small triangles around make the floor a leaf
+    // below nodes whose boxes are tested.
+    let floor = [
+        Vec3::new(-946.8875, -1.572159, 668.4894),
+        Vec3::new(1653.2471, -1.572159, 668.4894),
+        Vec3::new(1653.2471, -1.572159, -1016.10486),
+    ];
+    let mut tris = vec![floor];
+    let mut r = rng(43);
+    for _ in 0..64 {
+        let c = random_in_box(&mut r, Vec3::new(-900.0, 0.0, -900.0), Vec3::new(1600.0, 400.0, 600.0));
+        tris.push([c, c + Vec3::new(5.0, 0.0, 0.0), c + Vec3::new(0.0, 5.0, 1.0)]);
+    }
+    let mut rays = vec![
+        Ray::new(Vec3::new(422.09717, -1.5721896, 212.83295), Vec3::new(0.7627332, -0.58807045, 0.26909304)),
+        Ray::new(Vec3::new(384.83405, -1.5721896, -602.7712), Vec3::new(0.8284043, -0.513056, -0.22476646)),
+    ];
+    // Rays from just under and over the floor, in every direction.
+    for _ in 0..2000 {
+        let o = random_in_box(&mut r, Vec3::new(0.0, -1.57219, -900.0), Vec3::new(1600.0, -1.57213, 600.0));
+        rays.push(Ray::new(o, random_dir(&mut r)));
+    }
+    let brute = BruteForce::from_triangles(tris.clone());
+    let mut want = [Hit::MISS];
+    brute.closest(&rays[..1], &mut want);
+    assert!(want[0].is_hit() && want[0].t < 1e-4, "the case is still a near miss that the test reports: {:?}", want[0]);
+    agree(&tris, &rays, "just off a large floor");
+}

@@ -188,7 +188,7 @@ fn the_exr_says_how_it_was_rendered() {
     assert_eq!(m["spp"], "3");
     assert_eq!(m["seed"], "7");
     assert_eq!(m["integrator"], "bdpt");
-    assert_eq!(m["caster"], "bvh");
+    assert_eq!(m["caster"], "bvh4");
     assert_eq!(m["interrupted"], "false");
     assert_eq!(m["version"], env!("CARGO_PKG_VERSION"));
     assert!(m["seconds"].parse::<f64>().unwrap() >= 0.0 && m.contains_key("scene") && m.contains_key("max_depth"));

@@ -4,10 +4,11 @@
 //! ([`Triangles4`]).
 //!
 //! It needs none of the obvhs caster's defences: the child boxes are the triangles'
-//! exact bounds and the box test is warpray's conservative slab test (exits widened by
-//! `SLAB_WIDEN`, zero direction components decided by position), lane for lane
-//! [`Aabb::intersect`](crate::geometry::Aabb::intersect), so no box a ray enters is
-//! rejected, from any origin. Ties go to the smaller id, and triangles with a
+//! exact bounds, grown per ray by a bound on the watertight test's own rounding
+//! ([`HIT_SLACK`]), and the box test is warpray's conservative slab test (exits widened
+//! by `SLAB_WIDEN`, zero direction components decided by position), lane for lane
+//! [`Aabb::intersect`](crate::geometry::Aabb::intersect), so no box holding a hit the
+//! triangle test would report is rejected, from any origin. Ties go to the smaller id, and triangles with a
 //! coordinate that is not finite are tested against every ray, so the answers are
 //! brute force's. Exact copies of a triangle are dropped where the builder finds them
 //! (among triangles whose centroids coincide): they could never be the answer.
@@ -24,6 +25,15 @@ use node::{LEAF, LEAF_SIZE, Leaf, MAX_DEPTH, Node, leaf_of};
 use rayon::prelude::*;
 use std::time::Instant;
 
+/// The watertight test computes a triangle's corners relative to the ray origin and
+/// sheared, rounding each step: a hit it reports can lie off the triangle (or behind
+/// the origin) by a few ε times the corners' distance from the origin. A ray starting
+/// 3e-5 under the conference room's floor (coordinates near 1,000) and leaving it is
+/// reported to hit the floor at t = 3.8e-5, outside the floor's exact box. Boxes grown
+/// by `HIT_SLACK` times the coordinates' magnitude (origin's and scene's) keep every
+/// such hit, so the answers stay brute force's.
+const HIT_SLACK: f32 = 32.0 * f32::EPSILON;
+
 /// Stack entries a traversal may need: three pending siblings per level, and the root.
 const STACK: usize = 3 * MAX_DEPTH + 1;
 
@@ -31,6 +41,8 @@ const STACK: usize = 3 * MAX_DEPTH + 1;
 pub struct Bvh4 {
     nodes: Vec<Node>,
     leaves: Vec<Leaf>,
+    /// The largest coordinate magnitude of the finite triangles.
+    magnitude: f32,
     /// The root's code; `None` for a scene with no finite triangle.
     root: Option<u32>,
     /// Triangles with a coordinate that is not finite, in leaves tested by every ray
@@ -52,18 +64,30 @@ impl Bvh4 {
         let outlier_ids: Vec<u32> = (0..tris.len() as u32).filter(|&i| !finite(&tris[i as usize])).collect();
         let outliers = outlier_ids.chunks(LEAF_SIZE).map(|c| (Leaf::new(&tris, c), c.len())).collect();
         let ids: Vec<u32> = (0..tris.len() as u32).into_par_iter().filter(|&i| finite(&tris[i as usize])).collect();
+        let magnitude = ids
+            .par_iter()
+            .map(|&i| tris[i as usize].iter().fold(0.0f32, |m, v| m.max(v.abs().max_element())))
+            .reduce(|| 0.0, f32::max);
         let (nodes, leaves, root) = if ids.is_empty() {
             (Vec::new(), Vec::new(), None)
         } else {
             let b = build::build(&tris, &ids);
             (b.nodes, b.leaves, Some(b.root))
         };
-        Bvh4 { nodes, leaves, root, outliers, build_seconds: start.elapsed().as_secs_f64() }
+        Bvh4 { nodes, leaves, magnitude, root, outliers, build_seconds: start.elapsed().as_secs_f64() }
     }
 
     /// How many nodes and leaves the tree has.
     pub fn shape(&self) -> (usize, usize) {
         (self.nodes.len(), self.leaves.len())
+    }
+
+    /// How far boxes are grown for a ray: a bound on how far from a triangle a hit the
+    /// watertight test reports can lie, [`HIT_SLACK`] times the largest coordinate
+    /// magnitude of the scene and the ray's origin.
+    #[inline]
+    fn grow(&self, ray: &Ray) -> f32 {
+        HIT_SLACK * (self.magnitude + ray.origin.abs().max_element())
     }
 
     /// Closest hit of one (valid) ray and the triangles it tested.
@@ -90,6 +114,7 @@ impl Bvh4 {
         }
         let Some(root) = self.root else { return (best, tests) };
         let slab = RaySlab::new(ray);
+        let grow = self.grow(ray);
         let mut stack = [(0u32, 0f32); STACK];
         stack[0] = (root, f32::NEG_INFINITY);
         let mut top = 1;
@@ -108,7 +133,7 @@ impl Bvh4 {
                 continue;
             }
             let node = &self.nodes[code as usize];
-            let (mask, nears) = node.boxes.enters(&slab, cull);
+            let (mask, nears) = node.boxes.enters(&slab, cull, grow);
             let mut mask = mask & ((1 << node.children) - 1);
             // Push the entered children farthest first, so the nearest is taken next.
             let first = top;
@@ -142,6 +167,7 @@ impl Bvh4 {
         }
         let Some(root) = self.root else { return (false, tests) };
         let slab = RaySlab::new(ray);
+        let grow = self.grow(ray);
         let cull = cull_distance(ray.t_max);
         let mut stack = [0u32; STACK];
         stack[0] = root;
@@ -157,7 +183,7 @@ impl Bvh4 {
                 continue;
             }
             let node = &self.nodes[code as usize];
-            let mut mask = node.boxes.enters(&slab, cull).0 & ((1 << node.children) - 1);
+            let mut mask = node.boxes.enters(&slab, cull, grow).0 & ((1 << node.children) - 1);
             while mask != 0 {
                 stack[top] = node.child[mask.trailing_zeros() as usize];
                 top += 1;
