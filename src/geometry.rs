@@ -14,6 +14,8 @@
 use glam::{Vec3, Vec3A};
 
 pub(crate) mod hit_key;
+mod slack;
+pub(crate) use slack::{hit_slack, magnitude};
 pub mod lanes;
 
 /// A ray with a parametric interval `[t_min, t_max)`. `dir` need not be normalised;
@@ -138,6 +140,12 @@ impl Aabb {
     /// This box grown to hold `p`.
     pub fn grow(self, p: Vec3) -> Aabb {
         Aabb { min: self.min.min(p), max: self.max.max(p) }
+    }
+
+    /// This box grown by `g` on every side.
+    #[inline]
+    pub fn grown(self, g: f32) -> Aabb {
+        Aabb { min: self.min - g, max: self.max + g }
     }
 
     /// The box around both.

@@ -5,7 +5,7 @@
 //!
 //! It needs none of the obvhs caster's defences: the child boxes are the triangles'
 //! exact bounds, grown per ray by a bound on the watertight test's own rounding
-//! ([`HIT_SLACK`]), and the box test is warpray's conservative slab test (exits widened
+//! (`geometry::hit_slack`), and the box test is warpray's conservative slab test (exits widened
 //! by `SLAB_WIDEN`, zero direction components decided by position), lane for lane
 //! [`Aabb::intersect`](crate::geometry::Aabb::intersect), so no box holding a hit the
 //! triangle test would report is rejected, from any origin. Ties go to the smaller id, and triangles with a
@@ -18,21 +18,12 @@ mod node;
 
 use super::caster::{CastStats, RayCaster, Triangles, per_ray};
 use crate::geometry::lanes::RaySlab;
-use crate::geometry::{Hit, Ray, RayShear, cull_distance};
+use crate::geometry::{Hit, Ray, RayShear, cull_distance, hit_slack, magnitude};
 use crate::scene::Scene;
 use glam::Vec3;
 use node::{LEAF, LEAF_SIZE, Leaf, MAX_DEPTH, Node, leaf_of};
 use rayon::prelude::*;
 use std::time::Instant;
-
-/// The watertight test computes a triangle's corners relative to the ray origin and
-/// sheared, rounding each step: a hit it reports can lie off the triangle (or behind
-/// the origin) by a few ε times the corners' distance from the origin. A ray starting
-/// 3e-5 under the conference room's floor (coordinates near 1,000) and leaving it is
-/// reported to hit the floor at t = 3.8e-5, outside the floor's exact box. Boxes grown
-/// by `HIT_SLACK` times the coordinates' magnitude (origin's and scene's) keep every
-/// such hit, so the answers stay brute force's.
-const HIT_SLACK: f32 = 32.0 * f32::EPSILON;
 
 /// Stack entries a traversal may need: three pending siblings per level, and the root.
 const STACK: usize = 3 * MAX_DEPTH + 1;
@@ -64,10 +55,7 @@ impl Bvh4 {
         let outlier_ids: Vec<u32> = (0..tris.len() as u32).filter(|&i| !finite(&tris[i as usize])).collect();
         let outliers = outlier_ids.chunks(LEAF_SIZE).map(|c| (Leaf::new(&tris, c), c.len())).collect();
         let ids: Vec<u32> = (0..tris.len() as u32).into_par_iter().filter(|&i| finite(&tris[i as usize])).collect();
-        let magnitude = ids
-            .par_iter()
-            .map(|&i| tris[i as usize].iter().fold(0.0f32, |m, v| m.max(v.abs().max_element())))
-            .reduce(|| 0.0, f32::max);
+        let magnitude = magnitude(&tris);
         let (nodes, leaves, root) = if ids.is_empty() {
             (Vec::new(), Vec::new(), None)
         } else {
@@ -83,11 +71,10 @@ impl Bvh4 {
     }
 
     /// How far boxes are grown for a ray: a bound on how far from a triangle a hit the
-    /// watertight test reports can lie, [`HIT_SLACK`] times the largest coordinate
-    /// magnitude of the scene and the ray's origin.
+    /// watertight test reports can lie (`geometry::hit_slack`).
     #[inline]
     fn grow(&self, ray: &Ray) -> f32 {
-        HIT_SLACK * (self.magnitude + ray.origin.abs().max_element())
+        hit_slack(self.magnitude, ray.origin.abs().max_element())
     }
 
     /// Closest hit of one (valid) ray and the triangles it tested.

@@ -49,7 +49,7 @@
 use super::caster::{CastStats, RayCaster, Triangles, triangles_bytes};
 use crate::geometry::hit_key::{self, BLOCKED, NONE};
 use crate::geometry::lanes::RaySlab;
-use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle};
+use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle, magnitude};
 use crate::scene::Scene;
 use packets::{ORIGIN_BITS, Packets};
 use rayon::prelude::*;
@@ -82,7 +82,8 @@ impl Dacrt {
     pub fn from_triangles(tris: Triangles, params: DacrtParams) -> Self {
         let boxes: Vec<Aabb> = tris.par_iter().map(|t| Aabb::from_points(t)).collect();
         let scene_box = boxes.par_iter().copied().reduce(|| Aabb::EMPTY, Aabb::union);
-        Dacrt { tris, boxes, scene_box, params, phases: Mutex::default() }
+        let magnitude = magnitude(&tris);
+        Dacrt { tris, boxes, scene_box, magnitude, params, phases: Mutex::default() }
     }
 
     /// The same caster with other parameters.
@@ -195,6 +196,7 @@ impl Dacrt {
                         any_hit,
                         self.params.packet_rays,
                         fork_min_rays,
+                        self.magnitude,
                     );
                     (order, tr)
                 })

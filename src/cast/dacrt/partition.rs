@@ -5,7 +5,7 @@
 
 use super::packets::{MIN_RUN, coherence_key};
 use super::state::{Dacrt, Trace};
-use crate::geometry::{Aabb, Ray, inv_dir};
+use crate::geometry::{Aabb, Ray, hit_slack, inv_dir};
 use rayon::prelude::*;
 
 impl Dacrt {
@@ -24,7 +24,8 @@ impl Dacrt {
                 let (mut ids, mut keys) = (Vec::with_capacity(chunk.len()), Vec::with_capacity(chunk.len()));
                 let (mut or, mut and) = (0, u64::MAX);
                 for (i, r) in chunk.iter().enumerate() {
-                    if r.is_valid() && scene_box.intersect(r.origin, inv_dir(r.dir), r.t_min, r.t_max).is_some() {
+                    let grown = scene_box.grown(hit_slack(self.magnitude, r.origin.abs().max_element()));
+                    if r.is_valid() && grown.intersect(r.origin, inv_dir(r.dir), r.t_min, r.t_max).is_some() {
                         let key = coherence_key(r, &scene_box);
                         (or, and) = (or | key, and & key);
                         ids.push((c * CHUNK + i) as u32);
@@ -100,7 +101,7 @@ impl Trace {
                     while j < ids.len() && packets.of(ids[j]) == p {
                         j += 1;
                     }
-                    if j - i >= MIN_RUN && packets.misses(p, b) {
+                    if j - i >= MIN_RUN && packets.misses(p, &b.grown(self.grow)) {
                         for k in i..j {
                             let r = ids[k];
                             rejected[m] = r;

@@ -9,7 +9,7 @@ use crate::cast::caster::Triangles;
 use crate::geometry::Ray;
 use crate::geometry::hit_key::{self, BLOCKED, NONE};
 use crate::geometry::lanes::RaySlab;
-use crate::geometry::{Aabb, cull_distance};
+use crate::geometry::{Aabb, cull_distance, hit_slack};
 use rayon::prelude::*;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering::Relaxed};
@@ -76,6 +76,9 @@ pub struct Dacrt {
     pub(super) tris: Triangles,
     pub(super) boxes: Vec<Aabb>,
     pub(super) scene_box: Aabb,
+    /// The largest magnitude of the triangles' finite coordinates (for
+    /// `geometry::hit_slack`).
+    pub(super) magnitude: f32,
     /// Tunables; may be changed between calls.
     pub params: DacrtParams,
     /// The last call's seconds by stage ([`RayCaster::phase_seconds`]).
@@ -114,11 +117,23 @@ pub(super) struct Trace {
     pub(super) busy_ns: AtomicU64,
     /// Nodes with at least this many rays fork their far child (0: never).
     pub(super) fork_min_rays: usize,
+    /// How far every box is grown in the ray tests: `geometry::hit_slack` for the
+    /// scene and the batch's largest origin coordinate, so that no hit the watertight
+    /// test reports just off a triangle is culled.
+    pub(super) grow: f32,
 }
 
 impl Trace {
     /// A trace of `rays` (already renumbered) with no hits yet.
-    pub(super) fn new(rays: Vec<Ray>, any_hit: bool, packet_rays: usize, fork_min_rays: usize) -> Trace {
+    pub(super) fn new(
+        rays: Vec<Ray>,
+        any_hit: bool,
+        packet_rays: usize,
+        fork_min_rays: usize,
+        magnitude: f32,
+    ) -> Trace {
+        let origins = rays.par_iter().map(|r| r.origin.abs().max_element()).reduce(|| 0.0, f32::max);
+        let grow = hit_slack(magnitude, origins);
         let slabs: Vec<RaySlab> = rays.par_iter().map(RaySlab::new).collect();
         let keys: Vec<AtomicU64> = (0..rays.len()).into_par_iter().map(|_| AtomicU64::new(NONE)).collect();
         let packets = Packets::new(&rays, &slabs, packet_rays);
@@ -133,12 +148,13 @@ impl Trace {
             tests: AtomicU64::new(0),
             busy_ns: AtomicU64::new(0),
             fork_min_rays,
+            grow,
         }
     }
 
     /// A trace with no rays (the shared top levels choose planes from triangles alone).
     pub(super) fn empty() -> Trace {
-        Trace::new(Vec::new(), false, 0, 0)
+        Trace::new(Vec::new(), false, 0, 0, 0.0)
     }
 
     pub(super) fn alloc(&self, bytes: usize) {
@@ -172,7 +188,10 @@ impl Trace {
             return false;
         }
         let s = &self.slabs[id as usize];
-        s.enters(b, cull_distance(if k == NONE { s.t_max() } else { hit_key::t_of(k).min(s.t_max()) }))
+        s.enters(
+            &b.grown(self.grow),
+            cull_distance(if k == NONE { s.t_max() } else { hit_key::t_of(k).min(s.t_max()) }),
+        )
     }
 }
 
