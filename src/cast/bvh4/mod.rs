@@ -65,11 +65,6 @@ impl Bvh4 {
         Bvh4 { nodes, leaves, magnitude, root, outliers, build_seconds: start.elapsed().as_secs_f64() }
     }
 
-    /// How many nodes and leaves the tree has.
-    pub fn shape(&self) -> (usize, usize) {
-        (self.nodes.len(), self.leaves.len())
-    }
-
     /// How far boxes are grown for a ray: a bound on how far from a triangle a hit the
     /// watertight test reports can lie (`geometry::hit_slack`).
     #[inline]

@@ -45,10 +45,11 @@ impl Dacrt {
         let mut grow = super::planes::Grower::new(&far);
         let mut far_tris: Vec<u32> = tris.iter().copied().filter(|&t| grow.test(&self.boxes[t as usize])).collect();
         let tight = far.intersection(grow.union());
+        let grown = tr.grown(&tight);
         let far_rays: Vec<u32> = if far_tris.is_empty() {
             Vec::new()
         } else {
-            rays.iter().copied().filter(|&r| tr.enters(r, &tight)).collect()
+            rays.iter().copied().filter(|&r| tr.enters(r, &grown)).collect()
         };
         if far_rays.is_empty() {
             return self.child(tr, near, rays, tris, spare, depth);
@@ -59,7 +60,7 @@ impl Dacrt {
             || self.child(tr, near, rays, tris, spare, depth),
             |tr| {
                 let mut far_rays = far_rays;
-                far_rays.retain(|&r| tr.enters(r, &tight));
+                far_rays.retain(|&r| tr.enters(r, &grown));
                 self.recurse(tr, tight, &mut far_rays, &mut far_tris, &mut Vec::new(), depth + 1);
             },
         );
@@ -76,7 +77,8 @@ impl Dacrt {
         depth: u32,
     ) {
         let b = *far.bounds();
-        let far_rays: Vec<u32> = rays.iter().copied().filter(|&r| tr.enters(r, &b)).collect();
+        let grown = tr.grown(&b);
+        let far_rays: Vec<u32> = rays.iter().copied().filter(|&r| tr.enters(r, &grown)).collect();
         let near_part = |rays: &mut [u32], scratch: &mut Scratch| {
             let nr = tr.partition_rays(rays, near.bounds(), &mut scratch.rays);
             self.trace_top(tr, top, near, &mut rays[..nr], scratch, depth + 1);
@@ -90,7 +92,7 @@ impl Dacrt {
             || near_part(rays, scratch),
             |tr| {
                 let mut far_rays = far_rays;
-                far_rays.retain(|&r| tr.enters(r, &b));
+                far_rays.retain(|&r| tr.enters(r, &grown));
                 self.trace_top(tr, top, far, &mut far_rays, &mut Scratch::default(), depth + 1);
             },
         );

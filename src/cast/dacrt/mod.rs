@@ -149,7 +149,8 @@ impl Dacrt {
         // True when every triangle overlaps `child` and every ray enters it (stops at
         // the first element that does not).
         let keeps_all = |child: &Aabb| {
-            tris.iter().all(|&t| boxes[t as usize].overlaps(child)) && rays.iter().all(|&r| tr.enters(r, child))
+            let grown = tr.grown(child);
+            tris.iter().all(|&t| boxes[t as usize].overlaps(child)) && rays.iter().all(|&r| tr.enters(r, &grown))
         };
         (0..5).filter_map(candidate).find(|&(axis, pos)| {
             let (lo, hi) = bounds.split(axis, pos);

@@ -82,6 +82,7 @@ impl Trace {
         if rejected.len() < ids.len() {
             rejected.resize(ids.len(), 0);
         }
+        let b = &self.grown(b);
         let (mut n, mut m) = (0, 0);
         let keep = |ids: &mut [u32], rejected: &mut [u32], k: usize, n: &mut usize, m: &mut usize| {
             let r = ids[k];
@@ -101,7 +102,7 @@ impl Trace {
                     while j < ids.len() && packets.of(ids[j]) == p {
                         j += 1;
                     }
-                    if j - i >= MIN_RUN && packets.misses(p, &b.grown(self.grow)) {
+                    if j - i >= MIN_RUN && packets.misses(p, b) {
                         for k in i..j {
                             let r = ids[k];
                             rejected[m] = r;

@@ -181,17 +181,23 @@ impl Trace {
         sum >= 0.0
     }
 
+    /// A node's box as the ray tests see it: grown by [`Trace::grow`]. Callers grow a
+    /// box once and test every ray of the node against it.
     #[inline]
-    pub(super) fn enters(&self, id: u32, b: &Aabb) -> bool {
+    pub(super) fn grown(&self, b: &Aabb) -> Aabb {
+        b.grown(self.grow)
+    }
+
+    /// Whether ray `id`, cut at its best hit so far, enters `grown` (a box from
+    /// [`Trace::grown`]).
+    #[inline]
+    pub(super) fn enters(&self, id: u32, grown: &Aabb) -> bool {
         let k = self.keys[id as usize].load(Relaxed);
         if self.any_hit && k == BLOCKED {
             return false;
         }
         let s = &self.slabs[id as usize];
-        s.enters(
-            &b.grown(self.grow),
-            cull_distance(if k == NONE { s.t_max() } else { hit_key::t_of(k).min(s.t_max()) }),
-        )
+        s.enters(grown, cull_distance(if k == NONE { s.t_max() } else { hit_key::t_of(k).min(s.t_max()) }))
     }
 }
 
