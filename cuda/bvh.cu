@@ -176,6 +176,7 @@ struct TraceArgs {
     int32_t root;
     int any_hit;
     float widen;
+    float grow;
 };
 
 __device__ inline Aabb load_box(const Node* node, int side) {
@@ -224,8 +225,8 @@ __global__ void trace(TraceArgs a) {
                     const Node* node = a.nodes + cur;
                     float cull_t = cull_distance(far_t, a.widen);
                     float n0 = r.t_min, n1 = r.t_min;
-                    bool h0 = slab_entry(load_box(node, 0), r.o, inv, cull_t, a.widen, n0);
-                    bool h1 = slab_entry(load_box(node, 1), r.o, inv, cull_t, a.widen, n1);
+                    bool h0 = slab_entry(grown(load_box(node, 0), a.grow), r.o, inv, cull_t, a.widen, n0);
+                    bool h1 = slab_entry(grown(load_box(node, 1), a.grow), r.o, inv, cull_t, a.widen, n1);
                     int2 ch = __ldg(reinterpret_cast<const int2*>(&node->child[0]));
                     if (h0 && h1) {
                         bool swap = n1 < n0;
@@ -375,7 +376,7 @@ extern "C" int wr_bvh_build(void* handle, const float* tris, uint64_t n_tris, Wr
 }
 
 extern "C" int wr_bvh_trace(void* handle, const void* rays, uint64_t n_rays, int any_hit, float slab_widen,
-                            uint64_t* keys, WrBvhStats* stats) {
+                            float grow, uint64_t* keys, WrBvhStats* stats) {
     using namespace bvh;
     return guarded([&] {
         Bvh& b = *static_cast<Bvh*>(handle);
@@ -388,7 +389,7 @@ extern "C" int wr_bvh_trace(void* handle, const void* rays, uint64_t n_rays, int
         b.counters.resize(2);
         check(cudaMemset(b.counters.p, 0, 2 * sizeof(unsigned long long)), "clear counters");
         TraceArgs a = {b.nodes.p, b.sorted.p, b.ids_sorted.p, b.rays.p, b.keys.p, b.counters.p, b.counters.p + 1,
-                       n_rays,    b.root(),   any_hit,        slab_widen};
+                       n_rays,    b.root(),   any_hit,        slab_widen,    grow};
         EventTimer timer;
         stats->trace_ms = timer.time([&] {
             trace<<<Bvh::grid_of(n_rays), BLOCK>>>(a);

@@ -35,9 +35,10 @@ int wr_bvh_create(void** handle);
 int wr_bvh_build(void* handle, const float* tris, uint64_t n_tris, WrBvhStats* stats);
 /* As wr_pdacrt_trace: keys[i] receives (distance bits << 32 | triangle id),
  * UINT64_MAX for a miss, or for any_hit 0 when blocked; slab_widen is
- * geometry::SLAB_WIDEN, so the box test rounds as the Rust one does. */
-int wr_bvh_trace(void* handle, const void* rays, uint64_t n_rays, int any_hit, float slab_widen, uint64_t* keys,
-                 WrBvhStats* stats);
+ * geometry::SLAB_WIDEN, so the box test rounds as the Rust one does, and grow
+ * geometry::batch_slack of the rays, by which node boxes are grown. */
+int wr_bvh_trace(void* handle, const void* rays, uint64_t n_rays, int any_hit, float slab_widen, float grow,
+                 uint64_t* keys, WrBvhStats* stats);
 void wr_bvh_destroy(void* handle);
 const char* wr_bvh_last_error(void);
 

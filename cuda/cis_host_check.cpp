@@ -66,7 +66,7 @@ void wr_pdacrt_destroy(void*) {}
 const char* wr_bvh_last_error(void) { return "the GPU BVH is not part of the host check"; }
 int wr_bvh_create(void**) { return 1; }
 int wr_bvh_build(void*, const float*, uint64_t, WrBvhStats*) { return 1; }
-int wr_bvh_trace(void*, const void*, uint64_t, int, float, uint64_t*, WrBvhStats*) { return 1; }
+int wr_bvh_trace(void*, const void*, uint64_t, int, float, float, uint64_t*, WrBvhStats*) { return 1; }
 void wr_bvh_destroy(void*) {}
 const char* wr_cis_last_error(void) { return last_error.c_str(); }
 

@@ -59,6 +59,12 @@ __device__ inline bool overlaps(const Aabb& a, const Aabb& b) {
            a.hi.z >= b.lo.z;
 }
 
+/// `Aabb::grown`: the box grown by `g` on every side (`geometry::batch_slack`, so that
+/// no hit the watertight test reports just off a triangle is culled).
+__host__ __device__ inline Aabb grown(const Aabb& b, float g) {
+    return {{b.lo.x - g, b.lo.y - g, b.lo.z - g}, {b.hi.x + g, b.hi.y + g, b.hi.z + g}};
+}
+
 /// `Aabb::intersect`: the widened slab test; a zero direction component is decided
 /// by position. On entry `near_t` is where the ray starts (t_min); on a true return it
 /// is where the ray enters the box.

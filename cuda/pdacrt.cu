@@ -168,7 +168,8 @@ __global__ void filter_triangles(const uint32_t* tri_ids, const uint32_t* tri_no
 }
 
 __global__ void filter_rays(const uint32_t* ray_ids, const uint32_t* ray_node, const Ray* rays, const uint64_t* keys,
-                            const Aabb* children, int any_hit, float widen, uint32_t* codes, size_t n) {
+                            const Aabb* children, int any_hit, float widen, float grow, uint32_t* codes,
+                            size_t n) {
     size_t i = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n) return;
     uint32_t node = ray_node[i];
@@ -181,8 +182,8 @@ __global__ void filter_rays(const uint32_t* ray_ids, const uint32_t* ray_node, c
         Ray r = rays[id];
         Vec3 inv = inv_dir(r.d);
         float far_t = cull_distance(t_far(r, key), widen);
-        bool l = enters(children[2 * (size_t)node], r.o, inv, r.t_min, far_t, widen);
-        bool rt = enters(children[2 * (size_t)node + 1], r.o, inv, r.t_min, far_t, widen);
+        bool l = enters(grown(children[2 * (size_t)node], grow), r.o, inv, r.t_min, far_t, widen);
+        bool rt = enters(grown(children[2 * (size_t)node + 1], grow), r.o, inv, r.t_min, far_t, widen);
         code = code_of(l, rt);
     }
     codes[i] = node << 2 | code;
@@ -535,7 +536,8 @@ struct Tracer {
         launched("pdacrt::sequence");
         cur.ray_ids.resize(n);
         selected.resize(1);
-        auto flags = thrust::make_transform_iterator(rays.p, EntersScene{scene_box, params.slab_widen});
+        EntersScene enters_scene{grown(scene_box, params.grow), params.slab_widen};
+        auto flags = thrust::make_transform_iterator(rays.p, enters_scene);
         size_t bytes = 0;
         check(cub::DeviceSelect::Flagged(nullptr, bytes, next.ray_ids.p, flags, cur.ray_ids.p, selected.p, (int64_t)n),
               "select size");
@@ -586,7 +588,8 @@ struct Tracer {
         launched("pdacrt::filter_triangles");
         ray_codes.resize(n_rays);
         filter_rays<<<grid_of(n_rays), LINEAR_BLOCK>>>(cur.ray_ids.p, cur.ray_node.p, rays.p, keys.p, child_boxes.p,
-                                                       any_hit, params.slab_widen, ray_codes.p, n_rays);
+                                                       any_hit, params.slab_widen, params.grow, ray_codes.p,
+                                                       n_rays);
         launched("pdacrt::filter_rays");
         // the split by code: one scan of one-hot codes, count_codes
         struct Side {

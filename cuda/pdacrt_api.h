@@ -10,7 +10,7 @@ extern "C" {
 #endif
 
 /* Bumped whenever a struct or signature below changes. */
-#define WR_API_VERSION 4
+#define WR_API_VERSION 5
 
 /* PdacrtParams, plus what the kernels need from the Rust side. */
 typedef struct WrParams {
@@ -24,7 +24,8 @@ typedef struct WrParams {
     uint64_t chunk_rays;
     /* geometry::SLAB_WIDEN, so the slab test rounds as the Rust one does. */
     float slab_widen;
-    uint32_t reserved;
+    /* geometry::batch_slack of the call's rays: how far the ray tests grow boxes. */
+    float grow;
 } WrParams;
 
 /* What one trace call did. */

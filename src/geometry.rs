@@ -15,7 +15,7 @@ use glam::{Vec3, Vec3A};
 
 pub(crate) mod hit_key;
 mod slack;
-pub(crate) use slack::{hit_slack, magnitude};
+pub(crate) use slack::{batch_slack, hit_slack, magnitude};
 pub mod lanes;
 
 /// A ray with a parametric interval `[t_min, t_max)`. `dir` need not be normalised;

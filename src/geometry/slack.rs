@@ -18,6 +18,15 @@ pub(crate) fn hit_slack(magnitude: f32, origin: f32) -> f32 {
     HIT_SLACK * (magnitude + origin)
 }
 
+/// How far to grow boxes for a whole batch of rays, given their origins: [`hit_slack`]
+/// for the largest finite origin coordinate (DACRT and PDACRT grow once per call;
+/// BVH4 per ray). Rays with a non-finite origin are invalid and traced by no caster.
+pub(crate) fn batch_slack(magnitude: f32, origins: impl rayon::iter::ParallelIterator<Item = Vec3>) -> f32 {
+    use rayon::prelude::*;
+    let largest = origins.map(|o| o.abs().max_element()).filter(|c| c.is_finite()).reduce(|| 0.0, f32::max);
+    hit_slack(magnitude, largest)
+}
+
 /// The largest magnitude of the finite coordinates of a triangle list.
 pub(crate) fn magnitude(tris: &[[Vec3; 3]]) -> f32 {
     use rayon::prelude::*;

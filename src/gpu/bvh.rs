@@ -14,6 +14,7 @@
 //! # Ok::<(), warpray::error::Error>(())
 //! ```
 
+use rayon::prelude::*;
 use super::ffi::{GpuBvhStats, Handle, Library, library_path};
 use super::keys::{closest_by_keys, occluded_by_keys};
 use crate::cast::{CastStats, RayCaster};
@@ -29,6 +30,8 @@ pub struct GpuBvh {
     handle: Mutex<Handle>,
     lib: Library,
     tris: Vec<[f32; 9]>,
+    /// The triangles' largest coordinate magnitude (`geometry::batch_slack`).
+    magnitude: f32,
     device: String,
     build: GpuBvhStats,
     trace: Mutex<GpuBvhStats>,
@@ -49,6 +52,7 @@ impl GpuBvh {
             handle: Mutex::new(handle),
             lib,
             tris: Vec::new(),
+            magnitude: 0.0,
             device,
             build: GpuBvhStats::default(),
             trace: Mutex::new(GpuBvhStats::default()),
@@ -60,7 +64,7 @@ impl GpuBvh {
     /// Replaces the triangles and rebuilds; returns what the build did. On an error
     /// the structure is empty (every ray misses), never stale.
     pub fn rebuild(&mut self, tris: &[[glam::Vec3; 3]]) -> Result<GpuBvhStats> {
-        self.tris = crate::cast::pdacrt::flatten(tris).0;
+        (self.tris, _, self.magnitude) = crate::cast::pdacrt::flatten(tris);
         self.build = GpuBvhStats::default();
         let handle = self.handle.get_mut().unwrap_or_else(|e| e.into_inner());
         let stats = self.lib.bvh_build(handle, &self.tris);
@@ -90,7 +94,8 @@ impl GpuBvh {
     pub fn trace_keys(&self, rays: &[Ray], any_hit: bool) -> Result<Vec<u64>> {
         let mut keys = vec![u64::MAX; rays.len()];
         let handle = self.handle.lock().unwrap_or_else(|e| e.into_inner());
-        let stats = self.lib.bvh_trace(&handle, rays, any_hit, &mut keys)?;
+        let grow = crate::geometry::batch_slack(self.magnitude, rays.par_iter().map(|r| r.origin));
+        let stats = self.lib.bvh_trace(&handle, rays, any_hit, grow, &mut keys)?;
         *self.trace.lock().unwrap_or_else(|e| e.into_inner()) = stats;
         Ok(keys)
     }

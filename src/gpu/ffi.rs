@@ -17,7 +17,7 @@ pub fn library_path() -> PathBuf {
 }
 
 /// `WR_API_VERSION` of the header this file mirrors.
-const API_VERSION: c_int = 4;
+const API_VERSION: c_int = 5;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default)]
@@ -29,7 +29,8 @@ pub(crate) struct WrParams {
     pub leaf_pairs: u64,
     pub chunk_rays: u64,
     pub slab_widen: f32,
-    pub reserved: u32,
+    /// `geometry::batch_slack` of the call's rays: how far `filter_rays` grows boxes.
+    pub grow: f32,
 }
 
 #[repr(C)]
@@ -79,7 +80,7 @@ type ErrorFn = unsafe extern "C" fn() -> *const c_char;
 type BvhCreateFn = unsafe extern "C" fn(*mut *mut c_void) -> c_int;
 type BvhBuildFn = unsafe extern "C" fn(*mut c_void, *const f32, u64, *mut GpuBvhStats) -> c_int;
 type BvhTraceFn =
-    unsafe extern "C" fn(*mut c_void, *const c_void, u64, c_int, f32, *mut u64, *mut GpuBvhStats) -> c_int;
+    unsafe extern "C" fn(*mut c_void, *const c_void, u64, c_int, f32, f32, *mut u64, *mut GpuBvhStats) -> c_int;
 type CisCreateFn = unsafe extern "C" fn(*const c_void, *mut *mut c_void) -> c_int;
 type CisShadeFn = unsafe extern "C" fn(
     *mut c_void,
@@ -284,8 +285,16 @@ impl Library {
         Ok(stats)
     }
 
-    /// Traces `rays` through the BVH: one key per ray, as [`Library::trace`].
-    pub fn bvh_trace(&self, h: &Handle, rays: &[Ray], any_hit: bool, keys: &mut [u64]) -> Result<GpuBvhStats> {
+    /// Traces `rays` through the BVH: one key per ray, as [`Library::trace`]; node
+    /// boxes grown by `grow` (`geometry::batch_slack`).
+    pub fn bvh_trace(
+        &self,
+        h: &Handle,
+        rays: &[Ray],
+        any_hit: bool,
+        grow: f32,
+        keys: &mut [u64],
+    ) -> Result<GpuBvhStats> {
         assert_eq!(rays.len(), keys.len());
         let mut stats = GpuBvhStats::default();
         // SAFETY: as `trace`; the handle came from `bvh_create`.
@@ -296,6 +305,7 @@ impl Library {
                 rays.len() as u64,
                 any_hit as c_int,
                 crate::geometry::SLAB_WIDEN,
+                grow,
                 keys.as_mut_ptr(),
                 &mut stats,
             )

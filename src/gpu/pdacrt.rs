@@ -1,6 +1,7 @@
 //! PDACRT on the GPU behind [`RayCaster`]: the twin of [`crate::cast::pdacrt`] in
 //! `cuda/pdacrt.cu`, kernel for kernel.
 
+use rayon::prelude::*;
 use super::ffi::{self, Library, WrParams, WrStats, library_path};
 use super::keys::{closest_by_keys, hits_of_keys, occluded_by_keys};
 use crate::cast::pdacrt::PdacrtParams;
@@ -51,6 +52,8 @@ pub struct GpuPdacrt {
     handle: Mutex<ffi::Handle>,
     lib: Library,
     tris: Vec<[f32; 9]>,
+    /// The triangles' largest coordinate magnitude (`geometry::batch_slack`).
+    magnitude: f32,
     device: String,
     /// Tunables, as on the CPU; `measure` and `inspect` have no GPU counterpart.
     pub params: PdacrtParams,
@@ -67,12 +70,13 @@ impl GpuPdacrt {
     pub fn with_library(path: impl Into<PathBuf>, tris: &[[glam::Vec3; 3]], params: PdacrtParams) -> Result<Self> {
         let lib = Library::open(path.into())?;
         let device = lib.device_name()?;
-        let (flat, scene_box) = crate::cast::pdacrt::flatten(tris);
+        let (flat, scene_box, magnitude) = crate::cast::pdacrt::flatten(tris);
         let handle = lib.create(&flat, scene_box)?;
         Ok(GpuPdacrt {
             lib,
             handle: Mutex::new(handle),
             tris: flat,
+            magnitude,
             device,
             params,
             last: Mutex::new(GpuStats::default()),
@@ -85,7 +89,8 @@ impl GpuPdacrt {
     /// the device (as [`super::GpuBvhStats::upload_ms`]), milliseconds. On an error no
     /// triangle is left (every ray misses).
     pub fn set_triangles(&mut self, tris: &[[glam::Vec3; 3]]) -> Result<f64> {
-        let (flat, scene_box) = crate::cast::pdacrt::flatten(tris);
+        let (flat, scene_box, magnitude) = crate::cast::pdacrt::flatten(tris);
+        self.magnitude = magnitude;
         let start = std::time::Instant::now();
         let handle = self.handle.get_mut().unwrap_or_else(|e| e.into_inner());
         let done = self.lib.set_triangles(handle, &flat, scene_box);
@@ -104,7 +109,7 @@ impl GpuPdacrt {
         *self.last.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    fn wr_params(&self) -> WrParams {
+    fn wr_params(&self, rays: &[Ray]) -> WrParams {
         let p = &self.params;
         WrParams {
             leaf_rays: p.leaf_rays,
@@ -114,7 +119,7 @@ impl GpuPdacrt {
             leaf_pairs: p.leaf_pairs(),
             chunk_rays: p.chunk_rays as u64,
             slab_widen: SLAB_WIDEN,
-            reserved: 0,
+            grow: crate::geometry::batch_slack(self.magnitude, rays.par_iter().map(|r| r.origin)),
         }
     }
 
@@ -123,7 +128,7 @@ impl GpuPdacrt {
     pub fn trace_keys(&self, rays: &[Ray], any_hit: bool) -> Result<Vec<u64>> {
         let mut keys = vec![NO_HIT; rays.len()];
         let handle = self.handle.lock().unwrap_or_else(|e| e.into_inner());
-        let stats = self.lib.trace(&handle, rays, any_hit, &self.wr_params(), &mut keys)?;
+        let stats = self.lib.trace(&handle, rays, any_hit, &self.wr_params(rays), &mut keys)?;
         *self.last.lock().unwrap_or_else(|e| e.into_inner()) = stats.into();
         Ok(keys)
     }

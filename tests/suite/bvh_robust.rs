@@ -295,7 +295,9 @@ fn hits_the_watertight_test_reports_just_off_a_large_floor() {
     brute.closest(&rays[..1], &mut want);
     assert!(want[0].is_hit() && want[0].t < 1e-4, "the case is still a near miss that the test reports: {:?}", want[0]);
     agree(&tris, &rays, "just off a large floor");
-    // DACRT culls by boxes too, grown the same way.
+    // DACRT and PDACRT cull by boxes too, grown the same way.
     let dacrt = warpray::cast::Dacrt::from_triangles(tris.clone(), warpray::cast::DacrtParams::default());
     agree_with(&brute, &dacrt, &rays, "just off a large floor (dacrt)");
+    let pdacrt = warpray::cast::pdacrt::Pdacrt::from_triangles(&tris, warpray::cast::pdacrt::PdacrtParams::default());
+    agree_with(&brute, &pdacrt, &rays, "just off a large floor (pdacrt)");
 }

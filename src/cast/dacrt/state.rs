@@ -9,7 +9,7 @@ use crate::cast::caster::Triangles;
 use crate::geometry::Ray;
 use crate::geometry::hit_key::{self, BLOCKED, NONE};
 use crate::geometry::lanes::RaySlab;
-use crate::geometry::{Aabb, cull_distance, hit_slack};
+use crate::geometry::{Aabb, batch_slack, cull_distance};
 use rayon::prelude::*;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering::Relaxed};
@@ -132,8 +132,7 @@ impl Trace {
         fork_min_rays: usize,
         magnitude: f32,
     ) -> Trace {
-        let origins = rays.par_iter().map(|r| r.origin.abs().max_element()).reduce(|| 0.0, f32::max);
-        let grow = hit_slack(magnitude, origins);
+        let grow = batch_slack(magnitude, rays.par_iter().map(|r| r.origin));
         let slabs: Vec<RaySlab> = rays.par_iter().map(RaySlab::new).collect();
         let keys: Vec<AtomicU64> = (0..rays.len()).into_par_iter().map(|_| AtomicU64::new(NONE)).collect();
         let packets = Packets::new(&rays, &slabs, packet_rays);

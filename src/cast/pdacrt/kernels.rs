@@ -224,8 +224,9 @@ pub(crate) fn filter_triangle(
     t.store(codes, i, node << 2 | code);
 }
 
-/// `pdacrt::filter_rays`: L/B/R/N for ray reference `i`: does the ray enter each child
-/// before its closest hit so far (early termination)?
+/// `pdacrt::filter_rays`: L/B/R/N for ray reference `i`: does the ray enter each child,
+/// grown by `grow` (`geometry::batch_slack`), before its closest hit so far (early
+/// termination)?
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn filter_ray(
     t: &Thread,
@@ -235,6 +236,7 @@ pub(crate) fn filter_ray(
     keys: &Global<u64>,
     children: &Global<Aabb>,
     any_hit: bool,
+    grow: f32,
     codes: &GlobalMut<u32>,
     i: usize,
 ) {
@@ -247,7 +249,7 @@ pub(crate) fn filter_ray(
         let r = t.load(rays, id);
         let inv = inv_dir(r.dir);
         let far = cull_distance(t_far(&r, key));
-        let enters = |k: usize| t.load(children, k).intersect(r.origin, inv, r.t_min, far).is_some();
+        let enters = |k: usize| t.load(children, k).grown(grow).intersect(r.origin, inv, r.t_min, far).is_some();
         code_of(enters(2 * node as usize), enters(2 * node as usize + 1))
     };
     t.store(codes, i, node << 2 | code);

@@ -93,8 +93,9 @@ impl Pdacrt {
             ws.child_boxes.view(),
             ws.ray_codes.view_mut(),
         );
+        let grow = ws.grow;
         dev.for_each("pdacrt::filter_rays", ids.len(), |t, i| {
-            filter_ray(t, &ids, &nd, &rv, &kv, &cb, any_hit, &out, i)
+            filter_ray(t, &ids, &nd, &rv, &kv, &cb, any_hit, grow, &out, i)
         });
     }
 

@@ -32,9 +32,10 @@
 
 pub(crate) mod kernels;
 
+use rayon::prelude::*;
 use crate::cast::caster::{CastStats, RayCaster};
 use crate::geometry::hit_key;
-use crate::geometry::{Aabb, Hit, Ray, RayShear, intersect_triangle};
+use crate::geometry::{Aabb, Hit, Ray, RayShear, batch_slack, intersect_triangle, magnitude};
 use crate::scene::Scene;
 use kernels::*;
 use simt::{Device, DeviceBuffer, DeviceConfig, LaunchRecord};
@@ -104,6 +105,9 @@ pub struct Pdacrt {
     dev: Device,
     tris: DeviceBuffer<[f32; 9]>,
     scene_box: Aabb,
+    /// The largest magnitude of the triangles' coordinates: with the rays' origins, how
+    /// far the ray tests grow boxes (`geometry::batch_slack`, as DACRT).
+    magnitude: f32,
     /// Tunables; may be changed between calls.
     pub params: PdacrtParams,
     levels: Mutex<Vec<LevelRecord>>,
@@ -147,6 +151,10 @@ pub(crate) struct Workspace {
     pub chunks: DeviceBuffer<u32>,
     pub chunk_start: DeviceBuffer<u32>,
     pub tests: DeviceBuffer<u64>,
+    /// How far the call's ray tests grow boxes (`geometry::batch_slack` over all its
+    /// rays, so that every chunk culls alike): no hit the watertight test reports just
+    /// off a triangle is culled.
+    pub grow: f32,
 }
 
 /// One level's nodes and element id arrays.
@@ -246,12 +254,14 @@ impl Workspace {
             chunks: dev.alloc(0),
             chunk_start: dev.alloc(0),
             tests: dev.alloc(1),
+            grow: 0.0,
         }
     }
 }
 
-/// Triangles as the kernels read them (nine floats each), and their bounding box.
-pub(crate) fn flatten(tris: &[[glam::Vec3; 3]]) -> (Vec<[f32; 9]>, Aabb) {
+/// Triangles as the kernels read them (nine floats each), their bounding box and the
+/// largest magnitude of their coordinates (`geometry::batch_slack`).
+pub(crate) fn flatten(tris: &[[glam::Vec3; 3]]) -> (Vec<[f32; 9]>, Aabb, f32) {
     let flat = tris
         .iter()
         .map(|t| {
@@ -259,7 +269,7 @@ pub(crate) fn flatten(tris: &[[glam::Vec3; 3]]) -> (Vec<[f32; 9]>, Aabb) {
             [a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]]
         })
         .collect();
-    (flat, tris.iter().fold(Aabb::EMPTY, |b, t| b.union(Aabb::from_points(t))))
+    (flat, tris.iter().fold(Aabb::EMPTY, |b, t| b.union(Aabb::from_points(t))), magnitude(tris))
 }
 
 /// What one chunk's trace leaves for the caller: per level, its record and launches.
@@ -282,11 +292,12 @@ impl Pdacrt {
         if params.measure {
             dev.set_measure(true);
         }
-        let (flat, scene_box) = flatten(tris);
+        let (flat, scene_box, magnitude) = flatten(tris);
         Pdacrt {
             tris: dev.alloc_vec(flat),
             dev,
             scene_box,
+            magnitude,
             params,
             levels: Mutex::new(Vec::new()),
             visits: Mutex::new(Vec::new()),
@@ -317,6 +328,7 @@ impl Pdacrt {
         let spare = self.spare.lock().unwrap_or_else(|e| e.into_inner()).pop();
         let mut ws = spare.unwrap_or_else(|| Workspace::new(dev));
         ws.tests.as_mut_slice()[0] = 0;
+        ws.grow = batch_slack(self.magnitude, rays.par_iter().map(|r| r.origin));
         // The working set counts the reused workspace's buffers as if allocated now.
         dev.reset_peak_memory();
         let resident = dev.memory().current - ws.held_bytes();
@@ -357,12 +369,12 @@ impl Pdacrt {
         let dev = &self.dev;
         let n = ws.rays.len();
         // Level 0: one node holding every triangle and every ray that enters the scene.
-        let scene_box = self.scene_box;
+        let (scene_box, grown) = (self.scene_box, self.scene_box.grown(ws.grow));
         ws.next.ray_ids.resize(n);
         simt::sequence(dev, &mut ws.next.ray_ids, 0, 1);
         ws.cur.ray_ids.resize(n);
         let r0 = simt::copy_if_stencil(dev, &ws.next.ray_ids, &ws.rays, &mut ws.cur.ray_ids, |r: Ray| {
-            r.is_valid() && scene_box.intersect(r.origin, crate::geometry::inv_dir(r.dir), r.t_min, r.t_max).is_some()
+            r.is_valid() && grown.intersect(r.origin, crate::geometry::inv_dir(r.dir), r.t_min, r.t_max).is_some()
         });
         ws.cur.ray_ids.resize(r0);
         ws.cur.ray_node.resize(r0);
