@@ -21,7 +21,7 @@ import numpy as np
 
 mi.set_variant("scalar_rgb")
 
-SCENES = ["roughconductor", "conductor", "dielectric", "roughdielectric"]
+SCENES = ["roughconductor", "conductor", "dielectric", "roughdielectric", "plastic", "roughplastic"]
 SEEDS = 16
 SPP = 1024
 BLOCK = 8

@@ -28,7 +28,7 @@
 //! and bases darken further.
 
 use super::microfacet::{Ggx, fresnel_conductor, fresnel_dielectric};
-use super::{BsdfSample, TransportMode};
+use super::sample::{BsdfSample, TransportMode};
 use crate::cost::declare;
 use crate::cost::{BRANCH, DIV, DOT, EXP, SQRT, V3, V3_DIV};
 use crate::sampling::cosine_hemisphere;

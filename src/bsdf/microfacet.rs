@@ -2,7 +2,7 @@
 //! sampling (Heitz 2018), Fresnel terms, and the rough conductor and rough dielectric
 //! BSDFs (Walter et al. 2007) built from them. Directions are local (`+z` = normal).
 
-use super::TransportMode;
+use super::sample::TransportMode;
 use crate::cost::declare;
 use crate::cost::{BRANCH, CROSS, DIV, DOT, NORMALIZE, NORMALIZE_OR_ZERO, SIN_COS, SQRT, V3, V3_DIV};
 use glam::{Vec2, Vec3};

@@ -9,6 +9,8 @@
 
 pub mod layered;
 pub mod microfacet;
+pub mod plastic;
+mod sample;
 
 use crate::cost::declare;
 use crate::cost::{BRANCH, DIV, DOT, LUMINANCE, SQRT, V3, V3_DIV};
@@ -17,33 +19,8 @@ use crate::scene::Material;
 use glam::{Vec2, Vec3};
 use layered::SMOOTH;
 use microfacet::{Ggx, fresnel_conductor, fresnel_dielectric, rough_dielectric, sample_rough_dielectric};
+pub use sample::{BsdfSample, TransportMode};
 use std::f32::consts::FRAC_1_PI;
-
-/// Whether a path carries radiance (from the camera) or importance (from a light).
-/// Refraction scales radiance by 1/η² but not importance (Veach 1997, ch. 5).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum TransportMode {
-    /// Light flowing toward the camera (paths traced from the camera).
-    Radiance,
-    /// Importance flowing toward the lights (paths traced from the lights): adjoint BSDF.
-    Importance,
-}
-
-/// A sampled direction. `weight = f · |cos θi| / pdf`; for delta lobes `f` and `pdf`
-/// are the discrete probability and matching value, so the same identity holds.
-#[derive(Clone, Copy, Debug)]
-pub struct BsdfSample {
-    /// Sampled incident direction, local frame.
-    pub wi: Vec3,
-    /// BSDF value for the pair.
-    pub f: Vec3,
-    /// Density of `wi` (solid angle), or the discrete probability of a delta lobe.
-    pub pdf: f32,
-    /// `f · |cos θi| / pdf`.
-    pub weight: Vec3,
-    /// Whether a delta lobe was sampled.
-    pub delta: bool,
-}
 
 /// Flips both directions so that `wo` lies on `+z` (two-sided opaque surfaces).
 #[inline]
@@ -93,7 +70,7 @@ impl Material {
             Material::Mirror { .. } | Material::Glass { .. } => true,
             Material::Conductor { roughness, .. } | Material::RoughGlass { roughness, .. } => roughness < SMOOTH,
             Material::Layered(l) => l.is_delta(),
-            Material::Diffuse { .. } | Material::Glossy { .. } => false,
+            Material::Diffuse { .. } | Material::Glossy { .. } | Material::Plastic(_) => false,
         }
     }
 
@@ -137,6 +114,7 @@ impl Material {
                 })
             }
             Material::Layered(l) => l.f(wo, wi),
+            Material::Plastic(p) => p.f(wo, wi),
             _ => Vec3::ZERO,
         }
     }
@@ -177,6 +155,7 @@ impl Material {
                 Ggx { alpha: roughness }.reflection(wo, wi).map_or(0.0, |(_, p, _)| p)
             }
             Material::Layered(l) => l.pdf(wo, wi),
+            Material::Plastic(p) => p.pdf(wo, wi),
             _ => 0.0,
         }
     }
@@ -235,6 +214,10 @@ impl Material {
             Material::Layered(l) => {
                 let s = l.sample(wo_up, u_lobe, u, mode)?;
                 declare!(1);
+                Some(BsdfSample { wi: to_side(s.wi), ..s })
+            }
+            Material::Plastic(p) => {
+                let s = p.sample(wo_up, u_lobe, u)?;
                 Some(BsdfSample { wi: to_side(s.wi), ..s })
             }
             Material::Mirror { reflectance } => {

@@ -84,7 +84,8 @@ const _: () = assert!(std::mem::size_of::<Vertex>() == 60);
 const _: () = assert!(std::mem::size_of::<Slot>() == 88);
 const _: () = assert!(std::mem::size_of::<PendingData>() == 48);
 
-fn material(m: &Material) -> WrMaterial {
+/// The twin's record of a material; `None` for one the twin has no kernel for.
+fn material(m: &Material) -> Option<WrMaterial> {
     let mut w = WrMaterial::default();
     let set = |v: Vec3| v.to_array();
     match *m {
@@ -111,8 +112,9 @@ fn material(m: &Material) -> WrMaterial {
                 }
             }
         }
+        Material::Plastic(_) => return None,
     }
-    w
+    Some(w)
 }
 
 fn light(l: &Light) -> WrLight {
@@ -250,7 +252,9 @@ impl GpuCis {
         let lib = Library::open(path.into())?;
         let tris: Vec<[f32; 9]> =
             scene.triangle_vertices().iter().map(|[a, b, c]| [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]).collect();
-        let materials: Vec<WrMaterial> = scene.materials.iter().map(material).collect();
+        let materials: Vec<WrMaterial> = scene.materials.iter().map(material).collect::<Option<_>>().ok_or_else(|| {
+            Error::BadSetting("the GPU shading twin has no kernel for Mitsuba's plastic (scenes from XML)".into())
+        })?;
         let two_sided: Vec<u32> = scene.two_sided.iter().map(|&b| b as u32).collect();
         let emission: Vec<f32> = scene.emission.iter().flat_map(|e| e.to_array()).collect();
         let lights = Lights::new(scene);

@@ -14,6 +14,7 @@
 //! reflects more than it receives. `Ka`, textures and `Ni` of opaque materials are ignored.
 
 pub use crate::bsdf::layered::{Coat, LayerBase, Layered};
+pub use crate::bsdf::plastic::Plastic;
 use glam::Vec3;
 
 /// Complex refractive indices (η, k) at roughly 650, 550 and 450 nm of common metals
@@ -92,6 +93,10 @@ pub enum Material {
     /// One or two dielectric coats over a diffuse or conductor base (see
     /// [`crate::bsdf::layered`] for the model and its energy behaviour).
     Layered(Layered),
+    /// Mitsuba 3's `plastic` and `roughplastic`: a Lambertian base under a smooth or
+    /// GGX coat, internal reflections in closed form ([`crate::bsdf::plastic`]). Scenes
+    /// from Mitsuba XML use it, so that they render as Mitsuba renders them.
+    Plastic(Plastic),
 }
 
 /// The kinds of [`Material`], in the order of their typed index ([`MaterialKind::index`]):
@@ -112,10 +117,12 @@ pub enum MaterialKind {
     RoughGlass,
     /// [`Material::Layered`].
     Layered,
+    /// [`Material::Plastic`].
+    Plastic,
 }
 
 impl MaterialKind {
-    /// The kind's index, 0 to 6.
+    /// The kind's index, 0 to 7.
     pub fn index(self) -> usize {
         self as usize
     }
@@ -130,6 +137,7 @@ impl MaterialKind {
             MaterialKind::Conductor => "conductor",
             MaterialKind::RoughGlass => "roughglass",
             MaterialKind::Layered => "layered",
+            MaterialKind::Plastic => "plastic",
         }
     }
 }
@@ -148,6 +156,7 @@ impl Material {
             Material::Conductor { .. } => MaterialKind::Conductor,
             Material::RoughGlass { .. } => MaterialKind::RoughGlass,
             Material::Layered(_) => MaterialKind::Layered,
+            Material::Plastic(_) => MaterialKind::Plastic,
         }
     }
 
@@ -205,6 +214,17 @@ impl Material {
                         Err("base roughness must lie in [0, 1]".into())
                     }
                     _ => Ok(()),
+                }
+            }
+            Material::Plastic(p) => {
+                if !colour_ok(p.diffuse) || !colour_ok(p.specular) {
+                    Err("plastic diffuse and specular reflectance must lie in [0, 1]".into())
+                } else if !(p.eta.is_finite() && p.eta > 0.0 && p.eta != 1.0) {
+                    Err(format!("plastic relative index {} must be positive and differ from 1", p.eta))
+                } else if !(0.0..=1.0).contains(&p.roughness) {
+                    Err(format!("plastic roughness {} must lie in [0, 1] (0: smooth)", p.roughness))
+                } else {
+                    Ok(())
                 }
             }
             _ => Ok(()),

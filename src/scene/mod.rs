@@ -15,7 +15,7 @@ mod ply;
 pub use camera::Camera;
 pub use cornell::cornell_box;
 pub use file::{NAMED_SCENES, RenderSettings, SceneDesc, load_scene, parse_scene_file};
-pub use material::{Coat, LayerBase, Layered, Material, MaterialKind, metals};
+pub use material::{Coat, LayerBase, Layered, Material, MaterialKind, Plastic, metals};
 pub use mitsuba::parse_mitsuba;
 pub use obj::{ObjOptions, load_obj};
 

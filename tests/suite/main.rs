@@ -27,6 +27,7 @@ mod integrators;
 mod lvc;
 mod mitsuba;
 mod mitsuba_bsdfs;
+mod mitsuba_plastic;
 mod optics;
 mod outputs;
 mod pdacrt_weights;

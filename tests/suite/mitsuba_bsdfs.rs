@@ -1,6 +1,6 @@
 //! One BSDF at a time against Mitsuba 3's own render of the same file: a rough gold
-//! floor, a smooth silver floor, a smooth and a rough glass slab in front of a lit
-//! wall (`assets/scenes/bsdf/`, flat shapes only, since warpray shades its spheres'
+//! floor, a smooth silver floor, a smooth plastic floor, a rough plastic one (Mitsuba's
+//! `nonlinear` base), a smooth and a rough glass slab in front of a lit wall (`assets/scenes/bsdf/`, flat shapes only, since warpray shades its spheres'
 //! facets). The references are Mitsuba 3.9.1's statistics over 16 seeds of 1,024 spp
 //! (`tests/data/mitsuba/*.json`, made by `docs/reproduce/mitsuba_bsdf_refs.py`, with each
 //! reference's average image beside it); warpray renders 16 seeds of its own and the two
@@ -61,6 +61,16 @@ fn a_rough_gold_floor_matches_mitsuba() {
 #[test]
 fn a_smooth_silver_floor_matches_mitsuba() {
     compare("conductor", 128, 0.006);
+}
+
+#[test]
+fn a_smooth_plastic_floor_matches_mitsuba() {
+    compare("plastic", 64, 0.002);
+}
+
+#[test]
+fn a_rough_nonlinear_plastic_floor_matches_mitsuba() {
+    compare("roughplastic", 64, 0.002);
 }
 
 /// The heavy tier (README, docs/testing.md): tests that need many samples for their

@@ -1,23 +1,26 @@
 //! Mitsuba BSDF plugins as warpray materials (the table in docs/scene-format.md):
 //! `diffuse`, `conductor`/`roughconductor` (named metals or η, k), `dielectric`/
-//! `roughdielectric`, `plastic`/`roughplastic` (one dielectric coat over a Lambertian
-//! base) and the `twosided` wrapper. Rough lobes must say `distribution="ggx"`:
+//! `roughdielectric`, `plastic`/`roughplastic` (Mitsuba's own model, `bsdf::plastic`)
+//! and the `twosided` wrapper. Rough lobes must say `distribution="ggx"`:
 //! warpray has no Beckmann lobe, and quietly swapping one for the other would change
 //! the image.
 
 use super::xml::{Props, is_property};
 use super::{Bsdf, Builder};
 use crate::error::Result;
-use crate::scene::{Coat, LayerBase, Layered, Material, metals};
+use crate::scene::{Material, Plastic, metals};
 use glam::Vec3;
 use roxmltree::Node;
+
+/// Mitsuba's index of air, its default `ext_ior`.
+const AIR: f64 = 1.000277;
 
 /// Refractive indices Mitsuba accepts by name (its `int_ior`/`ext_ior` table).
 const IORS: &[(&str, f64)] = &[
     ("vacuum", 1.0),
     ("helium", 1.00004),
     ("hydrogen", 1.00013),
-    ("air", 1.00028),
+    ("air", AIR),
     ("carbon dioxide", 1.00045),
     ("water", 1.3330),
     ("acetone", 1.36),
@@ -137,7 +140,7 @@ impl Builder<'_, '_> {
             }
             "dielectric" | "roughdielectric" => {
                 let roughness = if kind == "roughdielectric" { Some(self.roughness(&mut p, node)?) } else { None };
-                let ior = self.ior(&mut p, node, "int_ior", 1.5046)? / self.ior(&mut p, node, "ext_ior", 1.00028)?;
+                let ior = self.ior(&mut p, node, "int_ior", 1.5046)? / self.ior(&mut p, node, "ext_ior", AIR)?;
                 if p.color_or("specular_reflectance", Vec3::ONE)? != Vec3::ONE {
                     return Err(doc.err(node, "specular_reflectance other than 1 is not supported for dielectrics"));
                 }
@@ -149,16 +152,14 @@ impl Builder<'_, '_> {
             }
             "plastic" | "roughplastic" => {
                 let roughness = if kind == "roughplastic" { self.roughness(&mut p, node)? } else { 0.0 };
-                let ior = self.ior(&mut p, node, "int_ior", 1.49)? / self.ior(&mut p, node, "ext_ior", 1.00028)?;
-                let albedo = p.color_or("diffuse_reflectance", Vec3::splat(0.5))?;
-                if p.color_or("specular_reflectance", Vec3::ONE)? != Vec3::ONE {
-                    return Err(doc.err(node, "specular_reflectance other than 1 is not supported for plastic"));
+                let (int_ior, ext_ior) = (self.ior(&mut p, node, "int_ior", 1.49)?, self.ior(&mut p, node, "ext_ior", AIR)?);
+                if int_ior == ext_ior {
+                    return Err(doc.err(node, format!("int_ior and ext_ior are both {int_ior}: a plastic's coat needs two different indices")));
                 }
-                if p.bool_or("nonlinear", false)? {
-                    return Err(doc.err(node, "nonlinear plastic is not supported"));
-                }
-                let coat = Coat { ior: ior as f32, roughness, absorption: Vec3::ZERO };
-                Material::Layered(Layered { coats: [coat; 2], coat_count: 1, base: LayerBase::Diffuse { albedo } })
+                let diffuse = p.color_or("diffuse_reflectance", Vec3::splat(0.5))?;
+                let specular = p.color_or("specular_reflectance", Vec3::ONE)?;
+                let nonlinear = p.bool_or("nonlinear", false)?;
+                Material::Plastic(Plastic::new(diffuse, specular, (int_ior / ext_ior) as f32, roughness, nonlinear))
             }
             _ => return Err(doc.err(node, "BSDF not supported (see docs/scene-format.md)")),
         };
