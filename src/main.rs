@@ -121,6 +121,10 @@ struct ConvergeArgs {
     /// Largest number of bounces (default: the scene file's, else 8).
     #[arg(long)]
     max_depth: Option<u32>,
+    /// Bounces after which the path tracer's Russian roulette starts (default: the
+    /// scene file's, else 4).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    rr_depth: Option<u32>,
     #[arg(long, default_value_t = 0)]
     seed: u64,
     #[arg(long)]
@@ -160,6 +164,10 @@ struct RenderArgs {
     /// Largest number of bounces (0: emitters only, 1: direct light) [default: 8].
     #[arg(long)]
     max_depth: Option<u32>,
+    /// Bounces after which the path tracer's Russian roulette starts (Mitsuba's
+    /// rr_depth) [default: 4, or the scene file's; Mitsuba scenes: their rr_depth or 5].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    rr_depth: Option<u32>,
     /// Pixel filter: box, gaussian (sigma 0.5, radius 2, Mitsuba's) or
     /// gaussian:SIGMA:RADIUS, RADIUS in [0.5, 16] and SIGMA in [0.01, 16 × RADIUS]
     /// [default: box, or the scene file's].
@@ -357,6 +365,7 @@ fn run_render(args: RenderArgs) -> Result<bool> {
         RenderOptions { width, height, budget, seed: args.seed.or(s.seed).unwrap_or(0), ..Default::default() },
     ));
     opts.max_depth = args.max_depth.unwrap_or(opts.max_depth);
+    opts.rr_depth = args.rr_depth.unwrap_or(opts.rr_depth);
     opts.filter = args.filter.unwrap_or(opts.filter);
     opts.filter_mode = args.filter_mode.unwrap_or(opts.filter_mode);
     warpray::film::check_size(width, height)?;
@@ -390,6 +399,7 @@ fn run_render(args: RenderArgs) -> Result<bool> {
             ("spp", stats.passes.to_string()),
             ("seed", opts.seed.to_string()),
             ("max_depth", opts.max_depth.to_string()),
+            ("rr_depth", opts.rr_depth.to_string()),
             ("filter", format!("{:?}", opts.filter)),
             ("filter_mode", opts.filter_mode.name().to_string()),
             ("seconds", format!("{:.3}", stats.seconds)),
@@ -604,6 +614,7 @@ fn run_converge(args: ConvergeArgs) -> Result<bool> {
     if let Some(d) = args.max_depth {
         image.max_depth = d;
     }
+    image.rr_depth = args.rr_depth.unwrap_or(image.rr_depth);
     let pool = thread_pool(args.threads)?;
     interrupt::install();
     pool.install(|| {
@@ -657,6 +668,7 @@ fn run_converge(args: ConvergeArgs) -> Result<bool> {
             width,
             height,
             max_depth: image.max_depth,
+            rr_depth: image.rr_depth,
             seed: args.seed,
             filter: image.filter,
             filter_mode: image.filter_mode,

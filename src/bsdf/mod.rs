@@ -63,6 +63,22 @@ impl Material {
         matches!(self, Material::Glass { .. } | Material::RoughGlass { .. })
     }
 
+    /// The relative index a scattering from `wo` to `wi` crosses: the interior's over
+    /// the exterior's for a refraction into a dielectric, its inverse out of one, 1 for
+    /// every reflection (Mitsuba's `BSDFSample3f::eta`).
+    pub fn eta(&self, wo: Vec3, wi: Vec3) -> f32 {
+        match *self {
+            Material::Glass { ior, .. } | Material::RoughGlass { ior, .. } if wo.z * wi.z < 0.0 => {
+                if wo.z > 0.0 {
+                    ior
+                } else {
+                    1.0 / ior
+                }
+            }
+            _ => 1.0,
+        }
+    }
+
     /// True when the material scatters only into discrete directions (no light
     /// sampling is possible at such a vertex).
     pub fn is_delta(&self) -> bool {

@@ -37,6 +37,8 @@ pub struct ConvergeOptions {
     pub height: u32,
     /// Largest number of bounces.
     pub max_depth: u32,
+    /// Where the path tracer's Russian roulette starts ([`RenderOptions::rr_depth`]).
+    pub rr_depth: u32,
     /// Seed of every integrator's render.
     pub seed: u64,
     /// Pixel reconstruction filter.
@@ -87,6 +89,7 @@ pub fn run(
             height: opts.height,
             budget: Budget::Seconds(opts.seconds),
             max_depth: opts.max_depth,
+            rr_depth: opts.rr_depth,
             seed: opts.seed,
             filter: opts.filter,
             filter_mode: opts.filter_mode,

@@ -102,6 +102,13 @@ pub struct RenderOptions {
     pub budget: Budget,
     /// Largest number of bounces (0: emitters only, 1: direct light).
     pub max_depth: u32,
+    /// The path tracer's Russian roulette starts once a path has made this many
+    /// bounces (Mitsuba's `rr_depth`, counted as Mitsuba counts it): from then on each
+    /// path continues with probability min(max throughput · η², 0.95), η the relative
+    /// index its refractions have crossed. 4 by default; Mitsuba's default, 5, is what
+    /// scenes from Mitsuba XML get. The other integrators start theirs after 3 bounces
+    /// (without η).
+    pub rr_depth: u32,
     /// Random seed: the same seed gives the same image at any thread count.
     pub seed: u64,
     /// The light-transport algorithm.
@@ -163,6 +170,7 @@ impl Default for RenderOptions {
             height: 512,
             budget: Budget::Samples(64),
             max_depth: 8,
+            rr_depth: 4,
             seed: 0,
             integrator: IntegratorKind::Path,
             lvc: LvcParams::default(),
@@ -211,11 +219,13 @@ pub use crate::limits::MAX_SECONDS;
 
 impl RenderOptions {
     /// `opts` with a scene file's choices of what the image means (path depth, pixel
-    /// filter and filter mode) wherever the file makes them: every front end (render,
-    /// converge, the inspector) applies these, so a scene gives the same image in each.
+    /// filter and filter mode) and of how it is sampled (Russian roulette's start)
+    /// wherever the file makes them: every front end (render, converge, the inspector)
+    /// applies these, so a scene gives the same image in each.
     pub fn for_scene(settings: &crate::scene::RenderSettings, opts: RenderOptions) -> RenderOptions {
         RenderOptions {
             max_depth: settings.max_depth.unwrap_or(opts.max_depth),
+            rr_depth: settings.rr_depth.unwrap_or(opts.rr_depth),
             filter: settings.filter.unwrap_or(opts.filter),
             filter_mode: settings.filter_mode.unwrap_or(opts.filter_mode),
             ..opts

@@ -46,6 +46,9 @@ impl<'a> Renderer<'a> {
         if opts.max_depth > 1024 {
             return Err(Error::BadSetting(format!("max depth {} is absurd (at most 1024)", opts.max_depth)));
         }
+        if opts.rr_depth == 0 {
+            return Err(Error::BadSetting("rr_depth 0: Russian roulette starts after at least 1 bounce".into()));
+        }
         // Full paths live in fixed-size stack lists (kernels cannot allocate).
         let limit = match opts.integrator {
             IntegratorKind::Path | IntegratorKind::Light => u32::MAX,

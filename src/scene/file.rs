@@ -26,16 +26,16 @@ pub struct RenderSettings {
     pub seconds: Option<f64>,
     /// Largest number of bounces.
     pub max_depth: Option<u32>,
+    /// Bounces before the path tracer's Russian roulette starts (`rr_depth`, ≥ 1).
+    pub rr_depth: Option<u32>,
     /// Integrator name.
     pub integrator: Option<String>,
     /// Random seed.
     pub seed: Option<u64>,
-    /// Pixel filter: `"box"`, `"gaussian"` or `"gaussian:STDDEV:RADIUS"` in scene
-    /// files; Mitsuba scenes set it from their `rfilter`.
+    /// Pixel filter: `"box"`, `"gaussian"` or `"gaussian:STDDEV:RADIUS"` (`rfilter`).
     #[serde(default, deserialize_with = "parse_text")]
     pub filter: Option<crate::filter::Filter>,
-    /// How camera samples meet the filter: `"sample"` (filter importance sampling) or
-    /// `"splat"` (Mitsuba's weighted splatting, what Mitsuba scenes get).
+    /// How camera samples meet the filter: `"sample"` or `"splat"` (Mitsuba's).
     #[serde(default, deserialize_with = "parse_text")]
     pub filter_mode: Option<crate::filter::FilterMode>,
 }

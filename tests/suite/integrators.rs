@@ -75,6 +75,35 @@ fn path_light_and_bdpt_agree_on_the_cornell_box() {
     converge_together(TestBox::Cornell, [64, 24], "cornell");
 }
 
+/// Russian roulette changes noise, never the image: on the glossy-and-glass box (whose
+/// refractions give the survival probability its η² factor) the path tracer with
+/// roulette from the first bounce agrees with the path tracer without any, 16 seeds
+/// each (a roulette that forgot to divide by its survival probability darkens the
+/// image by far more than the 2 % precision asked here).
+#[test]
+fn russian_roulette_from_the_first_bounce_keeps_the_path_tracers_image() {
+    let scene = TestBox::GlossyGlass.scene();
+    let (size, depth) = (reference::SIZE, reference::MAX_DEPTH);
+    let with_rr = |rr_depth: u32, base: u64| {
+        runs(&format!("path, rr_depth {rr_depth}"), base, size as usize, 8, |seed| {
+            let opts = RenderOptions {
+                width: size,
+                height: size,
+                budget: Budget::Samples(16),
+                max_depth: depth,
+                rr_depth,
+                seed,
+                ..Default::default()
+            };
+            let (film, _) = render(&scene, &BvhCaster::new(&scene), &opts, |_, _| true).unwrap();
+            assert_eq!(film.rejected, 0);
+            film.mean()
+        })
+    };
+    let (early, never) = (with_rr(1, 700), with_rr(depth + 1, 800));
+    eprintln!("{}", assert_agree(&early, &never, 0.02));
+}
+
 #[test]
 fn the_film_guards_against_nan_and_inf() {
     let mut film = Film::new(2, 2).unwrap();

@@ -22,6 +22,9 @@ struct PathState {
     radiance: Vec3,
     /// Solid-angle pdf of the BSDF sample that made `ray` (for MIS on emitter hits).
     prev_pdf: f32,
+    /// η² of the relative indices the path's refractions crossed (Russian roulette
+    /// undoes the 1/η² that radiance took at each).
+    eta2: f32,
     prev_delta: bool,
     alive: bool,
     shadow: Option<(Ray, Vec3)>,
@@ -85,6 +88,7 @@ impl PathTracer {
                     throughput: Vec3::splat(weight),
                     radiance: Vec3::ZERO,
                     prev_pdf: 0.0,
+                    eta2: 1.0,
                     prev_delta: true,
                     alive: true,
                     shadow: None,
@@ -221,8 +225,11 @@ fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) {
     p.throughput *= s.weight;
     p.prev_pdf = s.pdf;
     p.prev_delta = s.delta;
-    if depth >= 3 {
-        let q = p.throughput.max_element().min(0.95);
+    let eta = material.eta(wo_local, s.wi);
+    p.eta2 *= eta * eta;
+    // Russian roulette once the path has made `rr_depth` bounces (this one included).
+    if depth + 1 >= ctx.opts.rr_depth {
+        let q = (p.throughput.max_element() * p.eta2).min(0.95);
         if p.rng.uniform() >= q {
             p.alive = false;
             return;

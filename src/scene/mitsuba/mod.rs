@@ -117,8 +117,14 @@ impl Builder<'_, '_> {
         if p.bool_or("hide_emitters", false)? {
             return Err(doc.err(node, "hide_emitters is not supported"));
         }
-        // Russian roulette's start changes noise, not the expected image.
-        p.ignore(&["rr_depth", "samples_per_pass", "timeout"]);
+        // Russian roulette's start changes noise, not the expected image: taken, so
+        // that the noise is Mitsuba's too.
+        let rr = p.number_or("rr_depth", 5.0)?;
+        if !(rr >= 1.0 && rr.fract() == 0.0 && rr <= u32::MAX as f64) {
+            return Err(doc.err(node, format!("rr_depth {rr}: expected an integer of at least 1")));
+        }
+        self.settings.rr_depth = Some(rr as u32);
+        p.ignore(&["samples_per_pass", "timeout"]);
         p.finish()?;
         self.settings.integrator = Some(name.to_string());
         Ok(())
