@@ -198,18 +198,49 @@ impl RayCaster for CountingCaster<'_> {
     }
 }
 
-/// Tests one ray against a list of triangle ids, shrinking `best` to the closest hit.
-/// Shared by every caster's leaf stage so all of them decide hits identically.
+/// A triangle list as the shared leaf tests read it: three corners by id. The casters
+/// keep `[Vec3; 3]` per triangle ([`Triangles`]); PDACRT's device keeps nine floats.
+pub trait TriangleCorners {
+    /// The corners of triangle `id`.
+    fn corners(&self, id: u32) -> [Vec3; 3];
+}
+
+impl TriangleCorners for [[Vec3; 3]] {
+    #[inline]
+    fn corners(&self, id: u32) -> [Vec3; 3] {
+        self[id as usize]
+    }
+}
+
+impl TriangleCorners for Triangles {
+    #[inline]
+    fn corners(&self, id: u32) -> [Vec3; 3] {
+        self[id as usize]
+    }
+}
+
+impl TriangleCorners for [[f32; 9]] {
+    #[inline]
+    fn corners(&self, id: u32) -> [Vec3; 3] {
+        let v = &self[id as usize];
+        [Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]), Vec3::new(v[6], v[7], v[8])]
+    }
+}
+
+/// Tests one ray against a list of triangle ids, shrinking `best` to the closest hit
+/// (of equal distances the first listed: the smaller id when ids ascend). Shared by
+/// every caster's brute-force stage (brute force itself, the outliers of obvhs, BVH4's
+/// builder and Embree, PDACRT's tiny batches) so all of them decide hits identically.
 #[inline]
-pub fn intersect_ids(
-    tris: &[[Vec3; 3]],
+pub fn intersect_ids<T: TriangleCorners + ?Sized>(
+    tris: &T,
     ids: impl IntoIterator<Item = u32>,
     ray: &Ray,
     shear: &RayShear,
     best: &mut Hit,
 ) {
     for id in ids {
-        let [a, b, c] = tris[id as usize];
+        let [a, b, c] = tris.corners(id);
         if let Some((t, u, v)) = intersect_triangle(ray.origin, shear, a, b, c, ray.t_min, best.t.min(ray.t_max)) {
             *best = Hit { t, prim: id, u, v };
         }
@@ -219,11 +250,16 @@ pub fn intersect_ids(
 /// Whether any of the listed triangles lies on the ray within its interval, and how
 /// many were tested before the answer was known.
 #[inline]
-pub fn any_hit_ids(tris: &[[Vec3; 3]], ids: impl IntoIterator<Item = u32>, ray: &Ray, shear: &RayShear) -> (bool, u64) {
+pub fn any_hit_ids<T: TriangleCorners + ?Sized>(
+    tris: &T,
+    ids: impl IntoIterator<Item = u32>,
+    ray: &Ray,
+    shear: &RayShear,
+) -> (bool, u64) {
     let mut tests = 0;
     for id in ids {
         tests += 1;
-        let [a, b, c] = tris[id as usize];
+        let [a, b, c] = tris.corners(id);
         if intersect_triangle(ray.origin, shear, a, b, c, ray.t_min, ray.t_max).is_some() {
             return (true, tests);
         }

@@ -14,12 +14,12 @@
 //! # Ok::<(), warpray::error::Error>(())
 //! ```
 
-use rayon::prelude::*;
 use super::ffi::{GpuBvhStats, Handle, Library, library_path};
 use super::keys::{closest_by_keys, occluded_by_keys};
 use crate::cast::{CastStats, RayCaster};
 use crate::error::Result;
 use crate::geometry::{Hit, Ray};
+use rayon::prelude::*;
 use std::path::PathBuf;
 use std::sync::Mutex;
 

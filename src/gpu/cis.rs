@@ -252,9 +252,10 @@ impl GpuCis {
         let lib = Library::open(path.into())?;
         let tris: Vec<[f32; 9]> =
             scene.triangle_vertices().iter().map(|[a, b, c]| [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]).collect();
-        let materials: Vec<WrMaterial> = scene.materials.iter().map(material).collect::<Option<_>>().ok_or_else(|| {
-            Error::BadSetting("the GPU shading twin has no kernel for Mitsuba's plastic (scenes from XML)".into())
-        })?;
+        let materials: Vec<WrMaterial> =
+            scene.materials.iter().map(material).collect::<Option<_>>().ok_or_else(|| {
+                Error::BadSetting("the GPU shading twin has no kernel for Mitsuba's plastic (scenes from XML)".into())
+            })?;
         let two_sided: Vec<u32> = scene.two_sided.iter().map(|&b| b as u32).collect();
         let emission: Vec<f32> = scene.emission.iter().flat_map(|e| e.to_array()).collect();
         let lights = Lights::new(scene);

@@ -1,7 +1,6 @@
 //! PDACRT on the GPU behind [`RayCaster`]: the twin of [`crate::cast::pdacrt`] in
 //! `cuda/pdacrt.cu`, kernel for kernel.
 
-use rayon::prelude::*;
 use super::ffi::{self, Library, WrParams, WrStats, library_path};
 use super::keys::{closest_by_keys, hits_of_keys, occluded_by_keys};
 use crate::cast::pdacrt::PdacrtParams;
@@ -9,6 +8,7 @@ use crate::cast::pdacrt::kernels::NO_HIT;
 use crate::cast::{CastStats, RayCaster};
 use crate::error::{Error, Result};
 use crate::geometry::{Hit, Ray, SLAB_WIDEN};
+use rayon::prelude::*;
 use std::path::PathBuf;
 use std::sync::Mutex;
 

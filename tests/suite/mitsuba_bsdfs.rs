@@ -65,12 +65,12 @@ fn a_smooth_silver_floor_matches_mitsuba() {
 
 #[test]
 fn a_smooth_plastic_floor_matches_mitsuba() {
-    compare("plastic", 64, 0.002);
+    compare("plastic", 16, 0.002);
 }
 
 #[test]
 fn a_rough_nonlinear_plastic_floor_matches_mitsuba() {
-    compare("roughplastic", 64, 0.002);
+    compare("roughplastic", 32, 0.002);
 }
 
 /// The heavy tier (README, docs/testing.md): tests that need many samples for their

@@ -32,12 +32,12 @@
 
 pub(crate) mod kernels;
 
-use rayon::prelude::*;
-use crate::cast::caster::{CastStats, RayCaster};
+use crate::cast::caster::{CastStats, RayCaster, any_hit_ids, intersect_ids};
 use crate::geometry::hit_key;
-use crate::geometry::{Aabb, Hit, Ray, RayShear, batch_slack, intersect_triangle, magnitude};
+use crate::geometry::{Aabb, Hit, Ray, RayShear, batch_slack, magnitude};
 use crate::scene::Scene;
 use kernels::*;
+use rayon::prelude::*;
 use simt::{Device, DeviceBuffer, DeviceConfig, LaunchRecord};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -406,34 +406,25 @@ impl Pdacrt {
     }
 
     /// A batch too small for a launch: every ray against every triangle on the host,
-    /// with the same test and tie rule (smaller triangle id) as the kernels.
+    /// by brute force's own loops (`cast::caster::intersect_ids`, `any_hit_ids`), whose
+    /// tie rule (the smaller id) is the kernels'.
     fn on_host(&self, rays: &[Ray], any_hit: bool, mut out: impl FnMut(usize, u64)) -> u64 {
         let tris = self.tris.as_slice();
+        let n = tris.len() as u32;
         let mut tests = 0u64;
         for (i, r) in rays.iter().enumerate() {
-            let mut key = NO_HIT;
-            if r.is_valid() {
-                let shear = RayShear::new(r.dir);
-                let mut far = r.t_max;
-                for (id, v) in tris.iter().enumerate() {
-                    tests += 1;
-                    let [a, b, c] = corners(*v);
-                    if any_hit {
-                        if intersect_triangle(r.origin, &shear, a, b, c, r.t_min, r.t_max).is_some() {
-                            key = BLOCKED;
-                            break;
-                        }
-                    } else if let Some((t, _, _)) =
-                        intersect_triangle(r.origin, &shear, a, b, c, r.t_min, far.next_up())
-                    {
-                        let k = hit_key::pack(t, id as u32);
-                        if k < key {
-                            key = k;
-                            far = t;
-                        }
-                    }
-                }
-            }
+            let key = if !r.is_valid() {
+                NO_HIT
+            } else if any_hit {
+                let (blocked, made) = any_hit_ids(tris, 0..n, r, &RayShear::new(r.dir));
+                tests += made;
+                if blocked { BLOCKED } else { NO_HIT }
+            } else {
+                let mut hit = Hit::MISS;
+                intersect_ids(tris, 0..n, r, &RayShear::new(r.dir), &mut hit);
+                tests += n as u64;
+                if hit.is_hit() { hit_key::pack(hit.t, hit.prim) } else { NO_HIT }
+            };
             out(i, key);
         }
         tests

@@ -152,9 +152,13 @@ impl Builder<'_, '_> {
             }
             "plastic" | "roughplastic" => {
                 let roughness = if kind == "roughplastic" { self.roughness(&mut p, node)? } else { 0.0 };
-                let (int_ior, ext_ior) = (self.ior(&mut p, node, "int_ior", 1.49)?, self.ior(&mut p, node, "ext_ior", AIR)?);
+                let (int_ior, ext_ior) =
+                    (self.ior(&mut p, node, "int_ior", 1.49)?, self.ior(&mut p, node, "ext_ior", AIR)?);
                 if int_ior == ext_ior {
-                    return Err(doc.err(node, format!("int_ior and ext_ior are both {int_ior}: a plastic's coat needs two different indices")));
+                    return Err(doc.err(
+                        node,
+                        format!("int_ior and ext_ior are both {int_ior}: a plastic's coat needs two different indices"),
+                    ));
                 }
                 let diffuse = p.color_or("diffuse_reflectance", Vec3::splat(0.5))?;
                 let specular = p.color_or("specular_reflectance", Vec3::ONE)?;
