@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use warpray::cast::BvhCaster;
 use warpray::error::Error;
 use warpray::film::Film;
+use warpray::glam::Vec3;
 use warpray::render::{Budget, RenderOptions, render};
 use warpray::scene::{Material, ObjOptions, load_obj, load_scene};
 
@@ -391,6 +392,14 @@ fn a_ply_file_is_a_scene_and_an_unknown_kind_says_so() {
     // A .toml file keeps TOML's own message.
     let e = load_scene(write(&dir, "bad.toml", "hello world\n")).unwrap_err();
     assert!(!e.to_string().contains("not a scene file"), "{e}");
+    // A scene file's `[[mesh]]` reads a PLY as a PLY (it was read as OBJ: "no
+    // triangles"), with the mesh's scale and translation.
+    let toml = "[[mesh]]\nfile = \"quad.ply\"\nscale = 2\ntranslate = [0, 0, -3]\n\
+                [[point_light]]\nposition = [0, 0, 3]\nintensity = [1, 1, 1]\n";
+    let s = load_scene(write(&dir, "quad.toml", toml)).unwrap().scene;
+    assert_eq!(s.triangle_count(), 2);
+    let (lo, hi) = s.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), &p| (l.min(p), h.max(p)));
+    assert_eq!((lo, hi), (Vec3::new(0.0, 0.0, -3.0), Vec3::new(2.0, 2.0, -3.0)));
 }
 
 #[test]
