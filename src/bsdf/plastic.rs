@@ -87,10 +87,7 @@ impl Plastic {
     /// The coat's reflectance at `cos` for lobe selection: F(cos) for a smooth coat,
     /// 1 − T(cos) for a rough one.
     fn coat_reflectance(&self, cos: f32) -> f32 {
-        match self.transmittance {
-            None => fresnel_dielectric(cos, self.eta),
-            Some(t) => 1.0 - lerp_table(t, cos),
-        }
+        1.0 - self.transmitted(cos)
     }
 
     fn transmitted(&self, cos: f32) -> f32 {
@@ -238,11 +235,10 @@ fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
 /// The coat's directional albedo (`reflect`) or transmittance at incidence `wi` for
 /// relative index `eta`: the mean over visible normals of F·G1(reflected) or
 /// (1 − F)·G1(refracted), by a product Gauss–Legendre rule on the sample square.
-fn coat_integral(ggx: Ggx, wi: Vec3, eta: f32, reflect: bool) -> f32 {
-    let rule = gauss_legendre(if eta > 1.0 { 32 } else { 128 });
+fn coat_integral(ggx: Ggx, rule: &[(f64, f64)], wi: Vec3, eta: f32, reflect: bool) -> f32 {
     let mut sum = 0.0f64;
-    for &(x, wx) in &rule {
-        for &(y, wy) in &rule {
+    for &(x, wx) in rule {
+        for &(y, wy) in rule {
             let u = Vec2::new((0.5 * x + 0.5) as f32, (0.5 * y + 0.5) as f32);
             let wm = ggx.sample_visible(wi, u);
             let c = wi.dot(wm);
@@ -282,12 +278,17 @@ fn tables(eta: f32, alpha: f32) -> (&'static [f32; TABLE_SIZE], f32) {
         let mu = table_cosine(k);
         Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu)
     };
+    // Mitsuba's rule sizes: 32 points a side for η > 1, 128 for η < 1.
+    let rule = |eta: f32| gauss_legendre(if eta > 1.0 { 32 } else { 128 });
+    let (outside, inside) = (rule(eta), rule(1.0 / eta));
     let mut t = [0.0; TABLE_SIZE];
     for (k, v) in t.iter_mut().enumerate() {
-        *v = coat_integral(ggx, incidence(k), eta, false);
+        *v = coat_integral(ggx, &outside, incidence(k), eta, false);
     }
     let internal = 2.0
-        * (0..TABLE_SIZE).map(|k| coat_integral(ggx, incidence(k), 1.0 / eta, true) * table_cosine(k)).sum::<f32>()
+        * (0..TABLE_SIZE)
+            .map(|k| coat_integral(ggx, &inside, incidence(k), 1.0 / eta, true) * table_cosine(k))
+            .sum::<f32>()
         / TABLE_SIZE as f32;
     let t: &'static [f32; TABLE_SIZE] = Box::leak(Box::new(t));
     known.push((key.0, key.1, t, internal));
