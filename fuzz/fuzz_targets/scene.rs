@@ -7,7 +7,6 @@
 mod common;
 
 use libfuzzer_sys::fuzz_target;
-use warpray::prelude::*;
 use warpray::scene::parse_scene_file;
 
 fuzz_target!(|data: &[u8]| {
@@ -17,23 +16,5 @@ fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(toml) else { return };
     let path = dir.join("s.toml");
     let Ok(desc) = parse_scene_file(&path, text) else { return };
-    let scene = desc.scene;
-    scene.validate().expect("a parsed scene validates");
-    if scene.check_renderable().is_err() || scene.triangle_count() > 10_000 {
-        return;
-    }
-    let caster = BvhCaster::new(&scene);
-    for integrator in [IntegratorKind::Path, IntegratorKind::Bdpt] {
-        let opts = RenderOptions {
-            width: 4,
-            height: 4,
-            budget: Budget::Samples(1),
-            max_depth: 4,
-            integrator,
-            ..Default::default()
-        };
-        if let Ok((film, _)) = render(&scene, &caster, &opts, |_, _| true) {
-            assert!(film.mean().iter().all(|p| p.is_finite()), "{integrator:?} made a non-finite pixel");
-        }
-    }
+    common::check_scene(&desc.scene);
 });

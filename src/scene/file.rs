@@ -13,6 +13,7 @@ use crate::error::{Error, Location, Result};
 use crate::limits::check_triangles;
 use glam::Vec3;
 use serde::Deserialize;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 /// Render settings a scene file may carry; command-line flags override them.
@@ -408,8 +409,10 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
     if let Some(m) = file.material.iter().find(|m| m.name.is_empty()) {
         return Err(err(format!("a [[material]] of type '{}' has no name", m.kind)));
     }
+    // Name → index into `named` (by hash: a file may hold many thousands of tables).
+    let mut by_name: HashMap<&str, usize> = HashMap::with_capacity(file.material.len());
     for (i, m) in file.material.iter().enumerate() {
-        if file.material[..i].iter().any(|o| o.name == m.name) {
+        if by_name.insert(m.name.as_str(), i).is_some() {
             return Err(err(format!("two [[material]] tables are named '{}'", m.name)));
         }
     }
@@ -421,8 +424,11 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
 
     for mesh in &file.mesh {
         let local = dir.join(&mesh.file);
-        let found = if local.is_file() { local } else { models_dir().join(&mesh.file) };
-        if !found.is_file() {
+        let found = if local.exists() { local } else { models_dir().join(&mesh.file) };
+        if found.exists() {
+            // A device, FIFO or folder is refused by name, not reported as missing.
+            drop(super::input::open_regular(&found)?);
+        } else {
             return Err(Error::io(
                 &mesh.file,
                 std::io::Error::new(
@@ -447,7 +453,7 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
             load_obj(&found, &ObjOptions { scale, translate, ..Default::default() })?
         };
         if let Some(mname) = &mesh.material {
-            let (_, m, e) = named.iter().find(|(n, ..)| n == mname).ok_or_else(|| {
+            let (_, m, e) = by_name.get(mname.as_str()).map(|&i| &named[i]).ok_or_else(|| {
                 err(format!("mesh {} names material '{mname}', which no [[material]] defines", mesh.file.display()))
             })?;
             part.materials = vec![*m];
@@ -460,8 +466,9 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
     }
     // A [[material]] whose name matches a loaded material replaces it; one that matches
     // none (a typo) is an error rather than ignored.
+    let loaded: HashSet<&str> = scene.material_names.iter().map(String::as_str).collect();
     for (name, ..) in &named {
-        if !scene.material_names.iter().any(|n| n == name) {
+        if !loaded.contains(name.as_str()) {
             let mut known: Vec<&str> = scene.material_names.iter().map(String::as_str).collect();
             known.sort_unstable();
             known.dedup();
@@ -471,12 +478,11 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
             )));
         }
     }
-    for (name, m, e) in &named {
-        for i in 0..scene.materials.len() {
-            if &scene.material_names[i] == name {
-                scene.materials[i] = *m;
-                scene.emission[i] = *e;
-            }
+    for i in 0..scene.materials.len() {
+        if let Some(&k) = by_name.get(scene.material_names[i].as_str()) {
+            let (_, m, e) = &named[k];
+            scene.materials[i] = *m;
+            scene.emission[i] = *e;
         }
     }
     scene.point_lights.extend(

@@ -247,6 +247,14 @@ fn unsupported_or_bad_input_is_an_error_naming_the_element_and_line() {
             "test.xml:2",
             "not finite",
         ),
+        (
+            // A step inside a step was ignored without a word (the held-out corpus).
+            wrap(
+                "<shape type=\"rectangle\"><transform name=\"to_world\"><translate x=\"1\">\n<scale value=\"2\"/></translate></transform></shape>",
+            ),
+            "test.xml:3",
+            "a step takes no elements",
+        ),
         (wrap("<shape type=\"rectangle\">"), "test.xml:3", "malformed XML"),
         (wrap("<include filename=\"other.xml\"/>"), "test.xml:2", "<include"),
         (

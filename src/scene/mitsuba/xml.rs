@@ -117,6 +117,17 @@ impl<'a> Doc<'a> {
     pub fn transform(&self, node: Node) -> Result<Mat4> {
         let mut m = DMat4::IDENTITY;
         for c in node.children().filter(Node::is_element) {
+            // A step is its attributes; anything inside one would be ignored unseen.
+            if let Some(inner) = c.children().find(Node::is_element) {
+                return Err(self.err(
+                    inner,
+                    format!(
+                        "<{}> inside a <{}> step: a step takes no elements",
+                        inner.tag_name().name(),
+                        c.tag_name().name()
+                    ),
+                ));
+            }
             let step = match c.tag_name().name() {
                 "translate" => DMat4::from_translation(self.vec3(c, 0.0)?),
                 "scale" => DMat4::from_scale(self.vec3(c, 1.0)?),
