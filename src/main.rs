@@ -549,8 +549,8 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
 /// `converge`; true when Ctrl-C stopped it (what was measured is written all the same).
 fn run_converge(args: ConvergeArgs) -> Result<bool> {
     use warpray::converge::{
-        ConvergeOptions, common_target, read_csv, read_exr, reference_key, run, summarize, summary_table, write_chart,
-        write_csv,
+        ConvergeOptions, common_target, labels, read_csv, read_exr, reference_key, run, summarize, summary_table,
+        write_chart, write_csv,
     };
     let with_ext = |ext: &str| {
         let mut name = args.output.clone().into_os_string();
@@ -577,12 +577,7 @@ fn run_converge(args: ConvergeArgs) -> Result<bool> {
         check_outputs(&[with_ext(".svg")], &["svg"])?;
         check_outputs(&[with_ext(".png")], &["png"])?;
         let rows = read_csv(csv)?;
-        let mut labels: Vec<&str> = Vec::new();
-        for r in &rows {
-            if !labels.contains(&r.integrator) {
-                labels.push(r.integrator);
-            }
-        }
+        let labels = labels(&rows);
         finish(&rows, &labels, &format!("{}: error against time", args.scene.display()))?;
         println!("wrote {}, {}", with_ext(".svg").display(), with_ext(".png").display());
         return Ok(false);

@@ -57,7 +57,7 @@ def png(width, height, bit_depth=8, color=2, idat=b""):
     return b"\x89PNG\r\n\x1a\n" + png_chunk(b"IHDR", head) + png_chunk(b"IDAT", zlib.compress(idat)) + png_chunk(b"IEND", b"")
 
 
-def cases(d):
+def cases():
     """(name, argv, files to write {name: bytes}) for every case."""
     w = lambda name, data: (name, data if isinstance(data, bytes) else data.encode())
     tri = ply_head(3, 1) + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
@@ -160,7 +160,7 @@ def run(argv, cwd):
         return "hang", time.time() - start, ""
     err = p.stderr.decode(errors="replace")
     last = next((l for l in reversed(err.strip().splitlines()) if l.strip()), "")
-    if "memory allocation of" in err or "out of memory" in err.lower() and p.returncode < 0:
+    if "memory allocation of" in err or ("out of memory" in err.lower() and p.returncode < 0):
         kind = "oom"
     elif p.returncode == 101 or "panicked at" in err:
         kind = "panic"
@@ -178,7 +178,7 @@ def run(argv, cwd):
 bad = 0
 counts = {}
 print(f"warpray: {WARPRAY}; limits: {TIME_LIMIT} s, {MEMORY_LIMIT >> 30} GiB of address space")
-for name, argv, files in cases(None):
+for name, argv, files in cases():
     with tempfile.TemporaryDirectory() as d:
         for fname, data in files:
             with open(os.path.join(d, fname), "wb") as f:

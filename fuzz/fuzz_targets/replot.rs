@@ -7,19 +7,14 @@
 mod common;
 
 use libfuzzer_sys::fuzz_target;
-use warpray::converge::{common_target, read_csv, summarize, summary_table, write_chart};
+use warpray::converge::{common_target, labels, read_csv, summarize, summary_table, write_chart};
 
 fuzz_target!(|data: &[u8]| {
     let dir = common::scratch();
     let csv = dir.join("c.csv");
     std::fs::write(&csv, data).unwrap();
     let Ok(rows) = read_csv(&csv) else { return };
-    let mut labels: Vec<&str> = Vec::new();
-    for r in &rows {
-        if !labels.contains(&r.integrator) {
-            labels.push(r.integrator);
-        }
-    }
+    let labels = labels(&rows);
     let _ = write_chart(&dir.join("c.svg"), &rows, "fuzz");
     let _ = write_chart(&dir.join("c.png"), &rows, "fuzz");
     let _ = common_target(&rows, &labels);

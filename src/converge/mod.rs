@@ -201,6 +201,18 @@ pub fn common_target(rows: &[Checkpoint], labels: &[&str]) -> f64 {
     labels.iter().filter_map(|l| rows.iter().rev().find(|r| r.integrator == *l).map(|r| r.rmse)).fold(0.0, f64::max)
 }
 
+/// The integrators of a list of checkpoints, in the order they first appear (what
+/// `converge --replot` charts and summarises).
+pub fn labels(rows: &[Checkpoint]) -> Vec<&'static str> {
+    let mut labels: Vec<&'static str> = Vec::new();
+    for r in rows {
+        if !labels.contains(&r.integrator) {
+            labels.push(r.integrator);
+        }
+    }
+    labels
+}
+
 /// One [`Summary`] per label that has checkpoints, against the first label as baseline.
 pub fn summarize(rows: &[Checkpoint], labels: &[&str]) -> Vec<Summary> {
     let target = common_target(rows, labels);
