@@ -1,6 +1,6 @@
 #!/bin/sh
-# PDACRT on the GPU against the GPU BVH rebuilt per frame (docs/gpu-check.md, "Casting
-# on the GPU"), on a machine with an NVIDIA GPU and nvcc: builds the CUDA library if
+# PDACRT on the GPU against the GPU BVH rebuilt per frame (docs/gpu-check.md, "PDACRT
+# against a GPU BVH rebuilt every frame"), on a machine with an NVIDIA GPU and nvcc: builds the CUDA library if
 # needed, runs the GPU casting tests, then the tables, as markdown and as JSON lines.
 #
 #   WARPRAY_MODELS=... BIN=target/release/examples OUT=gpu-out sh cuda/casting.sh
