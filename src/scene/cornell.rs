@@ -5,7 +5,9 @@
 //! Reflectances and the light's colour follow the widely used Cornell box data set
 //! (white 0.725/0.71/0.68, red 0.63/0.065/0.05, green 0.14/0.45/0.091, Le = 17/12/4).
 
-use super::{Camera, Material, Scene};
+use super::camera::Camera;
+use super::data::Scene;
+use super::material::Material;
 use glam::{Mat3, Vec3};
 
 struct Builder {

@@ -1,64 +1,20 @@
 //! Scene files (TOML): meshes, materials, point lights, camera and render settings.
 //! `assets/scenes/cornell-obj.toml` is a commented example; `docs/scene-format.md`
 //! describes every key. Unknown keys are errors, so a typo never passes silently.
-//!
-//! Past the 400-line guide (about 515 lines) on purpose: the file format, its loading
-//! and every check of its values in one place, so a reader finds each key and its error.
+//! The format and every check of its values are in this file, so a reader finds each
+//! key and its error; `load.rs` decides which reader a path goes to.
 
-use super::{
-    Camera, Coat, LayerBase, Layered, Material, ObjOptions, PointLight, Scene, cornell_box, load_obj, metals,
-    models_dir,
-};
+use super::camera::Camera;
+use super::cornell::cornell_box;
+use super::data::{PointLight, Scene, models_dir};
+use super::desc::{RenderSettings, SceneDesc, line_of};
+use super::material::{Coat, LayerBase, Layered, Material, metals};
+use super::obj::{ObjOptions, load_obj};
 use crate::error::{Error, Location, Result};
-use crate::limits::check_triangles;
 use glam::Vec3;
 use serde::Deserialize;
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
-
-/// Render settings a scene file may carry; command-line flags override them.
-#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct RenderSettings {
-    /// Image width.
-    pub width: Option<u32>,
-    /// Image height.
-    pub height: Option<u32>,
-    /// Samples per pixel.
-    pub spp: Option<u32>,
-    /// Time budget, seconds.
-    pub seconds: Option<f64>,
-    /// Largest number of bounces.
-    pub max_depth: Option<u32>,
-    /// Bounces before the path tracer's Russian roulette starts (`rr_depth`, ≥ 1).
-    pub rr_depth: Option<u32>,
-    /// Integrator name.
-    pub integrator: Option<String>,
-    /// Random seed.
-    pub seed: Option<u64>,
-    /// Pixel filter: `"box"`, `"gaussian"` or `"gaussian:STDDEV:RADIUS"` (`rfilter`).
-    #[serde(default, deserialize_with = "parse_text")]
-    pub filter: Option<crate::filter::Filter>,
-    /// How camera samples meet the filter: `"sample"` or `"splat"` (Mitsuba's).
-    #[serde(default, deserialize_with = "parse_text")]
-    pub filter_mode: Option<crate::filter::FilterMode>,
-}
-
-fn parse_text<'de, D: serde::Deserializer<'de>, T: std::str::FromStr<Err = String>>(
-    d: D,
-) -> std::result::Result<Option<T>, D::Error> {
-    let text = String::deserialize(d)?;
-    text.parse().map(Some).map_err(serde::de::Error::custom)
-}
-
-/// A loaded scene and the settings its file asked for.
-#[derive(Clone, Debug)]
-pub struct SceneDesc {
-    /// The scene.
-    pub scene: Scene,
-    /// The `[render]` block, if any.
-    pub settings: RenderSettings,
-}
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -242,90 +198,8 @@ impl FileMaterial {
     }
 }
 
-/// Scene files built into the library, by name, so that `warpray render dragon` (and
-/// `load_scene("dragon")`) work from any folder: each puts one standard model
-/// (`$WARPRAY_MODELS`) under lights and a camera. Their text is `assets/scenes/NAME.toml`.
-pub const NAMED_SCENES: &[(&str, &str)] = &[
-    ("bunny", include_str!("../../assets/scenes/bunny.toml")),
-    ("dragon", include_str!("../../assets/scenes/dragon.toml")),
-    ("conference", include_str!("../../assets/scenes/conference.toml")),
-    ("dabrovic-sponza", include_str!("../../assets/scenes/dabrovic-sponza.toml")),
-];
-
-/// Loads a scene: a `.toml` scene file, an `.obj`/`.obj.gz` file, `cornell` (the
-/// built-in box), the name of a built-in scene file ([`NAMED_SCENES`]: `bunny`,
-/// `dragon`, `conference`, `dabrovic-sponza`), or the name of a model in
-/// `$WARPRAY_MODELS` (`cornell-box`). An existing file wins over a name. The scene
-/// passes the memory budget before a caster is built for it.
-pub fn load_scene(path: impl AsRef<Path>) -> Result<SceneDesc> {
-    let (path, desc) = (path.as_ref(), load_any_scene(path.as_ref())?);
-    let n = desc.scene.triangle_count() as u64;
-    let what = || format!("{}: {n} triangles", path.display());
-    check_triangles(n).map(|_| desc).map_err(|over| Error::OverMemoryBudget { what: what(), over })
-}
-
-/// [`load_scene`] without the memory check.
-fn load_any_scene(path: &Path) -> Result<SceneDesc> {
-    if path.as_os_str() == "cornell" {
-        return Ok(SceneDesc { scene: cornell_box(), settings: RenderSettings::default() });
-    }
-    if !path.exists()
-        && let Some(name) = path.to_str()
-    {
-        if let Some((_, text)) = NAMED_SCENES.iter().find(|(n, _)| *n == name) {
-            return parse_scene_file(Path::new(&format!("{name}.toml (built in)")), text);
-        }
-        if let Some(model) = super::find_model(name) {
-            return load_any_scene(&model);
-        }
-        if !name.contains(['/', '\\', '.']) {
-            let known: Vec<&str> = NAMED_SCENES.iter().map(|(n, _)| *n).collect();
-            return Err(Error::io(
-                path,
-                std::io::Error::new(
-                    std::io::ErrorKind::NotFound,
-                    format!(
-                        "no such file, built-in scene ({}, cornell) or model in {} (set WARPRAY_MODELS)",
-                        known.join(", "),
-                        super::models_dir().display()
-                    ),
-                ),
-            ));
-        }
-    }
-    let name = path.to_string_lossy().to_ascii_lowercase();
-    if name.ends_with(".obj") || name.ends_with(".obj.gz") {
-        let scene = load_obj(path, &ObjOptions::default())?;
-        return Ok(SceneDesc { scene, settings: RenderSettings::default() });
-    }
-    if name.ends_with(".ply") {
-        return Ok(SceneDesc { scene: ply_scene(path)?, settings: RenderSettings::default() });
-    }
-    let text = super::input::read_text(path, super::input::max_input_bytes())?;
-    if name.ends_with(".xml") {
-        return super::parse_mitsuba(path, &text);
-    }
-    parse_scene_file(path, &text).map_err(|e| match e {
-        // A file of another kind read as TOML: say what was expected, not TOML's word.
-        Error::SceneFile { at, msg } if !name.ends_with(".toml") => Error::SceneFile {
-            at,
-            msg: format!("not a scene file warpray knows (.toml, .xml, .obj, .obj.gz, .ply); read as TOML: {msg}"),
-        },
-        e => e,
-    })
-}
-
-/// A PLY mesh as a scene: every triangle of the default material, the camera framed
-/// on it (as for an OBJ file without materials).
-fn ply_scene(path: &Path) -> Result<Scene> {
-    let mut scene = ply_part(path, 1.0, Vec3::ZERO)?;
-    scene.frame_camera();
-    scene.validate()?;
-    Ok(scene)
-}
-
 /// A PLY mesh's triangles, of the default material, positions × `scale` + `translate`.
-fn ply_part(path: &Path, scale: f32, translate: Vec3) -> Result<Scene> {
+pub(super) fn ply_part(path: &Path, scale: f32, translate: Vec3) -> Result<Scene> {
     let mesh = super::ply::load_ply(path)?;
     let mut scene = Scene::empty(path);
     scene.add_material("default", Material::DEFAULT, Vec3::ZERO);
@@ -336,11 +210,6 @@ fn ply_part(path: &Path, scale: f32, translate: Vec3) -> Result<Scene> {
         return Err(Error::EmptyMesh { at: Location::file(path) });
     }
     Ok(scene)
-}
-
-/// The 1-based line of byte `offset` in `text` (scene-file and XML errors).
-pub(crate) fn line_of(text: &str, offset: usize) -> usize {
-    text[..offset.min(text.len())].bytes().filter(|&b| b == b'\n').count() + 1
 }
 
 /// Parses scene-file text; `path` locates meshes and names the file in errors.

@@ -5,7 +5,8 @@
 //! error names `file:line`. That pass only runs on the error path.
 
 use super::input::{self, Limited};
-use super::{Material, Scene};
+use super::data::Scene;
+use super::material::Material;
 use crate::error::{Error, Location, Result};
 use glam::Vec3;
 use std::cell::{Cell, RefCell};

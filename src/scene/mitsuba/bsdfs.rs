@@ -8,7 +8,7 @@
 use super::xml::{Props, is_property};
 use super::{Bsdf, Builder};
 use crate::error::Result;
-use crate::scene::{Material, Plastic, metals};
+use crate::scene::material::{Material, Plastic, metals};
 use glam::Vec3;
 use roxmltree::Node;
 

@@ -9,8 +9,11 @@ mod bsdfs;
 mod shapes;
 mod xml;
 
-use super::file::{RenderSettings, SceneDesc};
-use super::{Camera, Material, ObjOptions, PointLight, Scene, load_obj};
+use super::desc::{RenderSettings, SceneDesc};
+use super::camera::Camera;
+use super::data::{PointLight, Scene};
+use super::material::Material;
+use super::obj::{ObjOptions, load_obj};
 use crate::error::{Error, Location, Result};
 use crate::filter::Filter;
 use crate::limits::check_triangles;

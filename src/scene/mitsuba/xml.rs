@@ -31,7 +31,7 @@ pub(crate) enum Value {
 impl<'a> Doc<'a> {
     /// The 1-based line where `node` starts.
     pub fn line(&self, node: Node) -> usize {
-        crate::scene::file::line_of(self.text, node.range().start)
+        crate::scene::desc::line_of(self.text, node.range().start)
     }
 
     /// An error at `node`, naming it as `<tag type="...">`.
