@@ -24,12 +24,27 @@ pub(super) struct Job {
     pub(super) caster: CasterKind,
     pub(super) spp: u32,
     pub(super) size: u32,
+    /// Measure the render's kernels as a GPU would (SIMD efficiency, sectors): the
+    /// CIS integrator's per-bounce figures, at several times the render's time.
+    pub(super) measure: bool,
+}
+
+/// The steps before the first pass, in order (the status line names them, the image
+/// panel shows their progress).
+const PREPARING_STEPS: u32 = 4;
+
+/// Says what the worker prepares: step `step` of [`PREPARING_STEPS`], with the step's
+/// own progress from 0 to 1.
+fn preparing(shared: &Mutex<Shared>, step: u32, what: &str, fraction: f32) {
+    let mut s = lock(shared);
+    s.status = format!("preparing (step {step} of {PREPARING_STEPS}): {what}");
+    s.progress = Some(fraction.clamp(0.0, 1.0));
 }
 
 impl Job {
     pub(super) fn run(&self, shared: &Mutex<Shared>, stop: &AtomicBool) -> crate::error::Result<()> {
         let set_status = |msg: String| lock(shared).status = msg;
-        set_status(format!("loading {}", self.name));
+        preparing(shared, 1, &format!("loading {}", self.name), 0.0);
         let desc = load_scene(&self.path)?;
         let scene = desc.scene;
         scene.check_renderable()?;
@@ -42,14 +57,24 @@ impl Job {
             &desc.settings,
             RenderOptions { width: w, height: h, budget: Budget::Samples(self.spp), ..Default::default() },
         ));
-        // Measured, with a pool that fills the inspector's small images.
-        opts.cis = CisParams { measure: true, pool: 4096, ..opts.cis };
+        // The command line's options: measuring only when asked (it slows the render).
+        opts.cis.measure = self.measure;
         let mut renderer = Renderer::new(&scene, caster.as_ref(), &opts)?;
         let mut film = renderer.film()?;
         {
             let mut s = lock(shared);
-            s.series
-                .push(Series { label: format!("{} / {}", self.integrator.label, caster.name()), points: Vec::new() });
+            let label = format!(
+                "{} / {}: {}, {}x{}, max depth {}{}",
+                self.integrator.label,
+                caster.name(),
+                self.name,
+                w,
+                h,
+                opts.max_depth,
+                if self.measure { ", measured" } else { "" }
+            );
+            s.series.push(Series { label, points: Vec::new() });
+            s.progress = None;
             s.status = format!("rendering {} with {}: 0/{} spp", self.name, self.integrator.label, self.spp);
             s.passes = 0;
             s.width = w;
@@ -60,14 +85,20 @@ impl Job {
         }
         let start = Instant::now();
         let mut render_time = 0.0;
-        for pass in 0..self.spp {
+        let mut done = 0;
+        while done < self.spp {
             if stop.load(Ordering::Relaxed) {
                 set_status("stopped".into());
                 return Ok(());
             }
+            // Passes in the command line's groups (several passes share the caster's
+            // batches for the wavefront integrators on small images); only the render
+            // is timed, not what the panels are given between groups.
+            let group = renderer.pass_group().min(self.spp - done);
             let t0 = Instant::now();
-            renderer.pass(pass, &mut film);
+            renderer.passes(done, group, &mut film);
             render_time += t0.elapsed().as_secs_f64();
+            done += group;
             let mean = film.mean();
             let err = reference.as_ref().map(|r| rmse(&mean, r));
             let mut s = lock(shared);
@@ -78,22 +109,25 @@ impl Job {
             if let (Some(e), Some(series)) = (err, s.series.last_mut()) {
                 series.points.push((render_time, e));
             }
-            if let Some(cis) = renderer.cis() {
-                s.queues = cis.records.clone();
+            if let Some(cis) = renderer.cis_mut() {
+                // The last pass's records; the integrator's list is emptied so that it
+                // does not grow with the render.
+                let last = done - 1;
+                s.queues = cis.records.drain(..).filter(|r| r.pass == last).collect();
             }
             if let Some(dev) = renderer.device() {
                 // The render's own device: the caster's kernels and the integrator's.
                 s.kernels = dev.kernel_stats();
             }
         }
-        set_status(format!("done in {:.2} s", start.elapsed().as_secs_f64()));
+        set_status(format!("done in {:.3} s", start.elapsed().as_secs_f64()));
         Ok(())
     }
 
     /// PDACRT on the primary rays (levels, work heat map, kernel statistics), and one
     /// CIS pass sorted and unsorted (what sorting does to the shading kernel).
     fn analyse(&self, scene: &Scene, shared: &Mutex<Shared>) -> crate::error::Result<()> {
-        lock(shared).status = "analysing (1 of 2): PDACRT on the primary rays".into();
+        preparing(shared, 2, "analysing PDACRT on the primary rays (measured)", 0.0);
         let (w, h) = (self.size, self.size);
         let rays = crate::cast::batches::primary_rays(&scene.camera, w, h);
         let pd = Pdacrt::from_triangles(
@@ -105,10 +139,11 @@ impl Job {
         let mut kernels = pd.device().kernel_stats();
         let mut effect = None;
         if scene.camera.aperture_radius == 0.0 {
-            lock(shared).status = "analysing (2 of 2): one CIS-LBDPT pass unsorted and sorted".into();
+            preparing(shared, 3, "analysing one CIS-LBDPT pass, unsorted and sorted (measured)", 0.0);
             let bvh = Bvh4::new(scene);
             let mut eff = [0.0; 2];
             for (k, sort) in [false, true].into_iter().enumerate() {
+                lock(shared).progress = Some(k as f32 / 2.0);
                 let o = RenderOptions {
                     width: 32,
                     height: 32,
@@ -148,20 +183,21 @@ impl Job {
         if let Some(r) = lock(shared).references.iter().find(|r| r.0 == self.name && r.1 == self.size) {
             return Ok(Some(r.2.clone()));
         }
-        lock(shared).status = "rendering the reference (path tracing): 0/256 spp".into();
+        let what = |pass: u32| format!("rendering the reference (path tracing): {pass}/{REFERENCE_SPP} spp");
+        preparing(shared, 4, &what(0), 0.0);
         let bvh = Bvh4::new(scene);
         let o = RenderOptions::for_scene(
             settings,
             RenderOptions {
                 width: self.size,
                 height: self.size,
-                budget: Budget::Samples(256),
-                seed: 77,
+                budget: Budget::Samples(REFERENCE_SPP),
+                seed: REFERENCE_SEED,
                 ..Default::default()
             },
         );
         let (film, _) = crate::render::render(scene, &bvh, &o, |pass, _| {
-            lock(shared).status = format!("rendering the reference (path tracing): {pass}/256 spp");
+            preparing(shared, 4, &what(pass), pass as f32 / REFERENCE_SPP as f32);
             !stop.load(Ordering::Relaxed)
         })?;
         if stop.load(Ordering::Relaxed) {
@@ -172,6 +208,10 @@ impl Job {
         Ok(Some(mean))
     }
 }
+
+/// Samples per pixel and seed of the convergence panel's path-traced reference.
+pub(super) const REFERENCE_SPP: u32 = 256;
+pub(super) const REFERENCE_SEED: u64 = 77;
 
 /// Replaces the summaries of the kernels in `new` (by name) and keeps the others.
 fn merge_kernels(all: &mut Vec<KernelSummary>, new: Vec<KernelSummary>) {

@@ -2,6 +2,7 @@
 //! kernel statistics and error against time. The methods live beside `Inspector`'s
 //! controls in `mod.rs`; this file only draws.
 
+use super::job::{REFERENCE_SEED, REFERENCE_SPP};
 use super::shared::lock;
 use super::{Inspector, project_box};
 use crate::cast::pdacrt::LevelRecord;
@@ -50,7 +51,20 @@ impl Inspector {
         }
         self.refresh_texture(ui);
         let Some((tex, ..)) = &self.texture else {
-            ui.label("Press Start to render.");
+            let s = lock(&self.shared);
+            match (s.running, s.progress) {
+                (true, progress) => {
+                    ui.label(format!("Preparing the render: {}", s.status));
+                    let p = progress.unwrap_or(0.0);
+                    ui.add(egui::ProgressBar::new(p).text(format!("{:.0} % of this step", p * 100.0)));
+                }
+                (false, _) if s.status.starts_with("error") => {
+                    ui.label(s.status.clone());
+                }
+                _ => {
+                    ui.label("Press Start to render.");
+                }
+            }
             return;
         };
         let size = tex.size_vec2() * self.zoom;
@@ -255,11 +269,26 @@ impl Inspector {
 
     pub(super) fn convergence_panel(&mut self, ui: &mut Ui) {
         let series = lock(&self.shared).series.clone();
-        ui.label("RMSE against a path-traced reference (log10 axes), one line per render since the inspector started.");
+        ui.label(format!(
+            "RMSE of the mean image against a path-traced reference of the same scene and size ({REFERENCE_SPP} spp, \
+             seed {REFERENCE_SEED}), over the render's own seconds (loading, analysis and reference left out). \
+             Both axes logarithmic. One line per render since the inspector started."
+        ));
+        // The lines are drawn in log10 coordinates; the axes and the hover label show
+        // the values themselves.
         egui_plot::Plot::new("convergence")
             .legend(egui_plot::Legend::default())
-            .x_axis_label("log10 seconds")
-            .y_axis_label("log10 RMSE")
+            .x_axis_label("render time, seconds")
+            .y_axis_label("RMSE")
+            .x_axis_formatter(|mark, _| real_units(mark.value, " s"))
+            .y_axis_formatter(|mark, _| real_units(mark.value, ""))
+            .label_formatter(|hover| {
+                let (name, p) = match hover {
+                    egui_plot::HoverPosition::NearDataPoint { plot_name, position, .. } => (*plot_name, position),
+                    egui_plot::HoverPosition::Elsewhere { position } => ("", position),
+                };
+                Some(format!("{name}\n{}, RMSE {}", real_units(p.x, " s"), real_units(p.y, "")))
+            })
             .show(ui, |p| {
                 for (i, s) in series.iter().enumerate() {
                     let pts: Vec<[f64; 2]> = s
@@ -268,10 +297,23 @@ impl Inspector {
                         .filter(|(t, e)| *t > 0.0 && *e > 0.0)
                         .map(|(t, e)| [t.log10(), e.log10()])
                         .collect();
-                    p.line(egui_plot::Line::new(format!("{} #{}", s.label, i + 1), pts));
+                    p.line(egui_plot::Line::new(format!("#{} {}", i + 1, s.label), pts));
                 }
             });
     }
+}
+
+/// A value drawn at `log10` coordinate `x`, in its own units with three significant
+/// digits (`0.0125`, `3.16 s`, `1.2e-5`).
+pub fn real_units(x: f64, unit: &str) -> String {
+    let v = 10f64.powf(x);
+    let text = if (1e-3..1e4).contains(&v) {
+        let digits = (2 - v.log10().floor() as i32).max(0) as usize;
+        format!("{v:.digits$}")
+    } else {
+        format!("{v:.2e}")
+    };
+    format!("{text}{unit}")
 }
 
 /// The heat map's legend: the colour ramp from 0 to `max` terminal nodes.
@@ -297,4 +339,20 @@ fn heat(x: f32) -> Color32 {
     let g = (255.0 * (1.0 - (2.0 * x - 1.0).abs())) as u8;
     let b = (255.0 * (1.0 - 1.5 * x).max(0.0)) as u8;
     Color32::from_rgb(r, g, b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::real_units;
+
+    #[test]
+    fn axes_show_values_in_their_own_units() {
+        assert_eq!(real_units(0.0, " s"), "1.00 s");
+        assert_eq!(real_units(-1.0, " s"), "0.100 s");
+        assert_eq!(real_units(0.5, ""), "3.16");
+        assert_eq!(real_units(2.5, " s"), "316 s");
+        assert_eq!(real_units(-1.9030899869919435, ""), "0.0125");
+        assert_eq!(real_units(-5.0, ""), "1.00e-5");
+        assert_eq!(real_units(5.0, ""), "1.00e5");
+    }
 }

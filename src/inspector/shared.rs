@@ -10,7 +10,7 @@ use std::sync::Mutex;
 /// One render's error curve.
 #[derive(Clone, Debug, Default)]
 pub struct Series {
-    /// `integrator / caster`.
+    /// What the render was: `integrator / caster: scene, size, max depth`.
     pub label: String,
     /// (seconds, RMSE against the reference)
     pub points: Vec<(f64, f64)>,
@@ -31,6 +31,9 @@ pub struct Shared {
     pub running: bool,
     /// What the worker is doing, with its progress.
     pub status: String,
+    /// While the worker prepares a render (loading, analyses, the reference): the
+    /// current step's progress from 0 to 1; `None` otherwise.
+    pub progress: Option<f32>,
     /// Error curves, one per render since the inspector started.
     pub series: Vec<Series>,
     /// PDACRT's levels on the primary rays.
@@ -39,7 +42,7 @@ pub struct Shared {
     pub visits: Vec<u32>,
     /// The scene's camera (to draw level boxes over the image).
     pub camera: Option<crate::scene::Camera>,
-    /// CIS-LBDPT queue records of the last pass.
+    /// CIS-LBDPT queue records of the last pass rendered.
     pub queues: Vec<QueueRecord>,
     /// Material names of the scene, by index (for the queue panel).
     pub material_names: Vec<String>,

@@ -4,8 +4,8 @@
 //! fails validation, a second pass over the file finds the first offending line so the
 //! error names `file:line`. That pass only runs on the error path.
 
-use super::input::{self, Limited};
 use super::data::Scene;
+use super::input::{self, Limited};
 use super::material::Material;
 use crate::error::{Error, Location, Result};
 use glam::Vec3;

@@ -91,8 +91,71 @@ fn queue_panel_shows_cis_records() {
         assert!(s.kernels.iter().any(|k| k.name == "cis::shade"));
         assert!(!s.kernels.iter().any(|k| k.name.starts_with("pdacrt::")), "the analysis' kernels are kept apart");
         assert!(s.material_names.iter().any(|n| n == "light"), "{:?}", s.material_names);
+        // The render runs as the command line runs it, unmeasured (measuring made the
+        // inspector's CIS passes about 12x slower): no SIMD figure per bounce, only the
+        // records of the last pass.
+        assert!(s.queues.iter().all(|r| r.shade_simd.is_none() && r.pass == 1), "an unmeasured render's records");
     }
     h.get_by_label("Queues").click();
+    h.step();
+    h.step();
+    // Asked for, the render is measured and each bounce has its shading SIMD efficiency.
+    h.get_by_label("measure the render").click();
+    h.step();
+    assert!(h.state().measure);
+    h.get_by_label("Start").click();
+    h.step();
+    step_until(&mut h, "the measured CIS render", |a| !a.running() && a.shared.lock().unwrap().passes == 2);
+    let s = h.state().shared.lock().unwrap();
+    assert!(!s.queues.is_empty() && s.queues.iter().all(|r| r.shade_simd.is_some()));
+    assert!(s.series.last().unwrap().label.ends_with(", measured"), "{}", s.series.last().unwrap().label);
+}
+
+#[test]
+fn preparing_shows_its_step_and_progress_instead_of_press_start() {
+    let mut h = harness();
+    h.step();
+    h.get_by_label("Press Start to render.");
+    // The worker's state while it prepares (set here, so the check does not race it).
+    {
+        let mut s = h.state().shared.lock().unwrap();
+        s.running = true;
+        s.status = "preparing (step 4 of 4): rendering the reference (path tracing): 64/256 spp".into();
+        s.progress = Some(0.25);
+    }
+    h.step();
+    h.get_by_label_contains("Preparing the render: preparing (step 4 of 4)");
+    h.get_by_label("25 % of this step");
+    assert!(h.query_by_label("Press Start to render.").is_none());
+    // An error ends the preparation in the panel, not only in the status line.
+    {
+        let mut s = h.state().shared.lock().unwrap();
+        s.running = false;
+        s.progress = None;
+        s.status = "error: no such scene".into();
+    }
+    h.step();
+    assert!(h.query_by_label("Press Start to render.").is_none());
+    h.get_by_label("error: no such scene");
+}
+
+#[test]
+fn each_convergence_line_names_its_scene_and_settings() {
+    let mut h = harness();
+    h.state_mut().spp = 3;
+    h.step();
+    h.get_by_label("Start").click();
+    h.step();
+    step_until(&mut h, "a short render", |a| !a.running() && a.shared.lock().unwrap().passes == 3);
+    {
+        let s = h.state().shared.lock().unwrap();
+        assert_eq!(s.progress, None, "no progress bar once the render runs");
+        let series = s.series.last().unwrap();
+        assert_eq!(series.label, "path / bvh4: cornell (built-in), 24x24, max depth 8");
+        assert_eq!(series.points.len(), 3, "one point per pass of the path tracer");
+        assert!(series.points.windows(2).all(|w| w[1].0 > w[0].0), "time grows: {:?}", series.points);
+    }
+    h.get_by_label("Convergence").click();
     h.step();
     h.step();
 }

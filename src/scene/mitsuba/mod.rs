@@ -9,9 +9,9 @@ mod bsdfs;
 mod shapes;
 mod xml;
 
-use super::desc::{RenderSettings, SceneDesc};
 use super::camera::Camera;
 use super::data::{PointLight, Scene};
+use super::desc::{RenderSettings, SceneDesc};
 use super::material::Material;
 use super::obj::{ObjOptions, load_obj};
 use crate::error::{Error, Location, Result};
