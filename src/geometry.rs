@@ -84,12 +84,20 @@ impl Hit {
         self.prim != Hit::NONE
     }
 
-    /// Whether a hit at `t` on triangle `prim` replaces this one: it is closer, or as
-    /// close on a smaller id (brute force's answer on ties, which every caster gives).
+    /// Whether a hit at `t` on triangle `prim` replaces this one ([`closer`]).
     #[inline]
     pub fn loses_to(&self, t: f32, prim: u32) -> bool {
-        t < self.t || (t == self.t && prim < self.prim)
+        closer((t, prim), (self.t, self.prim))
     }
+}
+
+/// Whether a hit at distance `a.0` on triangle `a.1` is closer than one at `b`: a
+/// smaller distance, or the same distance on a smaller id (brute force's answer on
+/// ties, which every caster gives; for non-negative distances, the order of
+/// [`hit_key`] keys).
+#[inline(always)]
+pub fn closer(a: (f32, u32), b: (f32, u32)) -> bool {
+    a.0 < b.0 || (a.0 == b.0 && a.1 < b.1)
 }
 
 impl Default for Hit {

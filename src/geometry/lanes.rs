@@ -241,6 +241,42 @@ impl Hits4 {
     pub fn get(&self, k: usize) -> Option<(f32, f32, f32)> {
         (self.mask >> k & 1 == 1).then(|| (self.t[k], self.u[k], self.v[k]))
     }
+
+    /// The hit lanes among the first `len` (a block of fewer than four triangles
+    /// repeats one in its other lanes, which must not count).
+    #[inline(always)]
+    fn lanes(&self, len: usize) -> u32 {
+        self.mask & ((1 << len) - 1)
+    }
+
+    /// The lane of the closest hit among the first `len`, where lane `k` is triangle
+    /// `ids[k]`: the smallest distance, and of equal distances the smallest id
+    /// ([`closer`](super::closer), the rule of every caster's leaf). `None` when none of
+    /// them is hit.
+    #[inline(always)]
+    pub fn closest(&self, len: usize, ids: &[u32]) -> Option<usize> {
+        let mut mask = self.lanes(len);
+        if mask == 0 {
+            return None;
+        }
+        let mut best = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        while mask != 0 {
+            let k = mask.trailing_zeros() as usize;
+            if super::closer((self.t[k], ids[k]), (self.t[best], ids[best])) {
+                best = k;
+            }
+            mask &= mask - 1;
+        }
+        Some(best)
+    }
+
+    /// The first hit lane among the first `len` (any-hit queries stop there).
+    #[inline(always)]
+    pub fn first(&self, len: usize) -> Option<usize> {
+        let mask = self.lanes(len);
+        (mask != 0).then(|| mask.trailing_zeros() as usize)
+    }
 }
 
 #[cfg(test)]
@@ -338,5 +374,21 @@ mod tests {
             }
         }
         assert!(hits > n / 20 && hits < n / 2, "{hits} hits of {n}");
+    }
+
+    /// The lane a leaf keeps is the closest hit, ties to the smaller id whatever the
+    /// lane order, among the lanes of the list only; any-hit takes the first.
+    #[test]
+    fn a_block_keeps_the_closest_hit_and_ignores_lanes_past_the_list() {
+        let hits = Hits4 { mask: 0b1111, t: [2.0, 1.0, 1.0, 0.5], u: [0.0; 4], v: [0.0; 4] };
+        // Lanes 1 and 2 tie at t = 1; lane 2's triangle has the smaller id.
+        assert_eq!(hits.closest(3, &[7, 9, 4, 1]), Some(2));
+        assert_eq!(hits.closest(3, &[7, 4, 9, 1]), Some(1));
+        // Lane 3 (t = 0.5) is past a list of three: it does not count until the list has four.
+        assert_eq!(hits.closest(4, &[7, 9, 4, 1]), Some(3));
+        assert_eq!(hits.first(3), Some(0));
+        let none = Hits4 { mask: 0b1000, ..hits };
+        assert_eq!((none.closest(3, &[7, 9, 4, 1]), none.first(3)), (None, None));
+        assert_eq!((none.closest(4, &[7, 9, 4, 1]), none.first(4)), (Some(3), Some(3)));
     }
 }

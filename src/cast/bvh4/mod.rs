@@ -81,13 +81,10 @@ impl Bvh4 {
         let mut leaf = |leaf: &Leaf, len: usize, best: &mut Hit| {
             let far = if best.is_hit() { best.t.next_up().min(ray.t_max) } else { ray.t_max };
             let (h, ids) = (leaf.tris.test(ray.origin, &shear, ray.t_min, far), &leaf.ids);
-            let mut mask = h.mask & ((1 << len) - 1);
-            while mask != 0 {
-                let k = mask.trailing_zeros() as usize;
-                if best.loses_to(h.t[k], ids[k]) {
-                    *best = Hit { t: h.t[k], prim: ids[k], u: h.u[k], v: h.v[k] };
-                }
-                mask &= mask - 1;
+            if let Some(k) = h.closest(len, ids)
+                && best.loses_to(h.t[k], ids[k])
+            {
+                *best = Hit { t: h.t[k], prim: ids[k], u: h.u[k], v: h.v[k] };
             }
             tests += len as u64;
         };
@@ -142,7 +139,7 @@ impl Bvh4 {
         let mut tests = 0u64;
         let mut leaf = |leaf: &Leaf, len: usize| {
             tests += len as u64;
-            leaf.tris.test(ray.origin, &shear, ray.t_min, ray.t_max).mask & ((1 << len) - 1) != 0
+            leaf.tris.test(ray.origin, &shear, ray.t_min, ray.t_max).first(len).is_some()
         };
         if self.outliers.iter().any(|(l, len)| leaf(l, *len)) {
             return (true, tests);

@@ -58,19 +58,15 @@ impl Dacrt {
                     }
                 };
                 let h = block.test(ray.origin, &shear, ray.t_min, t_far);
-                // Lanes past the list's end repeat its first triangle: masked off.
-                let mut mask = h.mask & ((1 << ids.len()) - 1);
                 if tr.any_hit {
-                    if mask != 0 {
-                        (made, best) = (4 * b + mask.trailing_zeros() as usize + 1, BLOCKED);
+                    if let Some(k) = h.first(ids.len()) {
+                        (made, best) = (4 * b + k + 1, BLOCKED);
                         break;
                     }
                     continue;
                 }
-                while mask != 0 {
-                    let k = mask.trailing_zeros() as usize;
+                if let Some(k) = h.closest(ids.len(), ids) {
                     best = best.min(pack(h.t[k], ids[k]));
-                    mask &= mask - 1;
                 }
             }
             tests += made as u64;
