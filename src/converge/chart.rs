@@ -104,7 +104,7 @@ fn log_range(lo: f64, hi: f64) -> std::ops::Range<f64> {
 
 /// An axis label with three significant digits and no trailing zeros (log axes put
 /// ticks at values like 0.30000000000000004).
-fn tick(v: f64) -> String {
+pub(crate) fn tick(v: f64) -> String {
     if v == 0.0 || !v.is_finite() {
         return format!("{v}");
     }

@@ -303,17 +303,10 @@ impl Inspector {
     }
 }
 
-/// A value drawn at `log10` coordinate `x`, in its own units with three significant
-/// digits (`0.0125`, `3.16 s`, `1.2e-5`).
-pub fn real_units(x: f64, unit: &str) -> String {
-    let v = 10f64.powf(x);
-    let text = if (1e-3..1e4).contains(&v) {
-        let digits = (2 - v.log10().floor() as i32).max(0) as usize;
-        format!("{v:.digits$}")
-    } else {
-        format!("{v:.2e}")
-    };
-    format!("{text}{unit}")
+/// A value drawn at `log10` coordinate `x`, in its own units, labelled as the
+/// converge charts label their axes (`converge::tick`: three significant digits).
+fn real_units(x: f64, unit: &str) -> String {
+    format!("{}{unit}", crate::converge::tick(10f64.powf(x)))
 }
 
 /// The heat map's legend: the colour ramp from 0 to `max` terminal nodes.
@@ -347,12 +340,12 @@ mod tests {
 
     #[test]
     fn axes_show_values_in_their_own_units() {
-        assert_eq!(real_units(0.0, " s"), "1.00 s");
-        assert_eq!(real_units(-1.0, " s"), "0.100 s");
+        assert_eq!(real_units(0.0, " s"), "1 s");
+        assert_eq!(real_units(-1.0, " s"), "0.1 s");
         assert_eq!(real_units(0.5, ""), "3.16");
         assert_eq!(real_units(2.5, " s"), "316 s");
         assert_eq!(real_units(-1.9030899869919435, ""), "0.0125");
-        assert_eq!(real_units(-5.0, ""), "1.00e-5");
-        assert_eq!(real_units(5.0, ""), "1.00e5");
+        assert_eq!(real_units(-5.0, ""), "0.00001");
+        assert_eq!(real_units(5.0, ""), "100000");
     }
 }
