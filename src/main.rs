@@ -217,6 +217,22 @@ struct RenderArgs {
     /// shade time, memory, and the simt kernel table of the GPU methods.
     #[arg(long)]
     stats: bool,
+    /// Predict the GPU time of the render's emulated kernels (CIS-LBDPT, the LVC
+    /// megakernel, the PDACRT caster) on a GPU: a shipped profile's name (h200) or a
+    /// profile file (simt/profiles/). Turns the emulator's measurement on, which slows
+    /// the render, and prints the kernel table with a predicted GPU ms column.
+    #[arg(long, value_parser = parse_gpu_profile)]
+    gpu_profile: Option<simt::GpuProfile>,
+}
+
+/// `--gpu-profile`: a shipped profile by name, or a profile file.
+fn parse_gpu_profile(s: &str) -> std::result::Result<simt::GpuProfile, String> {
+    if std::path::Path::new(s).is_file() {
+        let text = std::fs::read_to_string(s).map_err(|e| format!("{s}: {e}"))?;
+        simt::GpuProfile::parse(&text).map_err(|e| format!("{s}: {e}"))
+    } else {
+        simt::GpuProfile::named(s)
+    }
 }
 
 /// `--integrator`: a label of the integrator registry.
@@ -368,6 +384,7 @@ fn run_render(args: RenderArgs) -> Result<bool> {
     opts.rr_depth = args.rr_depth.unwrap_or(opts.rr_depth);
     opts.filter = args.filter.unwrap_or(opts.filter);
     opts.filter_mode = args.filter_mode.unwrap_or(opts.filter_mode);
+    opts.gpu_profile = args.gpu_profile.clone();
     warpray::film::check_size(width, height)?;
     desc.scene.check_renderable()?;
 
@@ -443,8 +460,18 @@ fn run_render(args: RenderArgs) -> Result<bool> {
             caster.build_seconds(),
             outs.join(", ")
         );
-        if args.stats {
+        if args.stats || args.gpu_profile.is_some() {
             print!("{}", stats_report(&stats, caster.as_ref(), &desc.scene, &film, threads));
+        }
+        if let (Some(p), Some((kernels, _))) = (&args.gpu_profile, &stats.device) {
+            let gpu: f64 = kernels.iter().map(|k| k.gpu_seconds).sum();
+            let cpu: f64 = kernels.iter().map(|k| k.seconds).sum();
+            println!(
+                "  GPU time predicted on {} (simt/profiles, docs/simt.md): {:.3} ms of kernels, against {:.3} ms emulated (measured) on {threads} CPU threads",
+                p.name,
+                gpu * 1e3,
+                cpu * 1e3
+            );
         }
         if film.rejected > 0 {
             eprintln!("warning: {} sample estimates were NaN, infinite or negative and were dropped", film.rejected);

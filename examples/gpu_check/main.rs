@@ -9,7 +9,11 @@
 //!     gpu_check gpu --model bunny --batch primary --repeat 1
 //! gpu_check report --simt simt.tsv --ncu ncu.csv
 //! gpu_check gpu --model dragon,bunny,conference --batch primary,shadow,ao --size 1024 --repeat 5 --cpu bvh,dacrt
+//! gpu_check calibrate --probes micro_probes.tsv --ncu micro_ncu.csv   # a GPU profile (cuda/microbench.sh)
+//! gpu_check time --records rec.tsv --ncu ncu.csv --ncu-all ncutime.csv  # predicted GPU time against ncu's
 //! ```
+//!
+//! About 590 lines: one subcommand per step of the check, sharing the input options.
 //!
 //! `gpu` checks every GPU key against the CPU PDACRT's (bit for bit) and every 256th ray
 //! against brute force, and exits non-zero when any differs.
@@ -125,6 +129,32 @@ enum Cmd {
         #[arg(long)]
         lines: Option<usize>,
     },
+    /// A GPU profile for simt's time model from the microbenchmarks' output and ncu's
+    /// CSV of them (`cuda/microbench.sh`), to standard output.
+    Calibrate {
+        #[arg(long)]
+        probes: std::path::PathBuf,
+        #[arg(long)]
+        ncu: std::path::PathBuf,
+        /// Lines for the file's header comment (the machine, the date, the command).
+        #[arg(long, default_value = "")]
+        header: String,
+    },
+    /// simt's predicted GPU time against Nsight Compute's, kernel by kernel, from the
+    /// emulator's launch records (`simt --launches`, `cis --simt-launches`) and ncu's CSV
+    /// of the same launches; with `--ncu-all` (every kernel, CUB's too) the pipelines'
+    /// totals as well.
+    Time {
+        #[arg(long, value_delimiter = ',')]
+        records: Vec<std::path::PathBuf>,
+        #[arg(long, value_delimiter = ',')]
+        ncu: Vec<std::path::PathBuf>,
+        #[arg(long, value_delimiter = ',')]
+        ncu_all: Vec<std::path::PathBuf>,
+        /// A shipped profile's name (`h200`) or a profile file.
+        #[arg(long, default_value = "h200")]
+        gpu_profile: String,
+    },
     /// Join a `simt` TSV and an ncu CSV into the comparison table.
     Report {
         #[arg(long)]
@@ -195,8 +225,13 @@ fn run(a: Args) -> Result<(), String> {
         Cmd::Source { csv, simt_launches, classes, first, lines } => {
             source::source_run(&csv, simt_launches.as_deref(), &classes, first.unwrap_or(usize::MAX), lines)?
         }
+        Cmd::Calibrate { probes, ncu: csv, header } => {
+            let c = warpray::gpu::calibrate::calibrate(&read(&probes)?, &read(&csv)?)
+                .map_err(|e| format!("{} / {}: {e}", probes.display(), csv.display()))?;
+            print!("{}", c.to_text(&header));
+        }
+        Cmd::Time { records, ncu: csv, ncu_all, gpu_profile } => time_run(&records, &csv, &ncu_all, &gpu_profile)?,
         Cmd::Report { simt, ncu: csv } => {
-            let read = |p: &std::path::Path| std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()));
             let simt = tsv::read(&read(&simt)?).map_err(|e| format!("{}: {e}", simt.display()))?;
             let gpu = ncu::parse_csv(&read(&csv)?).map_err(|e| format!("{}: {e}", csv.display()))?;
             let rows = ncu::compare(&simt, &gpu);
@@ -219,20 +254,92 @@ fn run(a: Args) -> Result<(), String> {
     Ok(())
 }
 
+/// A text file, plain or gzip-compressed (`.gz`).
+pub(crate) fn read(p: &std::path::Path) -> Result<String, String> {
+    let bytes = std::fs::read(p).map_err(|e| format!("{}: {e}", p.display()))?;
+    if p.extension().is_some_and(|e| e == "gz") {
+        let mut s = String::new();
+        std::io::Read::read_to_string(&mut flate2::read::GzDecoder::new(&bytes[..]), &mut s)
+            .map_err(|e| format!("{}: {e}", p.display()))?;
+        Ok(s)
+    } else {
+        String::from_utf8(bytes).map_err(|e| format!("{}: {e}", p.display()))
+    }
+}
+
+/// A shipped profile by name, or a profile file.
+pub(crate) fn gpu_profile(name: &str) -> Result<simt::GpuProfile, String> {
+    if std::path::Path::new(name).is_file() {
+        simt::GpuProfile::parse(&read(std::path::Path::new(name))?).map_err(|e| format!("{name}: {e}"))
+    } else {
+        simt::GpuProfile::named(name)
+    }
+}
+
+fn time_run(
+    records: &[std::path::PathBuf],
+    csv: &[std::path::PathBuf],
+    all: &[std::path::PathBuf],
+    profile: &str,
+) -> Result<(), String> {
+    use warpray::gpu::time_check;
+    let p = gpu_profile(profile)?;
+    println!("Profile: {} ({profile}).\n", p.name);
+    let mut every = Vec::new();
+    for (i, path) in records.iter().enumerate() {
+        let recs = simt::records_from_tsv(&read(path)?).map_err(|e| format!("{}: {e}", path.display()))?;
+        if let Some(c) = csv.get(i) {
+            let gpu = ncu::parse_csv(&read(c)?).map_err(|e| format!("{}: {e}", c.display()))?;
+            let rows = time_check::kernel_times(&recs, &gpu, &p);
+            println!("{} against {}:\n\n{}", path.display(), c.display(), time_check::table(&rows));
+            every.extend(rows);
+        }
+        if let Some(a) = all.get(i) {
+            let gpu = ncu::parse_csv(&read(a)?).map_err(|e| format!("{}: {e}", a.display()))?;
+            let measured: f64 = gpu.iter().map(|g| g.seconds).sum();
+            let predicted = time_check::predicted_total(&recs, &p);
+            println!(
+                "Pipeline: predicted {:.3} ms ({} launches), measured {:.3} ms ({} launches, every kernel): {:+.0} %\n",
+                predicted * 1e3,
+                recs.len(),
+                measured * 1e3,
+                gpu.iter().map(|g| g.launches).sum::<u64>(),
+                (predicted - measured) / measured * 100.0
+            );
+        }
+    }
+    if csv.len() > 1 {
+        let (mape, worst) = time_check::errors(&every);
+        println!(
+            "All files: mean absolute error {:.1} % over {} kernel rows; worst {}",
+            mape * 100.0,
+            every.len(),
+            worst.map_or("-".into(), |w| format!("{} ({:+.0} %)", w.name, w.error() * 100.0))
+        );
+    }
+    Ok(())
+}
+
 fn simt_run(input: &Input, out: &std::path::Path, launches: Option<&std::path::Path>) -> Result<(), String> {
     let mut p = params(input);
     p.measure = true;
     let (mut rows, mut each) = (Vec::new(), Vec::new());
     for (model, scene, name, rays, shadow) in inputs(input)? {
         let caster = Pdacrt::from_triangles(&scene.triangle_vertices(), p);
+        // With a profile the launches also record what the time model reads.
+        caster.device().set_gpu_profile(Some(simt::GpuProfile::named("h200")?));
         let start = Instant::now();
         cast(&caster, &rays, shadow);
         eprintln!("simt {model} {name}: {} rays, {:.1} s measured", rays.len(), start.elapsed().as_secs_f64());
         rows.extend(caster.device().kernel_stats());
-        each.extend(caster.device().launch_log().iter().map(simt::KernelSummary::from));
+        let log = caster.device().launch_log();
+        if caster.device().launch_mark() > log.len() as u64 {
+            return Err(format!("{model} {name}: more launches than the device's log keeps ({})", log.len()));
+        }
+        each.extend(log);
     }
     if let Some(path) = launches {
-        std::fs::write(path, tsv::write(&each)).map_err(|e| format!("{}: {e}", path.display()))?;
+        std::fs::write(path, simt::records_to_tsv(&each)).map_err(|e| format!("{}: {e}", path.display()))?;
     }
     std::fs::write(out, tsv::write(&merge(rows))).map_err(|e| format!("{}: {e}", out.display()))
 }
@@ -259,6 +366,10 @@ fn cis_run(
                 ..Default::default()
             };
             (opts.cis.sort, opts.cis.measure) = (sorted, simt.is_some());
+            if simt.is_some() {
+                // With a profile the launches also record what the time model reads.
+                opts.gpu_profile = Some(simt::GpuProfile::named("h200")?);
+            }
             let name = format!("{} {}", path.display(), if sorted { "sorted" } else { "unsorted" });
             if simt.is_none() {
                 let lib = warpray::gpu::library_path();
@@ -305,10 +416,12 @@ fn cis_run(
                     rows.push(k);
                 }
             }
-            for l in r.device().map(|d| d.launch_log()).unwrap_or_default() {
-                let mut k = simt::KernelSummary::from(&l);
-                if rename(&mut k) {
-                    launches.push(k);
+            for mut l in r.device().map(|d| d.launch_log()).unwrap_or_default() {
+                if l.name == "cis::shade" {
+                    l.name = order;
+                }
+                if l.name == order || l.name == "cis::alive_flags" {
+                    launches.push(l);
                 }
             }
         }
@@ -317,7 +430,7 @@ fn cis_run(
         std::fs::write(out, tsv::write(&merge(rows))).map_err(|e| format!("{}: {e}", out.display()))?;
     }
     if let Some(out) = simt_launches {
-        std::fs::write(out, tsv::write(&launches)).map_err(|e| format!("{}: {e}", out.display()))?;
+        std::fs::write(out, simt::records_to_tsv(&launches)).map_err(|e| format!("{}: {e}", out.display()))?;
     }
     if failed > 0 {
         return Err(format!(

@@ -2,7 +2,7 @@
 //! beside the emulator's statistics of the same launches (`docs/gpu-check.md`, "Which
 //! instructions the model sees").
 
-use super::{merge, tsv};
+use super::{merge, read};
 use warpray::gpu::ncu;
 
 /// The source-level split of each kernel in an export, and, given the emulator's
@@ -20,15 +20,7 @@ pub fn source_run(
         "all" => (source::ALL_CLASSES, &["all"]),
         other => return Err(format!("unknown classes {other} (known: cis, all)")),
     };
-    let bytes = std::fs::read(csv).map_err(|e| format!("{}: {e}", csv.display()))?;
-    let text = if csv.extension().is_some_and(|e| e == "gz") {
-        let mut s = String::new();
-        std::io::Read::read_to_string(&mut flate2::read::GzDecoder::new(&bytes[..]), &mut s)
-            .map_err(|e| format!("{}: {e}", csv.display()))?;
-        s
-    } else {
-        String::from_utf8(bytes).map_err(|e| format!("{}: {e}", csv.display()))?
-    };
+    let text = read(csv)?;
     let insts = source::parse(&text).map_err(|e| format!("{}: {e}", csv.display()))?;
     let splits = source::split(&insts, classes, |_, k| k < first);
     for s in &splits {
@@ -38,8 +30,11 @@ pub fn source_run(
         println!("{}", warpray::gpu::lines::lines_table(&warpray::gpu::lines::lines(&insts, |_, k| k < first), top));
     }
     let Some(path) = simt_launches else { return Ok(()) };
-    let launches = tsv::read(&std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let launches: Vec<simt::KernelSummary> = simt::records_from_tsv(&read(path)?)
+        .map_err(|e| format!("{}: {e}", path.display()))?
+        .iter()
+        .map(simt::KernelSummary::from)
+        .collect();
     println!("The accesses the emulator sees ({}), on the same launches:\n", seen.join(", "));
     println!("| kernel | launches | figure | simt | GPU | Δ |\n|---|---:|---|---:|---:|---:|");
     for s in &splits {

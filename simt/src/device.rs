@@ -104,6 +104,26 @@ impl Device {
         self.inner.measure.store(on, Relaxed);
     }
 
+    /// The GPU on which measured launches are predicted ([`crate::timing::predict`]):
+    /// their times sum into [`KernelSummary::gpu_seconds`]. `None` stops predicting.
+    /// With a profile, measured launches also record their footprints and longest warp
+    /// ([`LaunchRecord::footprint_sectors`], ..), which costs them time; without, those
+    /// are 0.
+    pub fn set_gpu_profile(&self, profile: Option<crate::timing::GpuProfile>) {
+        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).profile = profile;
+    }
+
+    /// Whether measured launches gather the footprints and warp chains the GPU time
+    /// model needs (only with a profile set: they cost measured launches time).
+    pub(crate) fn predicting(&self) -> bool {
+        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).profile.is_some()
+    }
+
+    /// The GPU profile set with [`Device::set_gpu_profile`].
+    pub fn gpu_profile(&self) -> Option<crate::timing::GpuProfile> {
+        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).profile.clone()
+    }
+
     /// Whether launches are measured (SIMD efficiency, memory traffic) now.
     pub fn measuring(&self) -> bool {
         self.inner.measure.load(Relaxed)
@@ -198,24 +218,22 @@ impl Device {
             return Err(LaunchError::Regions { kernel: name, regions: cfg.regions.len() });
         }
         let measure = self.measuring();
+        let predicting = measure && self.predicting();
         let shared_words = cfg.shared_bytes.div_ceil(4);
         let run_block = |mut w: Worker, b| {
             let mut block = Block::new(&mut w, b, cfg.block, cfg.grid, shared_words, measure);
             kernel(&mut block);
             w
         };
-        let finish = |w: Worker| {
-            let m = w.meter.into_inner();
-            (m.totals, m.race)
-        };
+        let finish = |w: Worker| w.meter.into_inner().finish();
         let threads = cfg.grid as u64 * cfg.block as u64;
         let ((counters, race), seconds) = self.run_blocks(name, threads, |serial| {
             if serial {
-                finish((0..cfg.grid).fold(Worker::new(shared_words), run_block))
+                finish((0..cfg.grid).fold(Worker::new(shared_words, predicting), run_block))
             } else {
                 (0..cfg.grid)
                     .into_par_iter()
-                    .fold(|| Worker::new(shared_words), run_block)
+                    .fold(|| Worker::new(shared_words, predicting), run_block)
                     .map(finish)
                     .reduce(|| (Counters::default(), None), |(a, ra), (b, rb)| (a.merge(b), first_race(ra, rb)))
             }
@@ -227,7 +245,7 @@ impl Device {
         if let Some(region) = (named..MAX_REGIONS).find(|&r| counters.issued[r] > 0) {
             return Err(LaunchError::UnnamedWork { kernel: name, region, named });
         }
-        Ok(self.record_launch(name, &cfg, seconds, measure, &counters))
+        Ok(self.record_launch(name, &cfg, seconds, measure, counters))
     }
 
     /// `run(serial)`, serial when [`Device::runs_serially`] says so (then learning the
@@ -250,7 +268,7 @@ impl Device {
         cfg: &LaunchConfig,
         seconds: f64,
         measured: bool,
-        counters: &Counters,
+        mut counters: Counters,
     ) -> LaunchRecord {
         let record = LaunchRecord {
             name,
@@ -271,6 +289,9 @@ impl Device {
             stores: counters.stores,
             atomics: counters.atomics,
             barriers: counters.barriers,
+            footprint_sectors: if measured { counters.footprint_sectors() } else { 0 },
+            block_sectors: counters.block_sectors,
+            longest_warp: counters.longest_warp,
         };
         self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).add(&record);
         record
@@ -372,6 +393,9 @@ impl Device {
             stores: Default::default(),
             atomics: Default::default(),
             barriers: 0,
+            footprint_sectors: 0,
+            block_sectors: 0,
+            longest_warp: (0, 0),
         };
         self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).add(&record);
         (r, record)
@@ -399,9 +423,9 @@ impl Device {
         self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).since(mark)
     }
 
-    /// Forgets all launch statistics (memory accounting is kept).
+    /// Forgets all launch statistics (memory accounting and the GPU profile are kept).
     pub fn reset_stats(&self) {
-        *self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()) = Stats::default();
+        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).clear();
     }
 }
 

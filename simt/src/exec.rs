@@ -73,8 +73,13 @@ pub(crate) struct Worker {
 }
 
 impl Worker {
-    pub fn new(shared_words: usize) -> Worker {
-        Worker { shared: vec![Cell::new(0); shared_words], regs: Vec::new(), meter: RefCell::new(Meter::default()) }
+    /// A worker; `predicting`: its meter also gathers what the GPU time model needs.
+    pub fn new(shared_words: usize, predicting: bool) -> Worker {
+        Worker {
+            shared: vec![Cell::new(0); shared_words],
+            regs: Vec::new(),
+            meter: RefCell::new(Meter::new(predicting)),
+        }
     }
 }
 

@@ -59,6 +59,7 @@ pub mod meter;
 pub mod prims;
 pub mod seq;
 pub mod stats;
+pub mod timing;
 mod transform;
 
 pub use ambient::{Scope, scope};
@@ -71,4 +72,5 @@ pub use prims::queue::{QueuePusher, WorkQueue};
 pub use prims::scan::{exclusive_scan, inclusive_scan, reduce, transform_exclusive_scan};
 pub use prims::select::{Flagged, copy_if, copy_if_stencil, fill, gather, reduce_by_key, scatter, sequence};
 pub use prims::sort::{RadixKey, sort_by_key, sort_by_key_bits};
-pub use stats::{KernelSummary, LaunchRecord, RegionStats};
+pub use stats::{KernelSummary, LaunchRecord, RegionStats, records_from_tsv, records_to_tsv};
+pub use timing::{GpuProfile, Prediction};

@@ -18,3 +18,16 @@ pub const SECTOR_BYTES: u64 = 32;
 /// (`LDS.64`), the 64-bit add (`IADD3`, `IMAD.X`), the swap (`ATOMS.CAST.SPIN.64`), the
 /// 64-bit test of its result (two `ISETP`) and the branch back.
 pub const RETRY_TRIP_INSTRUCTIONS: u64 = 7;
+/// One in `2^FOOTPRINT_SAMPLE_BITS` sectors (chosen by a hash of the address) is kept
+/// to estimate how many distinct sectors a measured launch touches (its footprint),
+/// as SHARDS (Waldspurger et al., FAST 2015) samples addresses for reuse distances.
+pub const FOOTPRINT_SAMPLE_BITS: u32 = 4;
+
+/// The multiplier of the sampling hash (Fibonacci hashing: 2^64 over the golden ratio).
+pub const FOOTPRINT_HASH: u64 = 0x9e37_79b9_7f4a_7c15;
+
+/// Whether `sector` is one of the sampled ones: the top bits of its hash are zero.
+#[inline]
+pub fn footprint_sampled(sector: u64) -> bool {
+    sector.wrapping_mul(FOOTPRINT_HASH) >> (64 - FOOTPRINT_SAMPLE_BITS) == 0
+}

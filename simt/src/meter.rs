@@ -17,11 +17,17 @@
 //! Each warp-level memory instruction is one *request*; the distinct 32-byte sectors its
 //! lanes touch are its *sectors*. Loads, stores and atomics are kept apart.
 //!
-//! About 520 lines on purpose: the matching of lanes into warp instructions, the
-//! memory traffic and the race check share the per-lane and per-warp state kept
-//! private here.
+//! With a GPU profile set, it also gathers what the time model reads: a sample of the
+//! sectors touched (the launch's and each block's distinct ones) and each warp's chain
+//! of instructions and loads.
+//!
+//! About 640 lines on purpose: the matching of lanes into warp instructions, the
+//! memory traffic, the footprints and the race check share the per-lane and per-warp
+//! state kept private here.
 
-use crate::limits::{MAX_PATHS, MAX_REGIONS, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES, WARP_SIZE};
+use crate::limits::{
+    FOOTPRINT_HASH, MAX_PATHS, MAX_REGIONS, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES, WARP_SIZE, footprint_sampled,
+};
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
@@ -83,10 +89,18 @@ pub(crate) struct Counters {
     pub atomics: Traffic,
     pub barriers: u64,
     pub threads: u64,
+    /// The sampled sectors (`limits::footprint_sampled`) of global accesses, with
+    /// repeats: sorted and deduplicated when the launch is recorded.
+    pub footprint: Vec<u64>,
+    /// Distinct sectors per block, summed (estimated from the sampled ones): what
+    /// reaches L2 when a block's repeated accesses hit its SM's L1.
+    pub block_sectors: u64,
+    /// The warp with the most warp instructions: (instructions, load requests).
+    pub longest_warp: (u64, u64),
 }
 
 impl Counters {
-    pub fn merge(mut self, o: Counters) -> Counters {
+    pub fn merge(mut self, mut o: Counters) -> Counters {
         for r in 0..MAX_REGIONS {
             self.issued[r] += o.issued[r];
             self.active[r] += o.active[r];
@@ -98,7 +112,22 @@ impl Counters {
         self.atomics.add(&o.atomics);
         self.barriers += o.barriers;
         self.threads += o.threads;
+        if self.footprint.len() < o.footprint.len() {
+            std::mem::swap(&mut self.footprint, &mut o.footprint);
+        }
+        self.footprint.extend_from_slice(&o.footprint);
+        self.block_sectors += o.block_sectors;
+        self.longest_warp = self.longest_warp.max(o.longest_warp);
         self
+    }
+
+    /// Distinct sectors the launch touched, estimated from the sampled ones (sorts
+    /// the sample in place).
+    pub fn footprint_sectors(&mut self) -> u64 {
+        use rayon::slice::ParallelSliceMut;
+        self.footprint.par_sort_unstable();
+        self.footprint.dedup();
+        (self.footprint.len() as u64) << crate::limits::FOOTPRINT_SAMPLE_BITS
     }
 }
 
@@ -186,9 +215,23 @@ pub(crate) struct Meter {
     /// Lanes of the current block phase at each (call site, shared word, warp) retry
     /// loop.
     spins: Vec<((usize, usize, u32), u32)>,
+    /// The current block's sampled sectors, with repeats.
+    block_sampled: Vec<u64>,
+    /// Per warp of the current block: (warp instructions, load requests).
+    warp_chain: Vec<(u64, u64)>,
+    /// Instructions and load requests counted at once (`global_lanes`) in the current
+    /// warp phase, added to its warp's chain when the phase closes.
+    phase_chain: (u64, u64),
+    /// Whether to gather footprints and warp chains (for the GPU time model).
+    predicting: bool,
 }
 
 impl Meter {
+    /// A meter; `predicting`: it also gathers footprints and warp chains.
+    pub fn new(predicting: bool) -> Meter {
+        Meter { predicting, ..Meter::default() }
+    }
+
     fn intern(&mut self, key: usize) -> u32 {
         if self.last_key.0 == key && !self.index.is_empty() {
             return self.last_key.1;
@@ -283,9 +326,17 @@ impl Meter {
             return;
         }
         let parts = (size / width).max(1);
+        let (lo, hi) = (addr / SECTOR_BYTES, (addr + lanes as u64 * size - 1) / SECTOR_BYTES);
+        // Every sector of the lanes' elements is touched (by some part), so the sampled
+        // footprint is that of the whole range.
+        if self.predicting {
+            self.sample_range(lo, hi);
+            self.phase_chain.0 += parts;
+            self.phase_chain.1 += if kind == Kind::Load { parts } else { 0 };
+        }
         let sectors = if parts == 1 && width == size {
             // Whole elements side by side: one contiguous byte range.
-            (addr + lanes as u64 * size - 1) / SECTOR_BYTES - addr / SECTOR_BYTES + 1
+            hi - lo + 1
         } else {
             // Part `p` of every lane's element: `width` bytes every `size` bytes.
             (0..parts)
@@ -314,6 +365,64 @@ impl Meter {
         traffic.requests += parts;
         traffic.sectors += sectors;
         traffic.lanes += parts * lanes as u64;
+    }
+
+    /// Keeps a sector for the block's (and so the launch's) footprint if it is sampled.
+    #[inline]
+    fn sample(&mut self, sector: u64) {
+        if self.predicting && footprint_sampled(sector) {
+            self.block_sampled.push(sector);
+        }
+    }
+
+    /// The sampled sectors of `lo..=hi`: the hash of consecutive sectors steps by the
+    /// multiplier, so each test is an add and a compare.
+    #[cold]
+    #[inline(never)]
+    fn sample_range(&mut self, lo: u64, hi: u64) {
+        let (k, top) = (FOOTPRINT_HASH, u64::MAX >> crate::limits::FOOTPRINT_SAMPLE_BITS);
+        let mut h = lo.wrapping_mul(k);
+        for s in lo..hi + 1 {
+            if h <= top {
+                self.block_sampled.push(s);
+            }
+            h = h.wrapping_add(k);
+        }
+    }
+
+    /// Adds one warp's instructions and load requests to its chain in this block.
+    fn chain(&mut self, issued: u64, loads: u64) {
+        if !self.predicting {
+            return;
+        }
+        let warp = (self.now.thread / WARP_SIZE) as usize;
+        if self.warp_chain.len() <= warp {
+            self.warp_chain.resize(warp + 1, (0, 0));
+        }
+        let c = &mut self.warp_chain[warp];
+        (c.0, c.1) = (c.0 + issued, c.1 + loads);
+    }
+
+    /// Closes the current block: its distinct sectors and its longest warp go into the
+    /// totals. Called when the next block begins and by [`Meter::finish`].
+    pub fn close_block(&mut self) {
+        if !self.block_sampled.is_empty() {
+            self.block_sampled.sort_unstable();
+            self.block_sampled.dedup();
+            self.totals.block_sectors += (self.block_sampled.len() as u64) << crate::limits::FOOTPRINT_SAMPLE_BITS;
+            // The launch's footprint gathers each block's distinct samples.
+            self.totals.footprint.extend_from_slice(&self.block_sampled);
+            self.block_sampled.clear();
+        }
+        for c in self.warp_chain.drain(..) {
+            self.totals.longest_warp = self.totals.longest_warp.max(c);
+        }
+    }
+
+    /// The launch's counters from this worker, its last block closed.
+    pub fn finish(mut self) -> (Counters, Option<Race>) {
+        self.close_block();
+        (self.totals, self.race)
     }
 
     /// A call site inside copy `self.copy` of unrolled code.
@@ -397,6 +506,7 @@ impl Meter {
     }
 
     pub fn begin_block(&mut self, block: u32, shared_words: usize) {
+        self.close_block();
         self.block = block;
         self.now.epoch += 1;
         if self.shadow.len() < shared_words {
@@ -464,7 +574,10 @@ impl Meter {
 
     /// Closes a lane phase of a warp: its warp instructions go into the totals.
     pub fn end_warp_phase(&mut self) {
+        let (mut issued, mut loads) = (0, 0);
         for s in &self.slots {
+            issued += s.max_units as u64;
+            loads += (s.kind == Kind::Load && s.on > 0) as u64;
             match s.kind {
                 Kind::Work(r) => {
                     self.totals.issued[r as usize] += s.max_units as u64;
@@ -491,6 +604,9 @@ impl Meter {
                 self.sectors.sort_unstable();
             }
             self.sectors.dedup();
+            for i in 0..self.sectors.len() {
+                self.sample(self.sectors[i].1);
+            }
             for &(slot, _) in &self.sectors {
                 match self.slots[slot as usize].kind {
                     Kind::Load => self.totals.loads.sectors += 1,
@@ -505,6 +621,8 @@ impl Meter {
         }
         self.warp_touched.clear();
         self.slots.clear();
+        let (i, l) = std::mem::take(&mut self.phase_chain);
+        self.chain(issued + i, loads + l);
     }
 }
 

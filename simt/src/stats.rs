@@ -2,6 +2,7 @@
 
 use crate::limits::WARP_SIZE;
 pub use crate::meter::Traffic;
+use crate::timing::{GpuProfile, predict};
 use std::collections::{HashMap, VecDeque};
 use std::fmt::Write;
 
@@ -65,6 +66,14 @@ pub struct LaunchRecord {
     pub atomics: Traffic,
     /// Block-wide barriers (`sync_threads`) passed, per block, summed.
     pub barriers: u64,
+    /// Distinct 32-byte sectors the launch's global accesses touched (estimated from a
+    /// sample of 1 in 16 addresses; 0 when unmeasured).
+    pub footprint_sectors: u64,
+    /// Distinct sectors per block, summed (estimated likewise): the sectors that reach
+    /// L2 if each block's repeated accesses hit L1.
+    pub block_sectors: u64,
+    /// The warp that issued the most instructions: (warp instructions, load requests).
+    pub longest_warp: (u64, u64),
 }
 
 impl LaunchRecord {
@@ -118,6 +127,11 @@ pub struct KernelSummary {
     pub shared_bytes: usize,
     /// Barriers passed.
     pub barriers: u64,
+    /// Distinct sectors of each launch, summed.
+    pub footprint_sectors: u64,
+    /// Predicted GPU time of the measured launches on the device's GPU profile, seconds
+    /// (0 without one; see [`crate::timing`]).
+    pub gpu_seconds: f64,
 }
 
 impl KernelSummary {
@@ -147,6 +161,8 @@ impl KernelSummary {
         self.atomics.add(&o.atomics);
         self.shared_bytes = self.shared_bytes.max(o.shared_bytes);
         self.barriers += o.barriers;
+        self.footprint_sectors += o.footprint_sectors;
+        self.gpu_seconds += o.gpu_seconds;
     }
 
     fn add_regions(&mut self, regions: &[RegionStats]) {
@@ -158,7 +174,7 @@ impl KernelSummary {
         }
     }
 
-    fn add(&mut self, r: &LaunchRecord) {
+    fn add(&mut self, r: &LaunchRecord, gpu_seconds: f64) {
         self.name = r.name;
         self.launches += 1;
         self.seconds += r.seconds;
@@ -172,6 +188,8 @@ impl KernelSummary {
         self.atomics.add(&r.atomics);
         self.shared_bytes = self.shared_bytes.max(r.shared_bytes);
         self.barriers += r.barriers;
+        self.footprint_sectors += r.footprint_sectors;
+        self.gpu_seconds += gpu_seconds;
     }
 }
 
@@ -179,13 +197,15 @@ impl From<&LaunchRecord> for KernelSummary {
     /// The summary of one launch (to compare launches one by one).
     fn from(r: &LaunchRecord) -> Self {
         let mut s = KernelSummary::default();
-        s.add(r);
+        s.add(r, 0.0);
         s
     }
 }
 
 #[derive(Default)]
 pub(crate) struct Stats {
+    /// The GPU measured launches are predicted on, if any.
+    pub profile: Option<GpuProfile>,
     /// Launches recorded since the last reset.
     total: u64,
     order: Vec<&'static str>,
@@ -199,11 +219,17 @@ impl Stats {
         if !self.by_name.contains_key(r.name) {
             self.order.push(r.name);
         }
-        self.by_name.entry(r.name).or_default().add(r);
+        let gpu = self.profile.as_ref().and_then(|p| predict(r, p)).map_or(0.0, |t| t.seconds);
+        self.by_name.entry(r.name).or_default().add(r, gpu);
         if self.log.len() == LOG_CAPACITY {
             self.log.pop_front();
         }
         self.log.push_back(r.clone());
+    }
+
+    /// Forgets every launch; keeps the profile.
+    pub fn clear(&mut self) {
+        *self = Stats { profile: self.profile.take(), ..Stats::default() };
     }
 
     pub fn summaries(&self) -> Vec<KernelSummary> {
@@ -225,17 +251,20 @@ impl Stats {
     }
 }
 
-/// A plain-text table of kernel summaries (what the benches print).
+/// A plain-text table of kernel summaries (what the benches print), with a column of
+/// predicted GPU time when the device had a GPU profile.
 pub fn format_table(rows: &[KernelSummary]) -> String {
+    let gpu = rows.iter().any(|r| r.gpu_seconds > 0.0);
     let mut s = String::new();
-    let _ = writeln!(
+    let _ = write!(
         s,
         "{:<32} {:>8} {:>10} {:>8} {:>9} {:>9} {:>10}",
         "kernel", "launches", "ms", "SIMD eff", "ld s/req", "st s/req", "shared B"
     );
+    let _ = writeln!(s, "{}", if gpu { format!(" {:>10}", "GPU ms") } else { String::new() });
     let opt = |x: Option<f64>, digits: usize| x.map_or("-".to_string(), |v| format!("{v:.digits$}"));
     for r in rows {
-        let _ = writeln!(
+        let _ = write!(
             s,
             "{:<32} {:>8} {:>10.3} {:>8} {:>9} {:>9} {:>10}",
             r.name,
@@ -246,6 +275,101 @@ pub fn format_table(rows: &[KernelSummary]) -> String {
             opt(r.stores.sectors_per_request(), 2),
             r.shared_bytes
         );
+        let _ = writeln!(s, "{}", if gpu { format!(" {:>10.3}", r.gpu_seconds * 1e3) } else { String::new() });
     }
     s
+}
+
+/// The columns of [`records_to_tsv`].
+const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads";
+
+/// Launch records as tab-separated lines, one per launch, to keep a measured run and
+/// predict from it later ([`crate::timing::predict`]). Declared regions are summed into
+/// one region named `work`.
+pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
+    let mut s = format!("{RECORD_HEADER}\n");
+    for r in records {
+        let mut work = RegionStats::default();
+        r.regions.iter().for_each(|x| work.add(x));
+        let t = |x: &Traffic| format!("{}\t{}\t{}", x.requests, x.sectors, x.lanes);
+        let _ = writeln!(
+            s,
+            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+            r.name,
+            r.grid,
+            r.block,
+            r.shared_bytes,
+            r.seconds,
+            r.measured as u8,
+            r.threads,
+            r.ops.issued,
+            r.ops.active,
+            work.issued,
+            work.active,
+            t(&r.loads),
+            t(&r.stores),
+            t(&r.atomics),
+            r.barriers,
+            r.footprint_sectors,
+            r.block_sectors,
+            r.longest_warp.0,
+            r.longest_warp.1
+        );
+    }
+    s
+}
+
+/// A kernel name read from a file, kept for the program's life (each distinct name
+/// once).
+fn intern(name: &str) -> &'static str {
+    use std::sync::Mutex;
+    static NAMES: Mutex<Vec<&'static str>> = Mutex::new(Vec::new());
+    let mut names = NAMES.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(n) = names.iter().find(|n| **n == name) {
+        return n;
+    }
+    let n: &'static str = Box::leak(name.to_string().into_boxed_str());
+    names.push(n);
+    n
+}
+
+/// Reads what [`records_to_tsv`] wrote; errors name the line and field.
+pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
+    let mut lines = text.lines().enumerate();
+    match lines.next() {
+        Some((_, h)) if h == RECORD_HEADER => {}
+        _ => return Err("not a simt launch-record file (its header differs)".into()),
+    }
+    let columns: Vec<&str> = RECORD_HEADER.split('\t').collect();
+    let mut out = Vec::new();
+    for (i, line) in lines {
+        let f: Vec<&str> = line.split('\t').collect();
+        if f.len() != columns.len() {
+            return Err(format!("line {}: {} fields, expected {}", i + 1, f.len(), columns.len()));
+        }
+        let n = |k: usize| f[k].parse::<u64>().map_err(|_| format!("line {}: {}: '{}'", i + 1, columns[k], f[k]));
+        let traffic = |k: usize| -> Result<Traffic, String> {
+            Ok(Traffic { requests: n(k)?, sectors: n(k + 1)?, lanes: n(k + 2)? })
+        };
+        let seconds: f64 = f[4].parse().map_err(|_| format!("line {}: seconds: '{}'", i + 1, f[4]))?;
+        out.push(LaunchRecord {
+            name: intern(f[0]),
+            grid: n(1)? as u32,
+            block: n(2)? as u32,
+            shared_bytes: n(3)? as usize,
+            seconds,
+            measured: n(5)? != 0,
+            threads: n(6)?,
+            ops: RegionStats { name: "ops", issued: n(7)?, active: n(8)? },
+            regions: vec![RegionStats { name: "work", issued: n(9)?, active: n(10)? }],
+            loads: traffic(11)?,
+            stores: traffic(14)?,
+            atomics: traffic(17)?,
+            barriers: n(20)?,
+            footprint_sectors: n(21)?,
+            block_sectors: n(22)?,
+            longest_warp: (n(23)?, n(24)?),
+        });
+    }
+    Ok(out)
 }

@@ -151,6 +151,7 @@ impl Device {
     ) -> LaunchRecord {
         let cfg = LaunchConfig::linear(out.len(), ELEMENT_BLOCK);
         let grid = cfg.grid;
+        let predicting = self.predicting();
         let (in_size, in_width) = (std::mem::size_of::<I>() as u64, access_width::<I>());
         let (out_size, out_width) = (std::mem::size_of::<O>() as u64, access_width::<O>());
         let run_block = |meter: RefCell<Meter>, (b, chunk): (usize, &mut [O])| {
@@ -178,21 +179,28 @@ impl Device {
                 m.global_lanes(Kind::Store, at, count, out_size, out_width);
                 m.end_warp_phase();
             }
-            meter.borrow_mut().totals.threads += BLOCK as u64;
+            let mut m = meter.borrow_mut();
+            m.totals.threads += BLOCK as u64;
+            m.close_block();
+            drop(m);
             meter
         };
         let threads = grid as u64 * BLOCK as u64;
         let (counters, seconds) = self.run_blocks(name, threads, |serial| {
             if serial {
-                out.chunks_mut(BLOCK).enumerate().fold(RefCell::default(), run_block).into_inner().totals
+                out.chunks_mut(BLOCK)
+                    .enumerate()
+                    .fold(RefCell::new(Meter::new(predicting)), run_block)
+                    .into_inner()
+                    .totals
             } else {
                 out.par_chunks_mut(BLOCK)
                     .enumerate()
-                    .fold(RefCell::default, run_block)
+                    .fold(|| RefCell::new(Meter::new(predicting)), run_block)
                     .map(|m| m.into_inner().totals)
                     .reduce(Counters::default, Counters::merge)
             }
         });
-        self.record_launch(name, &cfg, seconds, true, &counters)
+        self.record_launch(name, &cfg, seconds, true, counters)
     }
 }

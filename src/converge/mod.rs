@@ -16,6 +16,7 @@ use std::time::{Duration, Instant};
 
 mod chart;
 mod metrics;
+#[cfg(feature = "inspector")]
 pub(crate) use chart::tick;
 pub use chart::write_chart;
 pub use metrics::{Checkpoint, relmse, relmse_eps, rmse};

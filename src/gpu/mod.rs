@@ -20,6 +20,7 @@
 //! ```
 
 mod bvh;
+pub mod calibrate;
 mod cis;
 mod ffi;
 mod keys;
@@ -27,6 +28,7 @@ pub mod lines;
 pub mod ncu;
 mod pdacrt;
 pub mod source;
+pub mod time_check;
 
 pub use bvh::GpuBvh;
 pub use cis::{BounceCheck, GpuCis, ShadeCheck, check_render};

@@ -21,7 +21,9 @@ l1tex__t_requests_pipe_lsu_mem_global_op_ld.sum,l1tex__t_sectors_pipe_lsu_mem_gl
 l1tex__t_requests_pipe_lsu_mem_global_op_st.sum,l1tex__t_sectors_pipe_lsu_mem_global_op_st.sum,\
 l1tex__t_requests_pipe_lsu_mem_global_op_atom.sum,l1tex__t_sectors_pipe_lsu_mem_global_op_atom.sum,\
 l1tex__t_requests_pipe_lsu_mem_global_op_red.sum,l1tex__t_sectors_pipe_lsu_mem_global_op_red.sum,\
-launch__shared_mem_per_block_static,launch__shared_mem_per_block_dynamic,gpu__time_duration.sum";
+launch__shared_mem_per_block_static,launch__shared_mem_per_block_dynamic,gpu__time_duration.sum,\
+dram__bytes_read.sum,dram__bytes_write.sum,lts__t_sectors.sum,launch__registers_per_thread,\
+sm__cycles_elapsed.avg.per_second,launch__grid_size,launch__block_size";
 
 /// One kernel's counters, summed over its launches.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -44,6 +46,15 @@ pub struct GpuKernel {
     pub shared_bytes: u64,
     /// GPU time, seconds.
     pub seconds: f64,
+    /// Bytes read from and written to device memory (HBM), summed.
+    pub dram_bytes: f64,
+    /// Sectors the L2 cache served (every source), summed.
+    pub l2_sectors: f64,
+    /// Registers per thread (the largest of any launch).
+    pub registers: u64,
+    /// SM clock (cycles per second), summed over launches: [`GpuKernel::clock_hz`] is
+    /// the mean.
+    pub clock_hz_sum: f64,
 }
 
 impl GpuKernel {
@@ -51,12 +62,18 @@ impl GpuKernel {
     pub fn simd_efficiency(&self) -> Option<f64> {
         (self.inst > 0.0).then(|| self.thread_inst / (32.0 * self.inst))
     }
+
+    /// The SM clock, cycles per second, over this kernel's launches (`None` if not
+    /// collected).
+    pub fn clock_hz(&self) -> Option<f64> {
+        (self.clock_hz_sum > 0.0 && self.launches > 0).then(|| self.clock_hz_sum / self.launches as f64)
+    }
 }
 
 /// The kernel's name without parameters, template arguments or return type, under the
 /// namespace `pdacrt::` when it is one of ours (`void pdacrt::filter_rays(...)`,
 /// `filter_rays`), `cis::` for CIS-LBDPT's (`cis::shade_sorted(cis::ShadeArgs)`) and
-/// `cub::` for CUB's.
+/// `cub::` for CUB's; any other namespace is kept (`micro::hbm_read`, `bvh::trace`).
 pub fn short_name(full: &str) -> String {
     // Drop the parameter list and template arguments (outermost first).
     let mut depth = 0i32;
@@ -73,8 +90,8 @@ pub fn short_name(full: &str) -> String {
     let qualified = out.trim().rsplit(' ').next().unwrap_or("");
     let namespace = if full.contains("cub::") || base.starts_with("Device") {
         "cub"
-    } else if qualified.starts_with("cis::") {
-        "cis"
+    } else if let Some((ns, _)) = qualified.split_once("::") {
+        ns
     } else {
         "pdacrt"
     };
@@ -113,9 +130,14 @@ fn value(text: &str, unit: &str, line: usize, column: &str) -> Result<f64, Strin
         "usecond" | "us" => 1e-6,
         "msecond" | "ms" => 1e-3,
         "second" | "s" => 1.0,
+        "cycle/second" | "cycle/s" => 1.0,
+        "cycle/nsecond" | "cycle/ns" => 1e9,
+        "cycle/usecond" | "cycle/us" => 1e6,
         "Kbyte" | "KB" => 1e3,
         "Mbyte" | "MB" => 1e6,
         "Kibyte" | "KiB" => 1024.0,
+        "Gbyte" | "GB" => 1e9,
+        "Mibyte" | "MiB" => 1024.0 * 1024.0,
         _ => 1.0,
     };
     Ok(v * scale)
@@ -169,6 +191,10 @@ pub fn parse_csv(text: &str) -> Result<Vec<GpuKernel>, String> {
             shared_bytes: (get("launch__shared_mem_per_block_static")? + get("launch__shared_mem_per_block_dynamic")?)
                 as u64,
             seconds: get("gpu__time_duration.sum")?,
+            dram_bytes: get("dram__bytes_read.sum")? + get("dram__bytes_write.sum")?,
+            l2_sectors: get("lts__t_sectors.sum")?,
+            registers: get("launch__registers_per_thread")? as u64,
+            clock_hz_sum: get("sm__cycles_elapsed.avg.per_second")?,
         };
         match kernels.iter_mut().find(|k| k.name == name) {
             Some(k) => {
@@ -180,6 +206,10 @@ pub fn parse_csv(text: &str) -> Result<Vec<GpuKernel>, String> {
                 k.atomics.add(&launch.atomics);
                 k.shared_bytes = k.shared_bytes.max(launch.shared_bytes);
                 k.seconds += launch.seconds;
+                k.dram_bytes += launch.dram_bytes;
+                k.l2_sectors += launch.l2_sectors;
+                k.registers = k.registers.max(launch.registers);
+                k.clock_hz_sum += launch.clock_hz_sum;
             }
             None => kernels.push(launch),
         }
@@ -297,6 +327,7 @@ mod tests {
         assert_eq!(short_name("DeviceSelectSweepKernel"), "cub::DeviceSelectSweepKernel");
         assert_eq!(short_name("cis::shade_sorted(cis::ShadeArgs)"), "cis::shade_sorted");
         assert_eq!(short_name("void cis::alive_flags(const unsigned int *, const cis::Slot *)"), "cis::alive_flags");
+        assert_eq!(short_name("void micro::hbm_read(const float4 *, unsigned long)"), "micro::hbm_read");
     }
 
     #[test]

@@ -29,6 +29,12 @@ pub(super) struct Job {
     pub(super) measure: bool,
 }
 
+/// The GPU the inspector's measured kernels are predicted on (the Kernels panel's
+/// "GPU ms" column): the shipped H200 profile.
+pub(super) fn inspector_gpu_profile() -> Option<simt::GpuProfile> {
+    simt::GpuProfile::named("h200").ok()
+}
+
 /// The steps before the first pass, in order (the status line names them, the image
 /// panel shows their progress).
 const PREPARING_STEPS: u32 = 4;
@@ -60,6 +66,11 @@ impl Job {
         // The command line's options: measuring only when asked (it slows the render).
         opts.cis.measure = self.measure;
         let mut renderer = Renderer::new(&scene, caster.as_ref(), &opts)?;
+        // A measured render's kernels, if it launches any, are also predicted on the GPU.
+        if let Some(dev) = renderer.device().filter(|_| self.measure) {
+            dev.set_measure(true);
+            dev.set_gpu_profile(inspector_gpu_profile());
+        }
         let mut film = renderer.film()?;
         {
             let mut s = lock(shared);
@@ -134,6 +145,7 @@ impl Job {
             &scene.triangle_vertices(),
             PdacrtParams { measure: true, inspect: true, ..PdacrtParams::default() },
         );
+        pd.device().set_gpu_profile(inspector_gpu_profile());
         let mut hits = vec![Hit::MISS; rays.len()];
         pd.closest(&rays, &mut hits);
         let mut kernels = pd.device().kernel_stats();
@@ -149,6 +161,7 @@ impl Job {
                     height: 32,
                     integrator: IntegratorKind::Cis,
                     cis: CisParams { sort, measure: true, pool: 1024, ..CisParams::default() },
+                    gpu_profile: inspector_gpu_profile(),
                     ..Default::default()
                 };
                 let mut renderer = Renderer::new(scene, &bvh, &o)?;

@@ -233,7 +233,8 @@ impl Inspector {
                 2 => k.seconds,
                 3 => k.simd_efficiency().unwrap_or(-1.0),
                 4 => k.sectors_per_request().unwrap_or(-1.0),
-                _ => k.shared_bytes as f64,
+                5 => k.shared_bytes as f64,
+                _ => k.gpu_seconds,
             }
         };
         if col == 0 {
@@ -246,7 +247,12 @@ impl Inspector {
         }
         egui::ScrollArea::vertical().show(ui, |ui| {
             egui::Grid::new("kernels").striped(true).show(ui, |ui| {
-                for (i, h) in ["kernel", "launches", "ms", "SIMD eff", "load sect/req", "shared B"].iter().enumerate() {
+                // Measured kernels are predicted on the inspector's GPU profile too.
+                let gpu = rows.iter().any(|k| k.gpu_seconds > 0.0);
+                let gpu_head =
+                    format!("GPU ms ({})", super::job::inspector_gpu_profile().map_or("?".to_string(), |p| p.name));
+                let heads = ["kernel", "launches", "ms", "SIMD eff", "load sect/req", "shared B", gpu_head.as_str()];
+                for (i, h) in heads.iter().take(if gpu { 7 } else { 6 }).enumerate() {
                     let arrow = if self.kernel_sort.0 == i { if self.kernel_sort.1 { " v" } else { " ^" } } else { "" };
                     if ui.button(format!("{h}{arrow}")).clicked() {
                         self.kernel_sort = (i, if self.kernel_sort.0 == i { !self.kernel_sort.1 } else { true });
@@ -261,6 +267,9 @@ impl Inspector {
                     ui.label(opt(k.simd_efficiency(), 3));
                     ui.label(opt(k.sectors_per_request(), 2));
                     ui.label(k.shared_bytes.to_string());
+                    if gpu {
+                        ui.label(format!("{:.3}", k.gpu_seconds * 1e3));
+                    }
                     ui.end_row();
                 }
             });

@@ -128,6 +128,10 @@ pub struct RenderOptions {
     /// How camera samples meet the filter: drawn from it (default, pbrt-v4) or splatted
     /// and normalised (Mitsuba scenes, Mitsuba 3's way).
     pub filter_mode: crate::filter::FilterMode,
+    /// Predict the GPU time of the render's emulated kernels (CIS-LBDPT, the LVC
+    /// megakernel, the PDACRT caster) on this GPU ([`simt::timing`]); turns the simt
+    /// device's measurement on, which slows the render.
+    pub gpu_profile: Option<simt::GpuProfile>,
 }
 
 /// One bidirectional strategy: `s` light-subpath vertices joined to `t` camera-subpath
@@ -178,6 +182,7 @@ impl Default for RenderOptions {
             strategy: None,
             filter: crate::filter::Filter::Box,
             filter_mode: crate::filter::FilterMode::Sample,
+            gpu_profile: None,
         }
     }
 }

@@ -81,7 +81,19 @@ impl<'a> Renderer<'a> {
         }
         let lights = Lights::new(scene);
         let integrator = Integrator::new(&Context { scene, lights: &lights, caster, opts });
-        Ok(Renderer { scene, caster, opts: opts.clone(), lights, integrator, counts: (0, 0) })
+        let r = Renderer { scene, caster, opts: opts.clone(), lights, integrator, counts: (0, 0) };
+        if let Some(p) = &opts.gpu_profile {
+            let dev = r.device().ok_or_else(|| {
+                Error::BadSetting(format!(
+                    "a GPU profile predicts the time of emulated GPU kernels, and the {} integrator with the {} caster launches none (CIS-LBDPT, the LVC megakernel and the PDACRT caster do)",
+                    opts.integrator.name(),
+                    caster.name()
+                ))
+            })?;
+            dev.set_measure(true);
+            dev.set_gpu_profile(Some(p.clone()));
+        }
+        Ok(r)
     }
 
     /// The settings it renders with.

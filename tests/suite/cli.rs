@@ -603,3 +603,38 @@ fn converge_reuses_its_reference_for_the_same_scene_and_settings() {
     assert!(other.contains("rendering the reference: path at 9 spp"), "{other}");
     assert_ne!(metadata(&reference)["reference_key"], key);
 }
+
+#[test]
+fn a_gpu_profile_adds_predicted_gpu_time_to_the_kernel_table() {
+    let dir = scratch("gpu-profile");
+    let png = dir.join("cis.png");
+    let out = warpray()
+        .args(["render", "--integrator", "cis", "--size", "24x24", "--spp", "1", "--threads", "1", "-q"])
+        .args(["--gpu-profile", "h200", "-o"])
+        .arg(&png)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("GPU ms") && stdout.contains("cis::shade"), "{stdout}");
+    let line = stdout.lines().find(|l| l.contains("GPU time predicted on NVIDIA H200")).expect("a total line");
+    let ms: f64 = line.split(": ").nth(1).and_then(|r| r.split(' ').next()).and_then(|v| v.parse().ok()).unwrap();
+    assert!(ms > 0.0 && ms.is_finite(), "{line}");
+    // An unknown profile, and a render that launches no emulated kernel: refused, nothing written.
+    for (args, says) in [
+        (vec!["--integrator", "cis", "--gpu-profile", "h100x"], "known: h200"),
+        (vec!["--integrator", "path", "--gpu-profile", "h200"], "launches none"),
+    ] {
+        let bad = dir.join("bad.png");
+        let out = warpray()
+            .args(["render", "--size", "8x8", "--spp", "1", "-q"])
+            .args(&args)
+            .arg("-o")
+            .arg(&bad)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.contains(says), "{args:?}: {stderr}");
+        assert!(!bad.exists(), "{args:?} wrote {}", bad.display());
+    }
+}

@@ -1,0 +1,269 @@
+// Microbenchmarks that calibrate simt's GPU time model (simt/src/timing.rs): one kernel
+// per quantity of a GPU profile (simt/profiles/*.toml), each launched PROBE_LAUNCHES
+// times. Nothing is timed here: cuda/microbench.sh runs this program under Nsight
+// Compute, whose per-launch duration, instruction, cache and DRAM counters are what
+// `gpu_check calibrate` turns into the profile. This program prints one line per probe
+// with the work it did (hops of a pointer chase, barriers, atomic lanes), which the
+// counters do not give.
+//
+// The probes are deliberately unlike the checked kernels (PDACRT, CIS): the model is
+// calibrated on these only, then checked on those.
+//
+//   nvcc -std=c++17 -O3 -arch=sm_90 -o target/cuda/microbench cuda/microbench.cu
+#include <cstdint>
+#include <cstdio>
+#include <vector>
+
+#define CHECK(x)                                                                        \
+    do {                                                                                \
+        cudaError_t e_ = (x);                                                           \
+        if (e_ != cudaSuccess) {                                                        \
+            fprintf(stderr, "microbench: %s: %s\n", #x, cudaGetErrorString(e_));        \
+            return 1;                                                                   \
+        }                                                                               \
+    } while (0)
+
+static const int PROBE_LAUNCHES = 3;
+
+namespace micro {
+
+// An empty kernel: the duration of a launch that does nothing (one block), and with
+// many blocks, what dispatching a block costs.
+__global__ void empty() {}
+__global__ void empty_blocks() {}
+
+// Issue rate of a mix of independent float and integer arithmetic (8 chains per thread,
+// no memory), with every SM full of warps.
+__global__ void alu_mix(float* out, int iters) {
+    float f[4];
+    uint32_t u[4];
+    for (int k = 0; k < 4; ++k) {
+        f[k] = threadIdx.x * 0.001f + k;
+        u[k] = threadIdx.x * 2654435761u + k;
+    }
+#pragma unroll 4
+    for (int i = 0; i < iters; ++i) {
+#pragma unroll
+        for (int k = 0; k < 4; ++k) {
+            f[k] = fmaf(f[k], 0.9999f, 0.0001f);
+            u[k] = (u[k] ^ (u[k] >> 7)) + 0x9e3779b9u;
+        }
+    }
+    float s = 0;
+    for (int k = 0; k < 4; ++k) s += f[k] + (float)(u[k] & 1);
+    if (s == 12345.0f) out[threadIdx.x] = s;  // keeps the work alive
+}
+
+// Latency of dependent arithmetic: one warp per SM, one chain.
+__global__ void alu_chain(float* out, int iters) {
+    float x = threadIdx.x * 0.001f;
+#pragma unroll 8
+    for (int i = 0; i < iters; ++i) x = fmaf(x, 0.9999f, 0.0001f);
+    if (x == 12345.0f) out[threadIdx.x] = x;
+}
+
+// Bandwidth of device memory: a read and a write of a buffer much larger than L2.
+__global__ void hbm_read(const float4* __restrict__ a, size_t n, float* out) {
+    float s = 0;
+    for (size_t i = blockIdx.x * (size_t)blockDim.x + threadIdx.x; i < n; i += (size_t)gridDim.x * blockDim.x) {
+        float4 v = a[i];
+        s += v.x + v.y + v.z + v.w;
+    }
+    if (s == 12345.0f) out[threadIdx.x] = s;
+}
+__global__ void hbm_write(float4* a, size_t n) {
+    for (size_t i = blockIdx.x * (size_t)blockDim.x + threadIdx.x; i < n; i += (size_t)gridDim.x * blockDim.x)
+        a[i] = make_float4(1, 2, 3, 4);
+}
+
+// Bandwidth of L2: passes over a buffer that fits in it, past L1 (ld.global.cg).
+__global__ void l2_read(const float4* __restrict__ a, size_t n, int passes, float* out) {
+    float s = 0;
+    for (int p = 0; p < passes; ++p)
+        for (size_t i = blockIdx.x * (size_t)blockDim.x + threadIdx.x; i < n; i += (size_t)gridDim.x * blockDim.x) {
+            float4 v = __ldcg(&a[i]);
+            s += v.x + v.w;
+        }
+    if (s == 12345.0f) out[threadIdx.x] = s;
+}
+
+// Scattered 4-byte loads from an L2-resident buffer: one sector per lane.
+__global__ void l2_scatter(const float* __restrict__ a, uint32_t mask, int iters, float* out) {
+    uint32_t h = (blockIdx.x * blockDim.x + threadIdx.x) * 2654435761u;
+    float s = 0;
+    for (int i = 0; i < iters; ++i) {
+        h = h * 1664525u + 1013904223u;
+        s += __ldcg(&a[(h >> 3) & mask]);
+    }
+    if (s == 12345.0f) out[threadIdx.x] = s;
+}
+
+// L1 bandwidth: each block reads its own 16 KiB again and again (hits after the first).
+__global__ void l1_read(const float4* __restrict__ a, int passes, float* out) {
+    const float4* mine = a + blockIdx.x * 1024;
+    float s = 0;
+    for (int p = 0; p < passes; ++p)
+        for (int i = threadIdx.x; i < 1024; i += blockDim.x) {
+            float4 v = mine[i];
+            s += v.x + v.w;
+        }
+    if (s == 12345.0f) out[threadIdx.x] = s;
+}
+
+// Load latency: one thread follows a chain of indices (each load's address is the
+// previous load's value). `cg` keeps the loads out of L1 for the L2 and HBM chases.
+template <bool CG>
+__device__ uint32_t chase(const uint32_t* a, int hops) {
+    uint32_t i = 0;
+    for (int h = 0; h < hops; ++h) i = CG ? __ldcg(&a[i]) : a[i];
+    return i;
+}
+__global__ void chase_hbm(const uint32_t* a, int hops, uint32_t* out) { out[0] = chase<true>(a, hops); }
+__global__ void chase_l2(const uint32_t* a, int hops, uint32_t* out) { out[0] = chase<true>(a, hops); }
+__global__ void chase_l1(const uint32_t* a, int hops, uint32_t* out) { out[0] = chase<false>(a, hops); }
+
+// Atomic throughput: every lane adds to its own word (coalesced), or every thread of the
+// grid to one word.
+__global__ void atomic_distinct(uint32_t* a, uint32_t words, int iters) {
+    uint32_t i = (blockIdx.x * blockDim.x + threadIdx.x) % words;
+    for (int k = 0; k < iters; ++k) atomicAdd(&a[i], 1u);
+}
+__global__ void atomic_same(uint32_t* a, int iters) {
+    for (int k = 0; k < iters; ++k) atomicAdd(&a[0], 1u);
+}
+
+// Shared memory: loads and stores of a block's own words (no bank conflicts).
+__global__ void shared_rw(float* out, int iters) {
+    __shared__ float s[1024];
+    for (int i = threadIdx.x; i < 1024; i += blockDim.x) s[i] = i;
+    __syncthreads();
+    float acc = 0;
+    int j = threadIdx.x;
+    for (int k = 0; k < iters; ++k) {
+        acc += s[j];
+        s[(j + 32) & 1023] = acc;
+        j = (j + 64) & 1023;
+    }
+    if (acc == 12345.0f) out[threadIdx.x] = acc;
+}
+
+// Barriers: a loop of __syncthreads() in blocks of 256 threads.
+__global__ void barrier(float* out, int iters) {
+    __shared__ float s[256];
+    float acc = threadIdx.x;
+    for (int k = 0; k < iters; ++k) {
+        s[threadIdx.x] = acc;
+        __syncthreads();
+        acc += s[255 - threadIdx.x];
+        __syncthreads();
+    }
+    if (acc == 12345.0f) out[threadIdx.x] = acc;
+}
+
+}  // namespace micro
+
+// A chain over `n` words whose next index is `stride` words on (mod n): every hop
+// a new sector, and for the HBM chase a new DRAM page.
+static std::vector<uint32_t> chain(size_t n, size_t stride) {
+    std::vector<uint32_t> v(n);
+    for (size_t i = 0; i < n; ++i) v[i] = (uint32_t)((i + stride) % n);
+    return v;
+}
+
+int main() {
+    cudaDeviceProp p;
+    CHECK(cudaGetDeviceProperties(&p, 0));
+    const int sms = p.multiProcessorCount;
+    int clock_khz = 0, mem_khz = 0, bus_bits = 0;
+    cudaDeviceGetAttribute(&clock_khz, cudaDevAttrClockRate, 0);
+    cudaDeviceGetAttribute(&mem_khz, cudaDevAttrMemoryClockRate, 0);
+    cudaDeviceGetAttribute(&bus_bits, cudaDevAttrGlobalMemoryBusWidth, 0);
+    // What the device says of itself (the calibration records these as "device query").
+    printf("device\tname\t%s\n", p.name);
+    printf("device\tsms\t%d\n", sms);
+    printf("device\tclock_ghz\t%.3f\n", clock_khz / 1e6);
+    printf("device\tmax_warps_per_sm\t%d\n", p.maxThreadsPerMultiProcessor / 32);
+    printf("device\tmax_blocks_per_sm\t%d\n", p.maxBlocksPerMultiProcessor);
+    printf("device\tshared_per_sm_bytes\t%zu\n", p.sharedMemPerMultiprocessor);
+    printf("device\tregisters_per_sm\t%d\n", p.regsPerMultiprocessor);
+    printf("device\tl2_bytes\t%d\n", p.l2CacheSize);
+    printf("device\thbm_bus_bits\t%d\n", bus_bits);
+    printf("device\thbm_clock_ghz\t%.3f\n", mem_khz / 1e6);
+
+    float* out;
+    CHECK(cudaMalloc(&out, 1 << 20));
+    const size_t big = (size_t)1 << 30;  // 1 GiB, far past L2
+    float4* hbm;
+    CHECK(cudaMalloc(&hbm, big));
+    CHECK(cudaMemset(hbm, 0, big));
+    const size_t l2n = (size_t)8 << 20;  // 8 MiB: fits L2 (and its near partition)
+    float4* l2buf;
+    CHECK(cudaMalloc(&l2buf, l2n));
+    CHECK(cudaMemset(l2buf, 0, l2n));
+    float4* l1buf;
+    CHECK(cudaMalloc(&l1buf, (size_t)sms * 4 * 16384));
+    CHECK(cudaMemset(l1buf, 0, (size_t)sms * 4 * 16384));
+
+    const int full_grid = sms * 8, threads = 256;  // 2,048 threads per SM: full
+    for (int r = 0; r < PROBE_LAUNCHES; ++r) {
+        micro::empty<<<1, 32>>>();
+        micro::empty_blocks<<<sms * 256, 256>>>();
+        micro::alu_mix<<<full_grid, threads>>>(out, 4096);
+        micro::alu_chain<<<sms, 32>>>(out, 1 << 16);
+        micro::hbm_read<<<sms * 16, 512>>>(hbm, big / 16, out);
+        micro::hbm_write<<<sms * 16, 512>>>(hbm, big / 16);
+        micro::l2_read<<<sms * 16, 512>>>(l2buf, l2n / 16, 16, out);
+        micro::l2_scatter<<<sms * 16, 512>>>((const float*)l2buf, (uint32_t)(l2n / 4 - 1) & ~7u, 256, out);
+        micro::l1_read<<<sms * 4, 256>>>(l1buf, 256, out);
+        micro::shared_rw<<<full_grid, threads>>>(out, 4096);
+        micro::barrier<<<full_grid, threads>>>(out, 1024);
+    }
+    CHECK(cudaDeviceSynchronize());
+    printf("probe\tempty\tblocks\t1\n");
+    printf("probe\tempty_blocks\tblocks\t%d\n", sms * 256);
+    printf("probe\talu_mix\tthreads\t%d\n", full_grid * threads);
+    printf("probe\talu_chain\tdependent_fma\t%d\n", 1 << 16);
+    printf("probe\tl1_read\tblocks\t%d\n", sms * 4);
+    printf("probe\tbarrier\tblock_barriers\t%lld\n", (long long)full_grid * 1024 * 2);
+
+    // Latency chases (one thread; hops counted here). The HBM chase steps 8,212 bytes
+    // (a new sector each hop, 160 MB in all: past L2, within few 2 MB pages); the L1 and
+    // L2 chases cycle over 8 KiB, whose 256 sectors miss once (0.1 % of the hops).
+    uint32_t* chase_buf;
+    const size_t hbm_words = big / 4;
+    CHECK(cudaMalloc(&chase_buf, big));
+    struct Chase {
+        const char* name;
+        size_t words, stride;
+        int hops;
+    } chases[] = {{"chase_hbm", hbm_words, 2053, 20000}, {"chase_l2", 2048, 33, 200000}, {"chase_l1", 2048, 33, 200000}};
+    for (auto& c : chases) {
+        auto v = chain(c.words, c.stride);
+        CHECK(cudaMemcpy(chase_buf, v.data(), c.words * 4, cudaMemcpyHostToDevice));
+        for (int r = 0; r < PROBE_LAUNCHES; ++r) {
+            if (c.name[6] == 'h') micro::chase_hbm<<<1, 1>>>(chase_buf, c.hops, (uint32_t*)out);
+            else if (c.name[7] == '2') micro::chase_l2<<<1, 1>>>(chase_buf, c.hops, (uint32_t*)out);
+            else micro::chase_l1<<<1, 1>>>(chase_buf, c.hops, (uint32_t*)out);
+        }
+        CHECK(cudaDeviceSynchronize());
+        printf("probe\t%s\thops\t%d\n", c.name, c.hops);
+    }
+
+    // Atomics.
+    const int at_iters = 256;
+    CHECK(cudaMemset(chase_buf, 0, 64 << 20));
+    for (int r = 0; r < PROBE_LAUNCHES; ++r) {
+        micro::atomic_distinct<<<full_grid, threads>>>(chase_buf, 16u << 20, at_iters);
+        micro::atomic_same<<<sms, 256>>>(chase_buf, 16);
+    }
+    CHECK(cudaDeviceSynchronize());
+    printf("probe\tatomic_distinct\tatomic_lanes\t%lld\n", (long long)full_grid * threads * at_iters);
+    printf("probe\tatomic_same\tatomic_lanes\t%lld\n", (long long)sms * 256 * 16);
+    printf("probe\tshared_rw\tthreads\t%d\n", full_grid * threads);
+    cudaFree(chase_buf);
+    cudaFree(l1buf);
+    cudaFree(l2buf);
+    cudaFree(hbm);
+    cudaFree(out);
+    return 0;
+}

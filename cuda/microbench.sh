@@ -1,0 +1,23 @@
+#!/bin/sh
+# Runs the microbenchmarks of cuda/microbench.cu under Nsight Compute, on a machine with
+# an NVIDIA GPU, nvcc and ncu: the two files `gpu_check calibrate` turns into a GPU
+# profile for simt's time model (simt/profiles/).
+#
+#   BIN=target/release/examples OUT=gpu-out sh cuda/microbench.sh
+#   gpu_check calibrate --probes gpu-out/micro_probes.tsv --ncu gpu-out/micro_ncu.csv \
+#       --name h200 >simt/profiles/h200.toml
+#
+# ncu runs with --clock-control none (the GPU's own clocks, as in cuda/check.sh) and its
+# default --cache-control all (caches flushed before each kernel), as the checked
+# kernels are profiled.
+set -eu
+cd "$(dirname "$0")/.."
+NVCC=${NVCC:-nvcc}
+ARCH=${CUDA_ARCH:-sm_90}
+BIN=${BIN:-target/release/examples}
+OUT=${OUT:-gpu-out}
+mkdir -p target/cuda "$OUT"
+"$NVCC" -std=c++17 -O3 -arch="$ARCH" -o target/cuda/microbench cuda/microbench.cu
+ncu --clock-control none --csv --page raw --print-units base --metrics "$("$BIN/gpu_check" metrics)" \
+    --log-file "$OUT/micro_ncu.csv" target/cuda/microbench >"$OUT/micro_probes.tsv"
+echo "probes: $(grep -c '^probe' "$OUT/micro_probes.tsv"), kernels profiled: $(grep -c micro:: "$OUT/micro_ncu.csv")"

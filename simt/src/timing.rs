@@ -1,0 +1,410 @@
+//! GPU time predicted from a measured launch's counters, on a described GPU.
+//!
+//! A [`GpuProfile`] holds what the model needs to know of one GPU: its size (SMs, warps
+//! and blocks per SM, shared memory, L2), rates (instruction issue, L1 sectors, L2 and
+//! HBM bandwidth, atomics, barriers, block dispatch) and latencies (arithmetic, L2, HBM,
+//! an empty launch). Profiles are text files in `simt/profiles/`, written by
+//! `gpu_check calibrate` from microbenchmarks (`cuda/microbench.cu`) that are unlike the
+//! kernels the model is checked on.
+//!
+//! [`predict`] turns one [`LaunchRecord`] into seconds: a fixed launch cost plus the
+//! largest of the throughput bounds and a latency bound (a roofline with a latency
+//! floor). `docs/simt.md` ("Predicted GPU time") states each term and what it leaves
+//! out.
+
+use crate::limits::{SECTOR_BYTES, WARP_SIZE};
+use crate::stats::LaunchRecord;
+use std::fmt::Write;
+
+/// What the time model knows of one GPU. Rates are per second; sizes in bytes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GpuProfile {
+    /// The GPU's name (`NVIDIA H200`).
+    pub name: String,
+    /// Streaming multiprocessors.
+    pub sms: f64,
+    /// SM clock while the kernels run, Hz.
+    pub clock_hz: f64,
+    /// Resident warps per SM at most.
+    pub max_warps_per_sm: f64,
+    /// Resident blocks per SM at most.
+    pub max_blocks_per_sm: f64,
+    /// Shared memory per SM, bytes.
+    pub shared_per_sm_bytes: f64,
+    /// L2 cache, bytes.
+    pub l2_bytes: f64,
+    /// Warp instructions one SM issues per cycle with every scheduler busy.
+    pub issue_per_cycle_per_sm: f64,
+    /// Cycles between two dependent arithmetic instructions of one warp.
+    pub alu_latency_cycles: f64,
+    /// Global-memory sectors one SM's L1 serves per cycle.
+    pub l1_sectors_per_cycle_per_sm: f64,
+    /// L2 bandwidth, bytes per second.
+    pub l2_bytes_per_s: f64,
+    /// HBM bandwidth, bytes per second.
+    pub hbm_bytes_per_s: f64,
+    /// Latency of a load served by L2, seconds.
+    pub l2_latency_s: f64,
+    /// Latency of a load served by HBM, seconds.
+    pub hbm_latency_s: f64,
+    /// Atomic lane operations per second on distinct words.
+    pub atomics_per_s: f64,
+    /// Atomic lane operations per second on one word.
+    pub same_address_atomics_per_s: f64,
+    /// Block-wide barriers one SM completes per second.
+    pub barriers_per_s_per_sm: f64,
+    /// Cost of dispatching one block on one SM, seconds.
+    pub block_dispatch_s: f64,
+    /// Duration of an empty launch, seconds.
+    pub launch_s: f64,
+}
+
+/// The profiles shipped with simt, by name.
+pub const PROFILES: &[(&str, &str)] = &[("h200", include_str!("../profiles/h200.toml"))];
+
+/// Keys of a profile file, in the order they are written, with the field each sets.
+const KEYS: &[&str] = &[
+    "sms",
+    "clock_ghz",
+    "max_warps_per_sm",
+    "max_blocks_per_sm",
+    "shared_per_sm_bytes",
+    "l2_bytes",
+    "issue_per_cycle_per_sm",
+    "alu_latency_cycles",
+    "l1_sectors_per_cycle_per_sm",
+    "l2_gb_per_s",
+    "hbm_gb_per_s",
+    "l2_latency_ns",
+    "hbm_latency_ns",
+    "atomics_per_ns",
+    "same_address_atomics_per_ns",
+    "barriers_per_us_per_sm",
+    "block_dispatch_ns",
+    "launch_us",
+];
+
+impl GpuProfile {
+    /// A shipped profile by name (`h200`).
+    pub fn named(name: &str) -> Result<GpuProfile, String> {
+        let (_, text) = PROFILES.iter().find(|(n, _)| *n == name).ok_or_else(|| {
+            let known: Vec<&str> = PROFILES.iter().map(|(n, _)| *n).collect();
+            format!("no GPU profile named '{name}' (known: {})", known.join(", "))
+        })?;
+        GpuProfile::parse(text).map_err(|e| format!("simt/profiles/{name}.toml: {e}"))
+    }
+
+    /// Reads a profile: `key = value` lines (`name = "..."`, numbers), `#` comments.
+    /// Every key must be present once, finite and positive; errors name the line.
+    pub fn parse(text: &str) -> Result<GpuProfile, String> {
+        let mut name = None;
+        let mut values = vec![None; KEYS.len()];
+        for (i, raw) in text.lines().enumerate() {
+            let line = raw.split('#').next().unwrap_or("").trim();
+            if line.is_empty() {
+                continue;
+            }
+            let (key, value) = line.split_once('=').ok_or_else(|| format!("line {}: expected 'key = value'", i + 1))?;
+            let (key, value) = (key.trim(), value.trim());
+            if key == "name" {
+                name = Some(value.trim_matches('"').to_string());
+                continue;
+            }
+            let k =
+                KEYS.iter().position(|&k| k == key).ok_or_else(|| format!("line {}: unknown key '{key}'", i + 1))?;
+            let v: f64 = value.parse().map_err(|_| format!("line {}: {key}: '{value}' is not a number", i + 1))?;
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("line {}: {key}: {v} must be finite and positive", i + 1));
+            }
+            if values[k].replace(v).is_some() {
+                return Err(format!("line {}: {key} given twice", i + 1));
+            }
+        }
+        let get = |k: &str| -> Result<f64, String> {
+            values[KEYS.iter().position(|&x| x == k).unwrap()].ok_or_else(|| format!("missing key '{k}'"))
+        };
+        Ok(GpuProfile {
+            name: name.ok_or("missing key 'name'")?,
+            sms: get("sms")?,
+            clock_hz: get("clock_ghz")? * 1e9,
+            max_warps_per_sm: get("max_warps_per_sm")?,
+            max_blocks_per_sm: get("max_blocks_per_sm")?,
+            shared_per_sm_bytes: get("shared_per_sm_bytes")?,
+            l2_bytes: get("l2_bytes")?,
+            issue_per_cycle_per_sm: get("issue_per_cycle_per_sm")?,
+            alu_latency_cycles: get("alu_latency_cycles")?,
+            l1_sectors_per_cycle_per_sm: get("l1_sectors_per_cycle_per_sm")?,
+            l2_bytes_per_s: get("l2_gb_per_s")? * 1e9,
+            hbm_bytes_per_s: get("hbm_gb_per_s")? * 1e9,
+            l2_latency_s: get("l2_latency_ns")? * 1e-9,
+            hbm_latency_s: get("hbm_latency_ns")? * 1e-9,
+            atomics_per_s: get("atomics_per_ns")? * 1e9,
+            same_address_atomics_per_s: get("same_address_atomics_per_ns")? * 1e9,
+            barriers_per_s_per_sm: get("barriers_per_us_per_sm")? * 1e6,
+            block_dispatch_s: get("block_dispatch_ns")? * 1e-9,
+            launch_s: get("launch_us")? * 1e-6,
+        })
+    }
+
+    /// The profile as a file [`GpuProfile::parse`] reads back; `source` gives each
+    /// key's provenance (a comment after its value), `header` the lines on top.
+    pub fn to_text(&self, header: &str, source: impl Fn(&str) -> String) -> String {
+        let mut s = String::new();
+        for line in header.lines() {
+            let _ = writeln!(s, "# {line}");
+        }
+        let _ = writeln!(s, "name = \"{}\"", self.name);
+        let values = [
+            self.sms,
+            self.clock_hz / 1e9,
+            self.max_warps_per_sm,
+            self.max_blocks_per_sm,
+            self.shared_per_sm_bytes,
+            self.l2_bytes,
+            self.issue_per_cycle_per_sm,
+            self.alu_latency_cycles,
+            self.l1_sectors_per_cycle_per_sm,
+            self.l2_bytes_per_s / 1e9,
+            self.hbm_bytes_per_s / 1e9,
+            self.l2_latency_s * 1e9,
+            self.hbm_latency_s * 1e9,
+            self.atomics_per_s / 1e9,
+            self.same_address_atomics_per_s / 1e9,
+            self.barriers_per_s_per_sm / 1e6,
+            self.block_dispatch_s * 1e9,
+            self.launch_s * 1e6,
+        ];
+        for (k, v) in KEYS.iter().zip(values) {
+            let _ = writeln!(s, "{k} = {}  # {}", round4(v), source(k));
+        }
+        s
+    }
+}
+
+/// Four significant digits, as plain text.
+fn round4(v: f64) -> String {
+    let digits = (3 - v.abs().log10().floor() as i32).max(0) as usize;
+    format!("{v:.digits$}")
+}
+
+/// One launch's predicted time and the terms it came from, seconds.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Prediction {
+    /// The predicted duration: `launch + max(bounds)`.
+    pub seconds: f64,
+    /// The fixed cost of a launch.
+    pub launch: f64,
+    /// Warp instructions over the SMs' issue rate.
+    pub issue: f64,
+    /// Sectors over the L1s' rate.
+    pub l1: f64,
+    /// Bytes of each block's distinct sectors over L2 bandwidth.
+    pub l2: f64,
+    /// Footprint bytes over HBM bandwidth.
+    pub hbm: f64,
+    /// Atomic lanes over the atomic units' rates.
+    pub atomics: f64,
+    /// Barriers over the SMs' barrier rate.
+    pub barriers: f64,
+    /// Blocks over the dispatch rate.
+    pub dispatch: f64,
+    /// Waves of resident warps times the mean warp's dependent chain, or the longest
+    /// warp's chain if that is longer.
+    pub latency: f64,
+}
+
+impl Prediction {
+    /// Adds another launch's terms to these (a kernel's launches summed term by term).
+    pub fn add(&mut self, o: &Prediction) {
+        self.seconds += o.seconds;
+        self.launch += o.launch;
+        self.issue += o.issue;
+        self.l1 += o.l1;
+        self.l2 += o.l2;
+        self.hbm += o.hbm;
+        self.atomics += o.atomics;
+        self.barriers += o.barriers;
+        self.dispatch += o.dispatch;
+        self.latency += o.latency;
+    }
+
+    /// The name of the largest bound (what limits the launch).
+    pub fn bound(&self) -> &'static str {
+        let terms = [
+            ("issue", self.issue),
+            ("l1", self.l1),
+            ("l2", self.l2),
+            ("hbm", self.hbm),
+            ("atomics", self.atomics),
+            ("barriers", self.barriers),
+            ("dispatch", self.dispatch),
+            ("latency", self.latency),
+        ];
+        terms.iter().fold(("launch", 0.0), |a, &t| if t.1 > a.1 { t } else { a }).0
+    }
+}
+
+/// Resident blocks per SM for a launch: the least of the profile's block and warp
+/// limits and what its shared memory allows (registers are not known to the emulator).
+pub fn blocks_per_sm(p: &GpuProfile, block: u32, shared_bytes: usize) -> f64 {
+    let warps = (block as f64 / WARP_SIZE as f64).ceil().max(1.0);
+    let mut n = p.max_blocks_per_sm.min((p.max_warps_per_sm / warps).floor());
+    if shared_bytes > 0 {
+        n = n.min((p.shared_per_sm_bytes / shared_bytes as f64).floor());
+    }
+    n.max(1.0)
+}
+
+/// The predicted GPU time of a measured launch on `p` (an unmeasured record has no
+/// counters: `None`).
+pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
+    if !r.measured {
+        return None;
+    }
+    let grid = r.grid.max(1) as f64;
+    let warps_per_block = (r.block as f64 / WARP_SIZE as f64).ceil().max(1.0);
+    let per_sm = blocks_per_sm(p, r.block, r.shared_bytes);
+    let sms = p.sms.min(grid);
+    let waves = (grid / (p.sms * per_sm)).ceil();
+    let warps = grid * warps_per_block;
+    let issued = r.all_regions().issued as f64;
+    let sectors = (r.loads.sectors + r.stores.sectors + r.atomics.sectors) as f64;
+    let footprint = r.footprint_sectors as f64;
+    let cycle = 1.0 / p.clock_hz;
+    // Atomics: lanes beyond 8 per sector (the words of distinct 4-byte lanes in the
+    // sectors touched) queue on one word.
+    let same = (r.atomics.lanes as f64 - 8.0 * r.atomics.sectors as f64).max(0.0);
+    let distinct = r.atomics.lanes as f64 - same;
+    // One warp's dependent chain: each instruction waits on the one before, each load
+    // request waits for its data (from HBM for first touches, else L2).
+    let miss = if sectors > 0.0 { (footprint / sectors).min(1.0) } else { 0.0 };
+    let mem_latency = miss * p.hbm_latency_s + (1.0 - miss) * p.l2_latency_s;
+    let chain = |issued: f64, loads: f64| issued * p.alu_latency_cycles * cycle + loads * mem_latency;
+    let average = chain(issued / warps, r.loads.requests as f64 / warps);
+    let longest = chain(r.longest_warp.0 as f64, r.longest_warp.1 as f64);
+    // Sectors that reach L2: each block's distinct ones (its repeats hit L1).
+    let l2_sectors = if r.block_sectors > 0 { r.block_sectors as f64 } else { sectors };
+    let mut t = Prediction {
+        launch: p.launch_s,
+        issue: issued / (p.issue_per_cycle_per_sm * sms) * cycle,
+        l1: sectors / (p.l1_sectors_per_cycle_per_sm * sms) * cycle,
+        l2: l2_sectors * SECTOR_BYTES as f64 / p.l2_bytes_per_s,
+        hbm: footprint * SECTOR_BYTES as f64 / p.hbm_bytes_per_s,
+        atomics: distinct / p.atomics_per_s + same / p.same_address_atomics_per_s,
+        barriers: r.barriers as f64 / (p.barriers_per_s_per_sm * sms),
+        dispatch: grid / sms * p.block_dispatch_s,
+        latency: (waves * average).max(longest),
+        seconds: 0.0,
+    };
+    let bounds = [t.issue, t.l1, t.l2, t.hbm, t.atomics, t.barriers, t.dispatch, t.latency];
+    t.seconds = t.launch + bounds.iter().cloned().fold(0.0, f64::max);
+    Some(t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stats::{RegionStats, Traffic};
+
+    fn profile() -> GpuProfile {
+        GpuProfile::named("h200").unwrap()
+    }
+
+    /// A measured launch of `grid` blocks of 256 threads whose every warp issues
+    /// `issued` instructions, `loads` of them loads, touching `sectors` sectors in all.
+    fn launch(grid: u32, issued: u64, loads: u64, sectors: u64, footprint: u64) -> LaunchRecord {
+        let warps = grid as u64 * 8;
+        LaunchRecord {
+            name: "test::kernel",
+            grid,
+            block: 256,
+            shared_bytes: 0,
+            seconds: 0.0,
+            measured: true,
+            threads: warps * 32,
+            ops: RegionStats { name: "ops", issued: warps * issued, active: warps * issued * 32 },
+            regions: Vec::new(),
+            loads: Traffic { requests: warps * loads, sectors, lanes: warps * loads * 32 },
+            stores: Traffic::default(),
+            atomics: Traffic::default(),
+            barriers: 0,
+            footprint_sectors: footprint,
+            block_sectors: sectors,
+            longest_warp: (issued, loads),
+        }
+    }
+
+    #[test]
+    fn every_shipped_profile_reads_and_writes_back_the_same() {
+        for (name, _) in PROFILES {
+            let p = GpuProfile::named(name).unwrap();
+            let again = GpuProfile::parse(&p.to_text("header", |_| "src".into())).unwrap();
+            for (a, b) in [(p.sms, again.sms), (p.hbm_bytes_per_s, again.hbm_bytes_per_s), (p.launch_s, again.launch_s)]
+            {
+                assert!((a - b).abs() <= 1e-3 * a, "{name}: {a} != {b}");
+            }
+        }
+        assert!(GpuProfile::named("h100x").unwrap_err().contains("known: h200"));
+    }
+
+    #[test]
+    fn bad_profiles_name_the_line_and_key() {
+        let text = GpuProfile::named("h200").unwrap().to_text("", |_| String::new());
+        let e = GpuProfile::parse(&text.replace("hbm_gb_per_s = ", "hbm_gb_per_s = -")).unwrap_err();
+        assert!(e.contains("hbm_gb_per_s") && e.contains("positive") && e.starts_with("line "), "{e}");
+        let e = GpuProfile::parse(&text.replace("l2_bytes = ", "l2_bytez = ")).unwrap_err();
+        assert!(e.contains("unknown key 'l2_bytez'"), "{e}");
+        let without: String = text.lines().filter(|l| !l.starts_with("launch_us")).map(|l| format!("{l}\n")).collect();
+        assert!(GpuProfile::parse(&without).unwrap_err().contains("missing key 'launch_us'"));
+        let twice = format!("{text}sms = 1\n");
+        assert!(GpuProfile::parse(&twice).unwrap_err().contains("given twice"));
+        assert!(GpuProfile::parse(&text.replace("sms = ", "sms = nan # ")).is_err());
+    }
+
+    #[test]
+    fn each_bound_is_the_quantity_over_its_rate() {
+        let p = profile();
+        // Streaming: 1 GiB of first touches is HBM-bound.
+        let sectors = (1u64 << 30) / 32;
+        let t = predict(&launch(p.sms as u32 * 64, 40, 4, sectors, sectors), &p).unwrap();
+        assert_eq!(t.bound(), "hbm");
+        let hbm = (1u64 << 30) as f64 / p.hbm_bytes_per_s;
+        assert!((t.seconds - p.launch_s - hbm).abs() < 1e-12 * hbm.max(1.0), "{t:?}");
+        // The same traffic again, resident in L2 (no first touches): L2-bound.
+        let t = predict(&launch(p.sms as u32 * 64, 40, 4, sectors, 0), &p).unwrap();
+        assert_eq!(t.bound(), "l2");
+        // Arithmetic only, a full machine: issue-bound, instructions over the rate.
+        let r = launch(p.sms as u32 * 64, 100_000, 0, 0, 0);
+        let t = predict(&r, &p).unwrap();
+        let issue = r.ops.issued as f64 / (p.issue_per_cycle_per_sm * p.sms * p.clock_hz);
+        assert_eq!(t.bound(), "issue");
+        assert!((t.issue - issue).abs() < 1e-9 * issue);
+        // One small block: a single warp's dependent chain.
+        let t = predict(&launch(1, 1000, 10, 80, 80), &p).unwrap();
+        assert_eq!(t.bound(), "latency");
+        // Unmeasured launches have no prediction.
+        assert!(predict(&LaunchRecord { measured: false, ..launch(1, 1, 1, 1, 1) }, &p).is_none());
+    }
+
+    #[test]
+    fn a_planted_error_in_one_rate_moves_only_its_bound() {
+        let p = profile();
+        let sectors = (1u64 << 30) / 32;
+        let r = launch(p.sms as u32 * 64, 40, 4, sectors, sectors);
+        let base = predict(&r, &p).unwrap();
+        let planted = GpuProfile { hbm_bytes_per_s: p.hbm_bytes_per_s * 2.0, ..p.clone() };
+        let t = predict(&r, &planted).unwrap();
+        assert!((t.hbm * 2.0 - base.hbm).abs() < 1e-12, "{t:?}");
+        assert_eq!((t.issue, t.l2, t.latency), (base.issue, base.l2, base.latency));
+        assert!(t.seconds < base.seconds * 0.9);
+    }
+
+    #[test]
+    fn occupancy_follows_block_size_and_shared_memory() {
+        let p = profile();
+        assert_eq!(blocks_per_sm(&p, 256, 0), (p.max_warps_per_sm / 8.0).floor());
+        assert_eq!(blocks_per_sm(&p, 32, 0), p.max_blocks_per_sm);
+        assert_eq!(blocks_per_sm(&p, 128, 100_000), (p.shared_per_sm_bytes / 100_000.0).floor());
+        assert_eq!(blocks_per_sm(&p, 1024, 1 << 30), 1.0);
+    }
+}

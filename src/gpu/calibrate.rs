@@ -1,0 +1,177 @@
+//! A GPU profile for `simt`'s time model from the microbenchmarks of
+//! `cuda/microbench.cu`: their own report of the device and of the work each probe did,
+//! and Nsight Compute's counters of each probe kernel (`cuda/microbench.sh`).
+//!
+//! Only the probes enter the profile; the kernels the model is checked on (PDACRT's,
+//! CIS's) never do, so their errors are out-of-sample.
+
+use super::ncu::{GpuKernel, parse_csv};
+use simt::GpuProfile;
+
+/// A calibrated profile and, per key, where its value came from.
+pub struct Calibration {
+    /// The profile.
+    pub profile: GpuProfile,
+    /// `(key, provenance)`: `device query`, or the probe and counters used.
+    pub sources: Vec<(&'static str, String)>,
+    /// Figures measured by probes the model does not use (checks), one line each.
+    pub notes: Vec<String>,
+}
+
+/// The probe program's report: `device` lines (name, value) and `probe` lines (probe,
+/// quantity, amount).
+struct Report {
+    device: Vec<(String, String)>,
+    probes: Vec<(String, f64)>,
+}
+
+fn read_report(text: &str) -> Result<Report, String> {
+    let mut r = Report { device: Vec::new(), probes: Vec::new() };
+    for (i, line) in text.lines().enumerate() {
+        let f: Vec<&str> = line.split('\t').collect();
+        match f.as_slice() {
+            ["device", k, v] => r.device.push((k.to_string(), v.to_string())),
+            ["probe", name, _, amount] => {
+                let a =
+                    amount.parse().map_err(|_| format!("line {}: probe {name}: '{amount}' is not a number", i + 1))?;
+                r.probes.push((name.to_string(), a));
+            }
+            _ => return Err(format!("line {}: expected 'device' or 'probe' fields", i + 1)),
+        }
+    }
+    Ok(r)
+}
+
+/// Builds the profile from the probe program's output (`probes`) and ncu's CSV of it.
+pub fn calibrate(probes: &str, ncu_csv: &str) -> Result<Calibration, String> {
+    let report = read_report(probes)?;
+    let kernels = parse_csv(ncu_csv)?;
+    let dev = |k: &str| -> Result<f64, String> {
+        let v = report.device.iter().find(|(n, _)| n == k).ok_or_else(|| format!("probe output: no device {k}"))?;
+        v.1.parse().map_err(|_| format!("probe output: device {k}: '{}' is not a number", v.1))
+    };
+    let amount = |p: &str| -> Result<f64, String> {
+        report.probes.iter().find(|(n, _)| n == p).map(|x| x.1).ok_or_else(|| format!("probe output: no probe {p}"))
+    };
+    // Per-launch means of one probe kernel (ncu names them `…::empty` or `empty`).
+    let probe = |p: &str| -> Result<GpuKernel, String> {
+        kernels
+            .iter()
+            .find(|k| k.name.rsplit("::").next() == Some(p))
+            .cloned()
+            .map(|k| {
+                let n = k.launches.max(1) as f64;
+                GpuKernel {
+                    seconds: k.seconds / n,
+                    inst: k.inst / n,
+                    dram_bytes: k.dram_bytes / n,
+                    l2_sectors: k.l2_sectors / n,
+                    loads: simt::Traffic {
+                        requests: k.loads.requests / n as u64,
+                        sectors: k.loads.sectors / n as u64,
+                        lanes: 0,
+                    },
+                    ..k
+                }
+            })
+            .ok_or_else(|| format!("ncu CSV: no kernel {p}"))
+    };
+    let sms = dev("sms")?;
+    let launch = probe("empty")?.seconds;
+    let busy = |k: &GpuKernel| (k.seconds - launch).max(1e-9);
+    let alu = probe("alu_mix")?;
+    let clock = alu.clock_hz().ok_or("ncu CSV: alu_mix has no sm__cycles_elapsed.avg.per_second")?;
+    let name = report.device.iter().find(|(n, _)| n == "name").map(|x| x.1.clone()).unwrap_or_default();
+
+    let blocks = probe("empty_blocks")?;
+    let chain = probe("alu_chain")?;
+    let hbm = probe("hbm_read")?;
+    let hbm_write = probe("hbm_write")?;
+    let l2 = probe("l2_read")?;
+    let l2_scatter = probe("l2_scatter")?;
+    let l1 = probe("l1_read")?;
+    let chase_hbm = probe("chase_hbm")?;
+    let chase_l2 = probe("chase_l2")?;
+    let at = probe("atomic_distinct")?;
+    let at_same = probe("atomic_same")?;
+    let barrier = probe("barrier")?;
+    let shared = probe("shared_rw")?;
+
+    let hbm_latency = busy(&chase_hbm) / amount("chase_hbm")?;
+    // The L2 chase's first pass misses (caches are flushed before each kernel): those
+    // hops are charged at the HBM latency.
+    let l2_misses = (chase_l2.dram_bytes / 32.0).min(amount("chase_l2")? - 1.0);
+    let l2_latency = (busy(&chase_l2) - l2_misses * hbm_latency) / (amount("chase_l2")? - l2_misses);
+    let profile = GpuProfile {
+        name,
+        sms,
+        clock_hz: clock,
+        max_warps_per_sm: dev("max_warps_per_sm")?,
+        max_blocks_per_sm: dev("max_blocks_per_sm")?,
+        shared_per_sm_bytes: dev("shared_per_sm_bytes")?,
+        l2_bytes: dev("l2_bytes")?,
+        issue_per_cycle_per_sm: alu.inst / (busy(&alu) * clock * sms),
+        alu_latency_cycles: busy(&chain) * clock / amount("alu_chain")?,
+        l1_sectors_per_cycle_per_sm: l1.loads.sectors as f64 / (busy(&l1) * clock * sms),
+        l2_bytes_per_s: l2.loads.sectors as f64 * 32.0 / busy(&l2),
+        hbm_bytes_per_s: hbm.dram_bytes / busy(&hbm),
+        l2_latency_s: l2_latency,
+        hbm_latency_s: hbm_latency,
+        atomics_per_s: amount("atomic_distinct")? / busy(&at),
+        same_address_atomics_per_s: amount("atomic_same")? / busy(&at_same),
+        barriers_per_s_per_sm: amount("barrier")? / (busy(&barrier) * sms),
+        block_dispatch_s: busy(&blocks) / (amount("empty_blocks")? / sms),
+        launch_s: launch,
+    };
+    let probe_of = |p: &str, how: &str| format!("measured: {p} ({how})");
+    let sources = vec![
+        ("sms", "device query".to_string()),
+        ("clock_ghz", probe_of("alu_mix", "sm__cycles_elapsed.avg.per_second")),
+        ("max_warps_per_sm", "device query".into()),
+        ("max_blocks_per_sm", "device query".into()),
+        ("shared_per_sm_bytes", "device query".into()),
+        ("l2_bytes", "device query".into()),
+        ("issue_per_cycle_per_sm", probe_of("alu_mix", "warp instructions / SM cycles")),
+        ("alu_latency_cycles", probe_of("alu_chain", "cycles per dependent FMA, one warp")),
+        ("l1_sectors_per_cycle_per_sm", probe_of("l1_read", "L1-hit load sectors / SM cycles")),
+        ("l2_gb_per_s", probe_of("l2_read", "ld.global.cg sectors x 32 B / time")),
+        ("hbm_gb_per_s", probe_of("hbm_read", "dram__bytes_read / time")),
+        ("l2_latency_ns", probe_of("chase_l2", "one-thread pointer chase, first-pass misses at HBM latency")),
+        ("hbm_latency_ns", probe_of("chase_hbm", "one-thread pointer chase, 8,212-byte steps")),
+        ("atomics_per_ns", probe_of("atomic_distinct", "atomicAdd lanes to distinct words / time")),
+        ("same_address_atomics_per_ns", probe_of("atomic_same", "atomicAdd lanes to one word / time")),
+        ("barriers_per_us_per_sm", probe_of("barrier", "block barriers / time / SMs")),
+        ("block_dispatch_ns", probe_of("empty_blocks", "(time - empty launch) / blocks per SM")),
+        ("launch_us", probe_of("empty", "gpu__time_duration of one empty block")),
+    ];
+    let notes = vec![
+        format!(
+            "hbm_write: {:.0} GB/s written (dram__bytes_write / time)",
+            hbm_write.dram_bytes / busy(&hbm_write) / 1e9
+        ),
+        format!(
+            "l2_scatter: {:.0} GB/s of 32-byte sectors, one per lane ({:.0} % of the coalesced l2_read)",
+            l2_scatter.loads.sectors as f64 * 32.0 / busy(&l2_scatter) / 1e9,
+            100.0 * l2_scatter.loads.sectors as f64 / busy(&l2_scatter) / (l2.loads.sectors as f64 / busy(&l2))
+        ),
+        format!(
+            "shared_rw: {:.2} warp instructions per SM cycle with shared loads and stores",
+            shared.inst / (busy(&shared) * clock * sms)
+        ),
+    ];
+    Ok(Calibration { profile, sources, notes })
+}
+
+impl Calibration {
+    /// The profile file: a header naming the GPU, the run and the command, then one
+    /// line per key with its provenance.
+    pub fn to_text(&self, header: &str) -> String {
+        let mut h = header.to_string();
+        for n in &self.notes {
+            h += &format!("\nchecks (not used by the model): {n}");
+        }
+        self.profile.to_text(&h, |k| {
+            self.sources.iter().find(|(n, _)| *n == k).map_or_else(|| "?".to_string(), |s| s.1.clone())
+        })
+    }
+}

@@ -1,0 +1,114 @@
+//! `simt`'s predicted GPU time set beside Nsight Compute's, kernel by kernel and for
+//! whole pipelines (`docs/simt.md`, "Predicted GPU time"; `gpu_check time`).
+
+use super::ncu::GpuKernel;
+use simt::timing::{Prediction, predict};
+use simt::{GpuProfile, LaunchRecord};
+use std::fmt::Write;
+
+/// One kernel: its launches predicted on a profile and measured on the GPU.
+#[derive(Clone, Debug)]
+pub struct KernelTime {
+    /// The kernel's name.
+    pub name: String,
+    /// Launches the emulator recorded / the GPU profiled.
+    pub launches: (u64, u64),
+    /// Predicted seconds, summed over launches.
+    pub predicted: f64,
+    /// Measured seconds (`gpu__time_duration.sum`), summed.
+    pub measured: f64,
+    /// The predicted terms summed over launches (each launch's bounds, not only the
+    /// largest), to say what the model thinks limits the kernel.
+    pub terms: Prediction,
+    /// Predicted HBM bytes (footprint) and measured `dram__bytes_read + write`.
+    pub hbm_bytes: (f64, f64),
+}
+
+impl KernelTime {
+    /// (predicted − measured) / measured.
+    pub fn error(&self) -> f64 {
+        (self.predicted - self.measured) / self.measured
+    }
+}
+
+/// The predicted time of every launch in `records`, summed (unmeasured launches
+/// count nothing).
+pub fn predicted_total(records: &[LaunchRecord], p: &GpuProfile) -> f64 {
+    records.iter().filter_map(|r| predict(r, p)).map(|t| t.seconds).sum()
+}
+
+/// The name after the last `::` (ncu may report a kernel with or without its
+/// namespace, depending on how it was asked to name kernels).
+fn base(name: &str) -> &str {
+    name.rsplit("::").next().unwrap_or(name)
+}
+
+/// Every kernel in `gpu` that the records also have (matched by the name without its
+/// namespace), in the GPU's order.
+pub fn kernel_times(records: &[LaunchRecord], gpu: &[GpuKernel], p: &GpuProfile) -> Vec<KernelTime> {
+    gpu.iter()
+        .filter_map(|g| {
+            let mine: Vec<&LaunchRecord> = records.iter().filter(|r| base(r.name) == base(&g.name)).collect();
+            if mine.is_empty() || g.seconds <= 0.0 {
+                return None;
+            }
+            let mut terms = Prediction::default();
+            let mut footprint = 0.0;
+            for r in &mine {
+                if let Some(t) = predict(r, p) {
+                    terms.add(&t);
+                }
+                footprint += r.footprint_sectors as f64 * simt::SECTOR_BYTES as f64;
+            }
+            Some(KernelTime {
+                name: mine[0].name.to_string(),
+                launches: (mine.len() as u64, g.launches),
+                predicted: terms.seconds,
+                measured: g.seconds,
+                terms,
+                hbm_bytes: (footprint, g.dram_bytes),
+            })
+        })
+        .collect()
+}
+
+/// Mean absolute relative error over kernels, and the worst kernel.
+pub fn errors(rows: &[KernelTime]) -> (f64, Option<&KernelTime>) {
+    let mape = rows.iter().map(|r| r.error().abs()).sum::<f64>() / rows.len().max(1) as f64;
+    let worst = rows.iter().max_by(|a, b| a.error().abs().total_cmp(&b.error().abs()));
+    (mape, worst)
+}
+
+/// The comparison as a markdown table, with the mean and worst errors under it.
+pub fn table(rows: &[KernelTime]) -> String {
+    let mut s = String::from(
+        "| kernel | launches (simt / GPU) | predicted ms | measured ms | Δ | bound | HBM MB predicted | measured |\n|---|---:|---:|---:|---:|---|---:|---:|\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} / {} | {:.3} | {:.3} | {:+.0} % | {} | {:.1} | {:.1} |",
+            r.name,
+            r.launches.0,
+            r.launches.1,
+            r.predicted * 1e3,
+            r.measured * 1e3,
+            r.error() * 100.0,
+            r.terms.bound(),
+            r.hbm_bytes.0 / 1e6,
+            r.hbm_bytes.1 / 1e6
+        );
+    }
+    let (mape, worst) = errors(rows);
+    if let Some(w) = worst {
+        let _ = writeln!(
+            s,
+            "\nMean absolute error {:.1} % over {} kernels; worst {} ({:+.0} %).",
+            mape * 100.0,
+            rows.len(),
+            w.name,
+            w.error() * 100.0
+        );
+    }
+    s
+}
