@@ -6,6 +6,7 @@ use crate::limits::MAX_REGIONS;
 use crate::memory::{BufferPool, DeviceBuffer, DeviceCopy, MemCounter, Scratch};
 use crate::meter::{Counters, Race};
 use crate::stats::{KernelSummary, LaunchRecord, RegionStats, Stats};
+use crate::timing::{GpuProfile, predict};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
@@ -39,6 +40,8 @@ struct Inner {
     buffers: Arc<BufferPool>,
     /// Per kernel (and measurement mode): seconds and threads of its serial launches.
     serial_cost: Mutex<HashMap<(&'static str, bool), SerialCost>>,
+    /// The GPU measured launches are predicted on, if any.
+    profile: Mutex<Option<GpuProfile>>,
 }
 
 /// Seconds and threads of a kernel's serial launches, summed.
@@ -90,7 +93,16 @@ impl Device {
         let (mem, stats, pool) = (Arc::default(), Mutex::new(Stats::default()), Mutex::new(Vec::new()));
         let buffers = Arc::default();
         Device {
-            inner: Arc::new(Inner { config, measure, mem, stats, pool, buffers, serial_cost: Default::default() }),
+            inner: Arc::new(Inner {
+                config,
+                measure,
+                mem,
+                stats,
+                pool,
+                buffers,
+                serial_cost: Default::default(),
+                profile: Default::default(),
+            }),
         }
     }
 
@@ -109,19 +121,19 @@ impl Device {
     /// With a profile, measured launches also record their footprints and longest warp
     /// ([`LaunchRecord::footprint_sectors`], ..), which costs them time; without, those
     /// are 0.
-    pub fn set_gpu_profile(&self, profile: Option<crate::timing::GpuProfile>) {
-        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).profile = profile;
+    pub fn set_gpu_profile(&self, profile: Option<GpuProfile>) {
+        *self.inner.profile.lock().unwrap_or_else(|e| e.into_inner()) = profile;
     }
 
     /// Whether measured launches gather the footprints and warp chains the GPU time
     /// model needs (only with a profile set: they cost measured launches time).
     pub(crate) fn predicting(&self) -> bool {
-        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).profile.is_some()
+        self.inner.profile.lock().unwrap_or_else(|e| e.into_inner()).is_some()
     }
 
     /// The GPU profile set with [`Device::set_gpu_profile`].
-    pub fn gpu_profile(&self) -> Option<crate::timing::GpuProfile> {
-        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).profile.clone()
+    pub fn gpu_profile(&self) -> Option<GpuProfile> {
+        self.inner.profile.lock().unwrap_or_else(|e| e.into_inner()).clone()
     }
 
     /// Whether launches are measured (SIMD efficiency, memory traffic) now.
@@ -293,8 +305,16 @@ impl Device {
             block_sectors: counters.block_sectors,
             longest_warp: counters.longest_warp,
         };
-        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).add(&record);
+        self.add_record(&record);
         record
+    }
+
+    /// Adds a launch to the statistics, with its predicted GPU time if the device has
+    /// a profile.
+    fn add_record(&self, record: &LaunchRecord) {
+        let gpu =
+            self.inner.profile.lock().unwrap_or_else(|e| e.into_inner()).as_ref().and_then(|p| predict(record, p));
+        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).add(record, gpu.map_or(0.0, |t| t.seconds));
     }
 
     /// Whether a launch of `threads` threads of kernel `name` should run on the calling
@@ -397,7 +417,7 @@ impl Device {
             block_sectors: 0,
             longest_warp: (0, 0),
         };
-        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).add(&record);
+        self.add_record(&record);
         (r, record)
     }
 
@@ -425,7 +445,7 @@ impl Device {
 
     /// Forgets all launch statistics (memory accounting and the GPU profile are kept).
     pub fn reset_stats(&self) {
-        self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()).clear();
+        *self.inner.stats.lock().unwrap_or_else(|e| e.into_inner()) = Stats::default();
     }
 }
 

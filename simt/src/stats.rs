@@ -2,7 +2,6 @@
 
 use crate::limits::WARP_SIZE;
 pub use crate::meter::Traffic;
-use crate::timing::{GpuProfile, predict};
 use std::collections::{HashMap, VecDeque};
 use std::fmt::Write;
 
@@ -204,8 +203,6 @@ impl From<&LaunchRecord> for KernelSummary {
 
 #[derive(Default)]
 pub(crate) struct Stats {
-    /// The GPU measured launches are predicted on, if any.
-    pub profile: Option<GpuProfile>,
     /// Launches recorded since the last reset.
     total: u64,
     order: Vec<&'static str>,
@@ -214,22 +211,17 @@ pub(crate) struct Stats {
 }
 
 impl Stats {
-    pub fn add(&mut self, r: &LaunchRecord) {
+    /// Adds a launch, with its predicted GPU time (0 if none).
+    pub fn add(&mut self, r: &LaunchRecord, gpu_seconds: f64) {
         self.total += 1;
         if !self.by_name.contains_key(r.name) {
             self.order.push(r.name);
         }
-        let gpu = self.profile.as_ref().and_then(|p| predict(r, p)).map_or(0.0, |t| t.seconds);
-        self.by_name.entry(r.name).or_default().add(r, gpu);
+        self.by_name.entry(r.name).or_default().add(r, gpu_seconds);
         if self.log.len() == LOG_CAPACITY {
             self.log.pop_front();
         }
         self.log.push_back(r.clone());
-    }
-
-    /// Forgets every launch; keeps the profile.
-    pub fn clear(&mut self) {
-        *self = Stats { profile: self.profile.take(), ..Stats::default() };
     }
 
     pub fn summaries(&self) -> Vec<KernelSummary> {
