@@ -20,4 +20,4 @@ mkdir -p target/cuda "$OUT"
 "$NVCC" -std=c++17 -O3 -arch="$ARCH" -o target/cuda/microbench cuda/microbench.cu
 ncu --clock-control none --csv --page raw --print-units base --metrics "$("$BIN/gpu_check" metrics)" \
     --log-file "$OUT/micro_ncu.csv" target/cuda/microbench >"$OUT/micro_probes.tsv"
-echo "probes: $(grep -c '^probe' "$OUT/micro_probes.tsv"), kernels profiled: $(grep -c micro:: "$OUT/micro_ncu.csv")"
+echo "probes: $(grep -c '^probe' "$OUT/micro_probes.tsv"), launches profiled: $(grep -c '^"[0-9]' "$OUT/micro_ncu.csv")"
