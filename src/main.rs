@@ -221,18 +221,8 @@ struct RenderArgs {
     /// megakernel, the PDACRT caster) on a GPU: a shipped profile's name (h200) or a
     /// profile file (simt/profiles/). Turns the emulator's measurement on, which slows
     /// the render, and prints the kernel table with a predicted GPU ms column.
-    #[arg(long, value_parser = parse_gpu_profile)]
+    #[arg(long, value_parser = simt::GpuProfile::load)]
     gpu_profile: Option<simt::GpuProfile>,
-}
-
-/// `--gpu-profile`: a shipped profile by name, or a profile file.
-fn parse_gpu_profile(s: &str) -> std::result::Result<simt::GpuProfile, String> {
-    if std::path::Path::new(s).is_file() {
-        let text = std::fs::read_to_string(s).map_err(|e| format!("{s}: {e}"))?;
-        simt::GpuProfile::parse(&text).map_err(|e| format!("{s}: {e}"))
-    } else {
-        simt::GpuProfile::named(s)
-    }
 }
 
 /// `--integrator`: a label of the integrator registry.

@@ -267,15 +267,6 @@ pub(crate) fn read(p: &std::path::Path) -> Result<String, String> {
     }
 }
 
-/// A shipped profile by name, or a profile file.
-pub(crate) fn gpu_profile(name: &str) -> Result<simt::GpuProfile, String> {
-    if std::path::Path::new(name).is_file() {
-        simt::GpuProfile::parse(&read(std::path::Path::new(name))?).map_err(|e| format!("{name}: {e}"))
-    } else {
-        simt::GpuProfile::named(name)
-    }
-}
-
 fn time_run(
     records: &[std::path::PathBuf],
     csv: &[std::path::PathBuf],
@@ -283,7 +274,7 @@ fn time_run(
     profile: &str,
 ) -> Result<(), String> {
     use warpray::gpu::time_check;
-    let p = gpu_profile(profile)?;
+    let p = simt::GpuProfile::load(profile)?;
     println!("Profile: {} ({profile}).\n", p.name);
     let mut every = Vec::new();
     for (i, path) in records.iter().enumerate() {

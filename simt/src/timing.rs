@@ -94,6 +94,17 @@ impl GpuProfile {
         GpuProfile::parse(text).map_err(|e| format!("simt/profiles/{name}.toml: {e}"))
     }
 
+    /// A shipped profile by name, or else a profile file at that path (what the
+    /// command line's `--gpu-profile` and `gpu_check time --gpu-profile` take).
+    pub fn load(name_or_path: &str) -> Result<GpuProfile, String> {
+        if std::path::Path::new(name_or_path).is_file() {
+            let text = std::fs::read_to_string(name_or_path).map_err(|e| format!("{name_or_path}: {e}"))?;
+            GpuProfile::parse(&text).map_err(|e| format!("{name_or_path}: {e}"))
+        } else {
+            GpuProfile::named(name_or_path)
+        }
+    }
+
     /// Reads a profile: `key = value` lines (`name = "..."`, numbers), `#` comments.
     /// Every key must be present once, finite and positive; errors name the line.
     pub fn parse(text: &str) -> Result<GpuProfile, String> {
