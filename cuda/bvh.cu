@@ -20,7 +20,7 @@
 
 #include "bvh_api.h"
 #include "device_buf.cuh"
-#include "geometry.cuh"
+#include "bvh_trace.cuh"
 #include "guarded.h"
 
 namespace bvh {
@@ -28,18 +28,6 @@ namespace bvh {
 using namespace wr;
 
 constexpr int BLOCK = 256;
-/// Deeper than any tree built here: 30 Morton bits, then at most 32 bits of index.
-constexpr int STACK = 64;
-
-/// An inner node: both children's boxes and references (>= 0: inner node; < 0: the
-/// leaf holding sorted triangle ~ref).
-struct alignas(16) Node {
-    Aabb box[2];
-    int32_t child[2];
-    uint32_t pad[2];
-};
-static_assert(sizeof(Node) == 64, "Node layout");
-
 __device__ inline Vec3 centroid(const Tri& t) {
     return {(t.v[0] + t.v[3] + t.v[6]) * (1.0f / 3.0f), (t.v[1] + t.v[4] + t.v[7]) * (1.0f / 3.0f),
             (t.v[2] + t.v[5] + t.v[8]) * (1.0f / 3.0f)};
@@ -166,85 +154,20 @@ __device__ inline void add_warp(unsigned long long* total, uint32_t count) {
 }
 
 struct TraceArgs {
-    const Node* nodes;
-    const Tri* tris;
-    const uint32_t* ids;
+    View view;
     const Ray* rays;
     uint64_t* keys;
     unsigned long long *tests, *visits;
     size_t n_rays;
-    int32_t root;
     int any_hit;
-    float widen;
-    float grow;
 };
-
-__device__ inline Aabb load_box(const Node* node, int side) {
-    const float4* q = reinterpret_cast<const float4*>(node);
-    float4 a = __ldg(q), b = __ldg(q + 1), c = __ldg(q + 2);
-    return side == 0 ? Aabb{{a.x, a.y, a.z}, {a.w, b.x, b.y}} : Aabb{{b.z, b.w, c.x}, {c.y, c.z, c.w}};
-}
 
 /// One thread per ray: closest hit (the smallest key, as PDACRT's leaf keeps it) or,
 /// with any_hit, the first blocker.
 __global__ void trace(TraceArgs a) {
     size_t i = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
     uint32_t tests = 0, visits = 0;
-    if (i < a.n_rays) {
-        Ray r = a.rays[i];
-        uint64_t key = NO_HIT;
-        if (ray_valid(r) && a.root != INT32_MIN) {
-            Vec3 inv = inv_dir(r.d);
-            Shear sh = make_shear(r.d);
-            float far_t = r.t_max;
-            int32_t stack[STACK];
-            int sp = 0;
-            int32_t cur = a.root;
-            while (true) {
-                if (cur < 0) {
-                    const Tri* t = a.tris + ~cur;
-                    float v[9];
-#pragma unroll
-                    for (int k = 0; k < 9; k++) v[k] = __ldg(&t->v[k]);
-                    float th;
-                    tests++;
-                    if (a.any_hit) {
-                        if (hit_triangle(r.o, sh, v, r.t_min, r.t_max, th)) {
-                            key = BLOCKED;
-                            break;
-                        }
-                    } else if (hit_triangle(r.o, sh, v, r.t_min, nextafterf(far_t, INFINITY), th)) {
-                        uint64_t candidate = pack_hit(th, __ldg(&a.ids[~cur]));
-                        if (candidate < key) {
-                            key = candidate;
-                            far_t = th;
-                        }
-                    }
-                } else {
-                    visits++;
-                    const Node* node = a.nodes + cur;
-                    float cull_t = cull_distance(far_t, a.widen);
-                    float n0 = r.t_min, n1 = r.t_min;
-                    bool h0 = slab_entry(grown(load_box(node, 0), a.grow), r.o, inv, cull_t, a.widen, n0);
-                    bool h1 = slab_entry(grown(load_box(node, 1), a.grow), r.o, inv, cull_t, a.widen, n1);
-                    int2 ch = __ldg(reinterpret_cast<const int2*>(&node->child[0]));
-                    if (h0 && h1) {
-                        bool swap = n1 < n0;
-                        cur = swap ? ch.y : ch.x;
-                        stack[sp++] = swap ? ch.x : ch.y;
-                        continue;
-                    }
-                    if (h0 || h1) {
-                        cur = h0 ? ch.x : ch.y;
-                        continue;
-                    }
-                }
-                if (sp == 0) break;
-                cur = stack[--sp];
-            }
-        }
-        a.keys[i] = key;
-    }
+    if (i < a.n_rays) a.keys[i] = trace_key(a.view, a.rays[i], a.any_hit, tests, visits);
     add_warp(a.tests, tests);
     add_warp(a.visits, visits);
 }
@@ -306,6 +229,7 @@ struct Bvh {
     }
 
     int32_t root() const { return n == 0 ? INT32_MIN : (n == 1 ? ~0 : 0); }
+    View view(float widen, float grow) const { return {nodes.p, sorted.p, ids_sorted.p, root(), widen, grow}; }
 };
 
 /// Times GPU work between two events.
@@ -344,6 +268,8 @@ static int guarded(F f) {
 static double ms_since(std::chrono::steady_clock::time_point t) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
 }
+
+View view_of(void* handle, float widen, float grow) { return static_cast<Bvh*>(handle)->view(widen, grow); }
 
 }  // namespace bvh
 
@@ -388,8 +314,7 @@ extern "C" int wr_bvh_trace(void* handle, const void* rays, uint64_t n_rays, int
         b.keys.resize(n_rays);
         b.counters.resize(2);
         check(cudaMemset(b.counters.p, 0, 2 * sizeof(unsigned long long)), "clear counters");
-        TraceArgs a = {b.nodes.p, b.sorted.p, b.ids_sorted.p, b.rays.p, b.keys.p, b.counters.p, b.counters.p + 1,
-                       n_rays,    b.root(),   any_hit,        slab_widen,    grow};
+        TraceArgs a = {b.view(slab_widen, grow), b.rays.p, b.keys.p, b.counters.p, b.counters.p + 1, n_rays, any_hit};
         EventTimer timer;
         stats->trace_ms = timer.time([&] {
             trace<<<Bvh::grid_of(n_rays), BLOCK>>>(a);

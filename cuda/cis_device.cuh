@@ -884,8 +884,11 @@ struct Sink {
     }
 };
 
+// `sink(has_ray, ray, value)` receives each contribution: the stream's pending entries
+// (Sink), or the megakernel's shadow ray traced at once.
+template <class S>
 __device__ void vertex_strategies(const Scene& sc, const Vertex* cam, int t, Rng& rng, VertexList& path,
-                                  VertexList& light, Sink& sink) {
+                                  VertexList& light, S& sink) {
     int max_depth = (int)sc.max_depth;
     V3 l;
     Ray ray = {};

@@ -114,8 +114,10 @@ __device__ inline Shear make_shear(Vec3 d) {
     return {kx, ky, kz, comp(d, kx) / dz, comp(d, ky) / dz, 1.0f / dz};
 }
 
-/// `intersect_triangle`: watertight and two-sided; true with `t` for t_min < t < t_max.
-__device__ inline bool hit_triangle(Vec3 o, const Shear& s, const float* v, float t_min, float t_max, float& t_out) {
+/// `intersect_triangle`: watertight and two-sided; true with `t` for t_min < t < t_max,
+/// and the barycentric weights `u`, `w` of the second and third corners.
+__device__ inline bool hit_triangle_uv(Vec3 o, const Shear& s, const float* v, float t_min, float t_max, float& t_out,
+                                       float& u, float& w) {
     Vec3 a = sub({v[0], v[1], v[2]}, o), b = sub({v[3], v[4], v[5]}, o), c = sub({v[6], v[7], v[8]}, o);
     float az0 = comp(a, s.kz), bz0 = comp(b, s.kz), cz0 = comp(c, s.kz);
     float ax = comp(a, s.kx) - s.sx * az0, ay = comp(a, s.ky) - s.sy * az0;
@@ -138,7 +140,14 @@ __device__ inline bool hit_triangle(Vec3 o, const Shear& s, const float* v, floa
     float t = t_scaled * inv_det;
     if (!(t > t_min && t < t_max)) return false;
     t_out = t;
+    u = e1 * inv_det;
+    w = e2 * inv_det;
     return true;
+}
+/// `hit_triangle_uv` for the distance alone.
+__device__ inline bool hit_triangle(Vec3 o, const Shear& s, const float* v, float t_min, float t_max, float& t_out) {
+    float u, w;
+    return hit_triangle_uv(o, s, v, t_min, t_max, t_out, u, w);
 }
 
 // The closest-hit key of src/geometry/hit_key.rs: distance bits above the triangle id.

@@ -4,134 +4,19 @@
 //! compared with what the emulator wrote (`docs/gpu-check.md`).
 
 use super::ffi::{CisFns, Library, library_path};
-use crate::bsdf::layered::LayerBase;
+use super::scene::{SceneTables, WrCisScene};
 use crate::cast::RayCaster;
 use crate::error::{Error, Result};
-use crate::lights::{Light, Lights};
 use crate::render::bidir::Vertex;
 use crate::render::cache::Connections;
 use crate::render::cis::ShadeCapture;
 use crate::render::cis::kernels::{MAX_CAMERA_VERTICES, PENDING_PER_SLOT, PendingData, Slot};
 use crate::render::{Budget, RenderOptions, Renderer};
-use crate::scene::{Material, Scene};
+use crate::scene::Scene;
 use glam::Vec3;
 use std::ffi::c_void;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
-
-/// `WrMaterial` of `cuda/cis_api.h`.
-#[repr(C)]
-#[derive(Clone, Copy, Default)]
-struct WrMaterial {
-    kind: u32,
-    coat_count: u32,
-    base_kind: u32,
-    roughness: f32,
-    ior: f32,
-    a: [f32; 3],
-    b: [f32; 3],
-    coat_ior: [f32; 2],
-    coat_roughness: [f32; 2],
-    coat_absorption: [[f32; 3]; 2],
-}
-
-/// `WrLight` of `cuda/cis_api.h`.
-#[repr(C)]
-#[derive(Clone, Copy, Default)]
-struct WrLight {
-    kind: u32,
-    tri: u32,
-    area: f32,
-    normal: [f32; 3],
-    value: [f32; 3],
-    position: [f32; 3],
-}
-
-/// `WrCisScene` of `cuda/cis_api.h`.
-#[repr(C)]
-struct WrCisScene {
-    tris: *const f32,
-    material_of: *const u32,
-    n_tris: u64,
-    materials: *const WrMaterial,
-    two_sided: *const u32,
-    emission: *const f32,
-    n_materials: u64,
-    lights: *const WrLight,
-    light_cdf: *const f32,
-    light_of_tri: *const u32,
-    n_lights: u64,
-    cam: [[f32; 3]; 4],
-    tan_half: f32,
-    margin: f32,
-    width: u32,
-    height: u32,
-    max_depth: u32,
-    resampled: u32,
-    candidates: u32,
-    draws: u32,
-    cache_vertices: *const c_void,
-    n_cache_vertices: u64,
-    cache_entries: *const u32,
-    n_entries: u64,
-    count_splat: f64,
-    count_connection: f64,
-}
-
-const _: () = assert!(std::mem::size_of::<WrMaterial>() == 84);
-const _: () = assert!(std::mem::size_of::<WrLight>() == 48);
-const _: () = assert!(std::mem::size_of::<Vertex>() == 60);
-const _: () = assert!(std::mem::size_of::<Slot>() == 88);
-const _: () = assert!(std::mem::size_of::<PendingData>() == 48);
-
-/// The twin's record of a material; `None` for one the twin has no kernel for.
-fn material(m: &Material) -> Option<WrMaterial> {
-    let mut w = WrMaterial::default();
-    let set = |v: Vec3| v.to_array();
-    match *m {
-        Material::Diffuse { albedo } => w.a = set(albedo),
-        Material::Glossy { diffuse, specular, roughness } => {
-            (w.kind, w.a, w.b, w.roughness) = (1, set(diffuse), set(specular), roughness)
-        }
-        Material::Mirror { reflectance } => (w.kind, w.a) = (2, set(reflectance)),
-        Material::Glass { ior, tint } => (w.kind, w.ior, w.a) = (3, ior, set(tint)),
-        Material::Conductor { eta, k, roughness } => (w.kind, w.a, w.b, w.roughness) = (4, set(eta), set(k), roughness),
-        Material::RoughGlass { ior, roughness, tint } => {
-            (w.kind, w.ior, w.roughness, w.a) = (5, ior, roughness, set(tint))
-        }
-        Material::Layered(l) => {
-            (w.kind, w.coat_count) = (6, l.coat_count.min(2));
-            for (c, coat) in l.coats().iter().enumerate() {
-                (w.coat_ior[c], w.coat_roughness[c], w.coat_absorption[c]) =
-                    (coat.ior, coat.roughness, set(coat.absorption));
-            }
-            match l.base {
-                LayerBase::Diffuse { albedo } => w.a = set(albedo),
-                LayerBase::Conductor { eta, k, roughness } => {
-                    (w.base_kind, w.a, w.b, w.roughness) = (1, set(eta), set(k), roughness)
-                }
-            }
-        }
-        Material::Plastic(_) => return None,
-    }
-    Some(w)
-}
-
-fn light(l: &Light) -> WrLight {
-    match *l {
-        Light::Area { tri, area, normal, radiance } => {
-            WrLight { kind: 0, tri, area, normal: normal.to_array(), value: radiance.to_array(), position: [0.0; 3] }
-        }
-        Light::Point { position, intensity } => WrLight {
-            kind: 1,
-            tri: u32::MAX,
-            area: 0.0,
-            normal: [0.0; 3],
-            value: intensity.to_array(),
-            position: position.to_array(),
-        },
-    }
-}
 
 /// What the GPU's shading launch wrote, against what the emulator's wrote.
 #[derive(Clone, Debug, Default)]
@@ -250,49 +135,19 @@ impl GpuCis {
             ));
         }
         let lib = Library::open(path.into())?;
-        let tris: Vec<[f32; 9]> =
-            scene.triangle_vertices().iter().map(|[a, b, c]| [a.x, a.y, a.z, b.x, b.y, b.z, c.x, c.y, c.z]).collect();
-        let materials: Vec<WrMaterial> =
-            scene.materials.iter().map(material).collect::<Option<_>>().ok_or_else(|| {
-                Error::BadSetting("the GPU shading twin has no kernel for Mitsuba's plastic (scenes from XML)".into())
-            })?;
-        let two_sided: Vec<u32> = scene.two_sided.iter().map(|&b| b as u32).collect();
-        let emission: Vec<f32> = scene.emission.iter().flat_map(|e| e.to_array()).collect();
-        let lights = Lights::new(scene);
-        let wl: Vec<WrLight> = lights.lights.iter().map(light).collect();
-        let (cdf, light_of_tri) = lights.tables();
-        let cam = &scene.camera;
-        let (resampled, candidates, draws) = match cap.connections {
+        let tables = SceneTables::new(scene, "the GPU shading twin")?;
+        let connections = match cap.connections {
             Connections::Resampled { candidates, draws } => (1, candidates, draws),
             Connections::Uniform { n } => (0, 0, n),
         };
         let s = WrCisScene {
-            tris: tris.as_ptr().cast(),
-            material_of: scene.material_of.as_ptr(),
-            n_tris: tris.len() as u64,
-            materials: materials.as_ptr(),
-            two_sided: two_sided.as_ptr(),
-            emission: emission.as_ptr(),
-            n_materials: materials.len() as u64,
-            lights: wl.as_ptr(),
-            light_cdf: cdf.as_ptr(),
-            light_of_tri: light_of_tri.as_ptr(),
-            n_lights: wl.len() as u64,
-            cam: [cam.position, cam.forward, cam.right, cam.up].map(|v| v.to_array()),
-            tan_half: (cam.vfov_deg.to_radians() * 0.5).tan(),
-            margin: opts.filter.margin(),
-            width: opts.width,
-            height: opts.height,
-            max_depth: opts.max_depth,
-            resampled,
-            candidates,
-            draws,
             cache_vertices: cap.cache_vertices.as_ptr().cast(),
             n_cache_vertices: cap.cache_vertices.len() as u64,
             cache_entries: cap.cache_entries.as_ptr().cast(),
             n_entries: cap.cache_entries.len() as u64,
             count_splat: cap.counts.splat,
             count_connection: cap.counts.connection,
+            ..tables.record(scene, opts, connections)
         };
         let mut handle = std::ptr::null_mut();
         // SAFETY: every pointer in `s` points into a vector alive for the call, with the

@@ -17,7 +17,7 @@ pub fn library_path() -> PathBuf {
 }
 
 /// `WR_API_VERSION` of the header this file mirrors.
-const API_VERSION: c_int = 5;
+const API_VERSION: c_int = 6;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default)]
@@ -99,6 +99,16 @@ type CisCompactFn =
     unsafe extern "C" fn(*mut c_void, u64, *const u32, u64, *const c_void, *mut u32, *mut u64, *mut f64) -> c_int;
 
 /// The GPU BVH's entry points (`cuda/bvh_api.h`).
+type RenderCreateFn = unsafe extern "C" fn(*const c_void, *const c_void, *mut *mut c_void, *mut c_void) -> c_int;
+type RenderPassFn = unsafe extern "C" fn(*mut c_void, u32, *mut f32, *mut *const f32, *mut u64, *mut c_void) -> c_int;
+
+pub(crate) struct RenderFns {
+    pub create: RenderCreateFn,
+    pub pass: RenderPassFn,
+    pub destroy: DestroyFn,
+    pub last_error: ErrorFn,
+}
+
 struct BvhFns {
     create: BvhCreateFn,
     build: BvhBuildFn,
@@ -127,6 +137,7 @@ pub(crate) struct Library {
     last_error: ErrorFn,
     bvh: BvhFns,
     pub(crate) cis: CisFns,
+    pub(crate) render: RenderFns,
     // Last: the entry points above must not outlive it.
     _lib: libloading::Library,
 }
@@ -193,6 +204,12 @@ impl Library {
                 compact: sym!(b"wr_cis_compact\0", CisCompactFn),
                 destroy: sym!(b"wr_cis_destroy\0", DestroyFn),
                 last_error: sym!(b"wr_cis_last_error\0", ErrorFn),
+            },
+            render: RenderFns {
+                create: sym!(b"wr_render_create\0", RenderCreateFn),
+                pass: sym!(b"wr_render_pass\0", RenderPassFn),
+                destroy: sym!(b"wr_render_destroy\0", DestroyFn),
+                last_error: sym!(b"wr_render_last_error\0", ErrorFn),
             },
             path,
             _lib: lib,

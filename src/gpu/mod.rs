@@ -27,6 +27,8 @@ mod keys;
 pub mod lines;
 pub mod ncu;
 mod pdacrt;
+mod render;
+mod scene;
 pub mod source;
 pub mod time_check;
 
@@ -34,3 +36,4 @@ pub use bvh::GpuBvh;
 pub use cis::{BounceCheck, GpuCis, ShadeCheck, check_render};
 pub use ffi::{DEFAULT_LIBRARY, GpuBvhStats, LIBRARY_ENV, library_path};
 pub use pdacrt::{GpuPdacrt, GpuStats};
+pub use render::{GpuRender, GpuRenderStats};

@@ -10,7 +10,8 @@
 //! differently from glibc's).
 #![cfg(feature = "cuda")]
 
-use std::path::{Path, PathBuf};
+use super::common::host_library;
+use std::path::Path;
 use warpray::render::{Budget, IntegratorKind, RenderOptions};
 use warpray::scene::load_scene;
 
@@ -42,23 +43,6 @@ fn twin_bounces(library: &Path, scene: &str, sorted: bool) -> Vec<(usize, usize,
         .collect()
 }
 
-/// Builds the CPU twin with g++ into a fresh directory.
-fn host_library() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("warpray-cis-twin-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let lib = dir.join("libwarpray_cuda_host.so");
-    let status = std::process::Command::new("g++")
-        .args(["-std=c++17", "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-o"])
-        .arg(&lib)
-        .arg("cuda/cis_host_check.cpp")
-        .status()
-        .unwrap_or_else(|e| {
-            panic!("\n\nTHIS TEST NEEDS g++ (a C++17 compiler) to build cuda/cis_host_check.cpp: {e}\n\n")
-        });
-    assert!(status.success(), "g++ failed on cuda/cis_host_check.cpp");
-    lib
-}
-
 #[test]
 fn the_ported_shading_and_compaction_agree_with_the_emulator_on_the_cpu() {
     let lib = host_library();
@@ -71,7 +55,6 @@ fn the_ported_shading_and_compaction_agree_with_the_emulator_on_the_cpu() {
             }
         }
     }
-    std::fs::remove_dir_all(lib.parent().unwrap()).ok();
 }
 
 #[test]

@@ -202,3 +202,25 @@ pub fn rays_at_corners(scene: &Scene, rng: &mut Rng) -> Vec<Ray> {
         })
         .collect()
 }
+
+/// The CUDA twins built for the CPU (`cuda/cis_host_check.cpp`, the device code compiled
+/// by g++ behind the library's C interface), once per test process.
+pub fn host_library() -> PathBuf {
+    static LIB: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    LIB.get_or_init(|| {
+        let dir = std::env::temp_dir().join(format!("warpray-cuda-host-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let lib = dir.join("libwarpray_cuda_host.so");
+        let status = std::process::Command::new("g++")
+            .args(["-std=c++17", "-O2", "-ffp-contract=off", "-shared", "-fPIC", "-o"])
+            .arg(&lib)
+            .arg("cuda/cis_host_check.cpp")
+            .status()
+            .unwrap_or_else(|e| {
+                panic!("\n\nTHIS TEST NEEDS g++ (a C++17 compiler) to build cuda/cis_host_check.cpp: {e}\n\n")
+            });
+        assert!(status.success(), "g++ failed on cuda/cis_host_check.cpp");
+        lib
+    })
+    .clone()
+}

@@ -20,6 +20,7 @@ mod direct;
 mod embree;
 mod filter_mode;
 mod gpu;
+mod gpu_render;
 mod gpu_time;
 mod hygiene;
 mod import_graph;
