@@ -223,6 +223,12 @@ struct RenderArgs {
     /// the render, and prints the kernel table with a predicted GPU ms column.
     #[arg(long, value_parser = simt::GpuProfile::load)]
     gpu_profile: Option<simt::GpuProfile>,
+    /// Render on an NVIDIA GPU (cargo feature `cuda`, the library of `sh cuda/build.sh`):
+    /// CIS-LBDPT (`--integrator cis` and its ablations) or the LVC-BDPT megakernels
+    /// (`lvc-mk`), whole passes on the device over its own BVH (docs/gpu-check.md).
+    #[cfg(feature = "cuda")]
+    #[arg(long, conflicts_with_all = ["aov", "gpu_profile", "threads"])]
+    gpu: bool,
 }
 
 /// `--integrator`: a label of the integrator registry.
@@ -325,6 +331,56 @@ fn check_outputs(outputs: &[PathBuf], extensions: &[&str]) -> Result<()> {
 }
 
 /// Renders; `Ok(true)` when Ctrl-C stopped it early (the image was still written).
+/// `render --gpu`: the passes on the GPU, then the outputs and a summary line.
+#[cfg(feature = "cuda")]
+fn render_on_gpu(
+    args: &RenderArgs,
+    desc: &warpray::scene::SceneDesc,
+    opts: &RenderOptions,
+    label: &str,
+) -> Result<bool> {
+    let bar = if args.quiet { ProgressBar::hidden() } else { progress_bar(opts.budget) };
+    let start = std::time::Instant::now();
+    interrupt::install();
+    let (film, run) = warpray::gpu::render_on_gpu(&desc.scene, opts, |pass| {
+        match opts.budget {
+            Budget::Samples(_) => bar.set_position(pass as u64),
+            Budget::Seconds(_) => bar.set_position(start.elapsed().as_millis() as u64),
+        }
+        !interrupt::requested()
+    })?;
+    bar.finish_and_clear();
+    let metadata = [
+        ("scene", desc.scene.source.display().to_string()),
+        ("integrator", label.to_string()),
+        ("device", "gpu".to_string()),
+        ("spp", run.passes.to_string()),
+        ("seed", opts.seed.to_string()),
+        ("max_depth", opts.max_depth.to_string()),
+        ("seconds", format!("{:.3}", run.seconds)),
+        ("version", env!("CARGO_PKG_VERSION").to_string()),
+    ];
+    for out in &args.output {
+        film.write_with(out, args.exposure, &metadata)?;
+    }
+    let outs: Vec<String> = args.output.iter().map(|p| p.display().to_string()).collect();
+    println!(
+        "{}: {} triangles, {}x{}, {} spp, {label} on the GPU: {:.2} s ({:.2} ms GPU per pass, of which light {:.2}; read-back {:.2}; BVH build {:.2} ms); wrote {}",
+        desc.scene.source.display(),
+        desc.scene.triangle_count(),
+        opts.width,
+        opts.height,
+        run.passes,
+        run.seconds,
+        run.gpu_ms / run.passes.max(1) as f64,
+        run.light_ms / run.passes.max(1) as f64,
+        run.readback_ms / run.passes.max(1) as f64,
+        run.build_ms,
+        outs.join(", ")
+    );
+    Ok(interrupt::requested())
+}
+
 fn run_render(args: RenderArgs) -> Result<bool> {
     check_outputs(&args.output, &["png", "exr"])?;
     let is_exr = |p: &PathBuf| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
@@ -378,6 +434,10 @@ fn run_render(args: RenderArgs) -> Result<bool> {
     warpray::film::check_size(width, height)?;
     desc.scene.check_renderable()?;
 
+    #[cfg(feature = "cuda")]
+    if args.gpu {
+        return render_on_gpu(&args, &desc, &opts, variant.label);
+    }
     let pool = thread_pool(args.threads)?;
     let threads = pool.current_num_threads();
 

@@ -36,4 +36,4 @@ pub use bvh::GpuBvh;
 pub use cis::{BounceCheck, GpuCis, ShadeCheck, check_render};
 pub use ffi::{DEFAULT_LIBRARY, GpuBvhStats, LIBRARY_ENV, library_path};
 pub use pdacrt::{GpuPdacrt, GpuStats};
-pub use render::{GpuRender, GpuRenderStats};
+pub use render::{GpuRender, GpuRenderStats, GpuRunStats, render_on_gpu};

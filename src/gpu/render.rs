@@ -206,3 +206,54 @@ fn settings(scene: &Scene, opts: &RenderOptions) -> Result<WrRenderSettings> {
     }
     Ok(s)
 }
+
+/// What a whole render on the GPU did ([`render_on_gpu`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GpuRunStats {
+    /// Passes rendered (samples per pixel).
+    pub passes: u32,
+    /// Wall time of the passes, seconds (set-up left out).
+    pub seconds: f64,
+    /// The set-up: the GPU BVH's build, milliseconds.
+    pub build_ms: f64,
+    /// Sums over the passes of their GPU time, of the light passes' part of it, and of
+    /// the read-backs, milliseconds.
+    pub gpu_ms: f64,
+    /// See `gpu_ms`.
+    pub light_ms: f64,
+    /// See `gpu_ms`.
+    pub readback_ms: f64,
+}
+
+/// Renders `scene` as `opts` says (its integrator `cis` or `lvc-mk`, its budget in
+/// samples or seconds) on the GPU of the library at [`library_path`], into a new film;
+/// `on_pass(passes done)` after each pass returns false to stop early.
+pub fn render_on_gpu(
+    scene: &Scene,
+    opts: &RenderOptions,
+    mut on_pass: impl FnMut(u32) -> bool,
+) -> Result<(Film, GpuRunStats)> {
+    use crate::render::Budget;
+    let mut gpu = GpuRender::new(scene, opts)?;
+    let mut film = Film::new(opts.width, opts.height)?.with_filter(opts.filter, opts.filter_mode, opts.seed);
+    let mut run = GpuRunStats { build_ms: gpu.setup().build_ms, ..Default::default() };
+    let start = std::time::Instant::now();
+    loop {
+        let done = match opts.budget {
+            Budget::Samples(n) => run.passes >= n,
+            Budget::Seconds(t) => run.passes > 0 && start.elapsed().as_secs_f64() >= t,
+        };
+        if done {
+            break;
+        }
+        let s = gpu.render_pass(run.passes, &mut film)?;
+        run.passes += 1;
+        (run.gpu_ms, run.light_ms, run.readback_ms) =
+            (run.gpu_ms + s.pass_ms, run.light_ms + s.light_ms, run.readback_ms + s.readback_ms);
+        if !on_pass(run.passes) {
+            break;
+        }
+    }
+    run.seconds = start.elapsed().as_secs_f64();
+    Ok((film, run))
+}

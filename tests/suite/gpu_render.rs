@@ -102,3 +102,34 @@ fn settings_the_gpu_renders_cannot_render_are_refused_with_the_reason() {
     let plastic = load_scene("assets/scenes/bsdf/plastic.xml").unwrap().scene;
     assert!(refused(Variant::parse("cis").unwrap().apply(base), &plastic).contains("plastic"));
 }
+
+#[test]
+fn the_command_line_renders_on_the_gpu_and_refuses_what_it_cannot() {
+    let dir = std::env::temp_dir().join(format!("warpray-gpu-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("gpu.exr");
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_warpray"))
+            .args(args)
+            .env("WARPRAY_CUDA_LIB", host_library())
+            .output()
+            .unwrap()
+    };
+    let ok = run(&["render", "--gpu", "--integrator", "lvc-mk", "--spp", "2", "--size", "16x12", "-q", "-o"]
+        .iter()
+        .copied()
+        .chain([out.to_str().unwrap()])
+        .collect::<Vec<_>>());
+    let stdout = String::from_utf8_lossy(&ok.stdout);
+    assert!(
+        ok.status.success() && stdout.contains("2 spp, lvc-mk on the GPU"),
+        "{stdout}{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    assert!(out.is_file());
+    let refused = run(&["render", "--gpu", "--integrator", "bdpt", "--spp", "1", "--size", "8x8", "-q", "-o", "x.png"]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && err.contains("not bdpt"), "{err}");
+    assert!(!std::path::Path::new("x.png").exists());
+    std::fs::remove_dir_all(dir).ok();
+}
