@@ -16,7 +16,7 @@ namespace cis {
 
 #define HD __device__ __forceinline__
 // The layered stack recurses over its coats: not inlined.
-#define HDR __device__
+#define HDR static __device__
 
 // ---------------------------------------------------------------- vectors (glam's order of operations)
 
@@ -945,7 +945,7 @@ __device__ void vertex_strategies(const Scene& sc, const Vertex* cam, int t, Rng
 // ---------------------------------------------------------------- kernels
 
 // `cis::shade`, the sample at sorted position j (see kernels.rs::shade).
-__device__ void shade(const Scene& sc, const uint32_t* order, const uint32_t* active, const Hit* hits, Slot* slots,
+__device__ inline void shade(const Scene& sc, const uint32_t* order, const uint32_t* active, const Hit* hits, Slot* slots,
                       Vertex* vertices, PendingData* pending, size_t j) {
     size_t i = order[j];
     size_t slot_id = active[i];

@@ -17,6 +17,7 @@
 #include "bvh_trace.cuh"
 #include "device_buf.cuh"
 #include "guarded.h"
+#include "render_device.cuh"
 
 namespace render {
 
