@@ -1,7 +1,7 @@
 //! The `warpray` command. With no arguments it renders the built-in Cornell box to
 //! `out.png` and `out.exr`.
 //!
-//! Longer than the 400-line guide (about 700 lines) on purpose: this is the whole
+//! Longer than the 400-line guide (about 850 lines) on purpose: this is the whole
 //! command line, `render`, `converge` and `diff` with every flag's checks made before
 //! any work starts, so a reader finds each flag and its validation in one place; the
 //! library holds the rest.
