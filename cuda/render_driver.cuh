@@ -44,7 +44,7 @@ struct SplatData {
 };
 
 // Everything a kernel reads: the scene, the tracer, the pools and the stage's scalars.
-// One record for every kernel of the file, passed by value (about 400 bytes).
+// One record for every kernel of the file, passed by value (a few hundred bytes).
 struct K {
     Scene sc;
     Tracer tracer;

@@ -65,6 +65,7 @@ pub struct GpuRender {
     handle: *mut c_void,
     lib: Library,
     setup: GpuRenderStats,
+    size: (u32, u32),
 }
 
 // SAFETY: the handle is used by one `&mut self` call at a time, and the CUDA runtime
@@ -108,7 +109,7 @@ impl GpuRender {
         if rc != 0 {
             return Err(lib.error_from(lib.render.last_error, "setting up the GPU render"));
         }
-        Ok(GpuRender { handle, lib, setup })
+        Ok(GpuRender { handle, lib, setup, size: (opts.width, opts.height) })
     }
 
     /// The device the library renders on.
@@ -124,6 +125,12 @@ impl GpuRender {
     /// Renders pass `pass` and adds it to `film` (its camera splats, then its
     /// estimates, as the CPU integrators add theirs).
     pub fn render_pass(&mut self, pass: u32, film: &mut Film) -> Result<GpuRenderStats> {
+        if (film.width, film.height) != self.size {
+            return Err(Error::BadSetting(format!(
+                "the GPU render is {}x{}, the film {}x{}",
+                self.size.0, self.size.1, film.width, film.height
+            )));
+        }
         let pixels = film.width as usize * film.height as usize;
         let mut estimates = vec![0f32; 3 * pixels];
         let (mut splats, mut n_splats, mut stats) = (std::ptr::null(), 0u64, GpuRenderStats::default());

@@ -99,6 +99,10 @@ fn settings_the_gpu_renders_cannot_render_are_refused_with_the_reason() {
     let mut lens = s.clone();
     lens.camera.aperture_radius = 0.1;
     assert!(refused(Variant::parse("lvc-mk").unwrap().apply(base.clone()), &lens).contains("pinhole"));
+    // A film of another size than the render's.
+    let mut r = GpuRender::with_library(&lib, &s, &Variant::parse("cis").unwrap().apply(base.clone())).unwrap();
+    let mut small = warpray::film::Film::new(4, 4).unwrap();
+    assert!(r.render_pass(0, &mut small).unwrap_err().to_string().contains("the film 4x4"));
     let plastic = load_scene("assets/scenes/bsdf/plastic.xml").unwrap().scene;
     assert!(refused(Variant::parse("cis").unwrap().apply(base), &plastic).contains("plastic"));
 }
