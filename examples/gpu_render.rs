@@ -87,6 +87,14 @@ struct Row {
     cpu_pass_ms: Option<f64>,
 }
 
+impl Row {
+    /// Proportional to the time this integrator needs to reach a given error: the time
+    /// per pass times the variance of one pass.
+    fn cost(&self) -> f64 {
+        self.pass_ms * self.variance
+    }
+}
+
 fn scene_path(name: &str) -> String {
     match name {
         "white-room" | "bedroom" => format!("assets/scenes/{name}.toml"),
@@ -183,7 +191,7 @@ fn print(a: &Args, rows: &[Row], device: &str, machine: &Machine) {
     for scene in &a.scenes {
         let ours: Vec<&Row> = rows.iter().filter(|r| &r.scene == scene).collect();
         let Some(first) = ours.first() else { continue };
-        let base = first.pass_ms * first.variance;
+        let base = first.cost();
         if a.json {
             for r in &ours {
                 println!(
@@ -199,7 +207,7 @@ fn print(a: &Args, rows: &[Row], device: &str, machine: &Machine) {
                     r.wall_ms,
                     r.variance,
                     r.image_mean,
-                    base / (r.pass_ms * r.variance),
+                    base / r.cost(),
                     r.build_ms,
                     r.cache_entries,
                     r.bounces,
@@ -225,7 +233,7 @@ fn print(a: &Args, rows: &[Row], device: &str, machine: &Machine) {
                 r.wall_ms,
                 r.variance,
                 r.image_mean,
-                base / (r.pass_ms * r.variance),
+                base / r.cost(),
                 r.cpu_pass_ms.map_or("-".into(), |c| format!("{c:.1}"))
             );
         }
