@@ -31,7 +31,6 @@
 use clap::Parser;
 use std::time::Instant;
 use warpray::cast::RayCaster;
-use warpray::film::Film;
 use warpray::gpu::{GpuRender, GpuRenderStats};
 use warpray::machine::{Machine, median};
 use warpray::render::{Budget, RenderOptions, Renderer, Variant};
@@ -140,10 +139,9 @@ fn run_scene(a: &Args, name: &str, rows: &mut Vec<Row>, device: &mut String) -> 
             *device = gpu.device_name().map_err(|e| e.to_string())?;
             eprintln!("GPU: {device}");
         }
-        let mut warm = Film::new(a.size, a.size).map_err(|e| e.to_string())?;
+        let mut warm = opts.film().map_err(|e| e.to_string())?;
         gpu.render_pass(1_000_000, &mut warm).map_err(|e| e.to_string())?;
-        let film =
-            Film::new(a.size, a.size).map_err(|e| e.to_string())?.with_filter(opts.filter, opts.filter_mode, opts.seed);
+        let film = opts.film().map_err(|e| e.to_string())?;
         runs.push((label.clone(), opts, gpu, film, Vec::<[f64; 4]>::new(), Vec::<GpuRenderStats>::new()));
     }
     let mut pass = 0;

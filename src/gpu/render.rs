@@ -242,7 +242,7 @@ pub fn render_on_gpu(
 ) -> Result<(Film, GpuRunStats)> {
     use crate::render::Budget;
     let mut gpu = GpuRender::new(scene, opts)?;
-    let mut film = Film::new(opts.width, opts.height)?.with_filter(opts.filter, opts.filter_mode, opts.seed);
+    let mut film = opts.film()?;
     let mut run = GpuRunStats { build_ms: gpu.setup().build_ms, ..Default::default() };
     let start = std::time::Instant::now();
     loop {

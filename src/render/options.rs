@@ -148,6 +148,12 @@ pub struct Strategy {
 }
 
 impl RenderOptions {
+    /// An empty film of these options' size, with their filter, filter mode and seed:
+    /// what every renderer of them (CPU or GPU) accumulates into.
+    pub fn film(&self) -> Result<crate::film::Film> {
+        Ok(crate::film::Film::new(self.width, self.height)?.with_filter(self.filter, self.filter_mode, self.seed))
+    }
+
     /// Whether strategy (s, t) contributes: every strategy does, unless a strategy
     /// image keeps only one.
     #[inline]

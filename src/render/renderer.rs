@@ -103,8 +103,7 @@ impl<'a> Renderer<'a> {
 
     /// An empty film of the render's size.
     pub fn film(&self) -> Result<Film> {
-        let film = Film::new(self.opts.width, self.opts.height)?;
-        Ok(film.with_filter(self.opts.filter, self.opts.filter_mode, self.opts.seed))
+        self.opts.film()
     }
 
     /// Adds pass number `pass` (one sample per pixel) to `film`.
