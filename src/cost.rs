@@ -62,12 +62,18 @@ pub const LUMINANCE: u32 = 5;
 
 /// Declares `units` instructions of arithmetic here ([`simt::declare!`]) with the
 /// feature `model-arithmetic`, in the region of its part of the code ([`part_of`]);
-/// nothing without it.
+/// nothing without it. `declare!(units, reads record, words)` also records the
+/// `words` 4-byte loads with which compiled code reads the fields it uses of `record`,
+/// a reference into the scene ([`simt::read_words!`]).
 #[cfg(feature = "model-arithmetic")]
 macro_rules! declare {
     ($units:expr) => {
         simt::declare!($units, part { const PART: usize = $crate::cost::part_of(file!()); PART })
     };
+    ($units:expr, reads $record:expr, $words:expr) => {{
+        simt::declare!($units, part { const PART: usize = $crate::cost::part_of(file!()); PART });
+        simt::read_words!($record, $words)
+    }};
 }
 
 /// Declares `units` instructions of arithmetic here ([`simt::declare!`]) with the
@@ -77,8 +83,50 @@ macro_rules! declare {
     ($units:expr) => {{
         let _ = $units;
     }};
+    ($units:expr, reads $record:expr, $words:expr) => {{
+        let _ = ($units, $words);
+    }};
 }
 pub(crate) use declare;
+
+/// Records the `words` 4-byte loads with which compiled code reads the fields it uses
+/// of `record`, a reference into the scene ([`simt::read_words!`]), with the feature
+/// `model-arithmetic`; nothing without it. (With arithmetic to declare at the same
+/// place, `declare!(units, reads record, words)`.)
+#[cfg(feature = "model-arithmetic")]
+macro_rules! reads {
+    ($record:expr, $words:expr) => {
+        simt::read_words!($record, $words)
+    };
+}
+
+/// Nothing (without the feature `model-arithmetic`).
+#[cfg(not(feature = "model-arithmetic"))]
+macro_rules! reads {
+    ($record:expr, $words:expr) => {{
+        let _ = ($record, $words);
+    }};
+}
+pub(crate) use reads;
+
+/// `slice[i]`, which a kernel's ambient lane records as a load of global memory
+/// ([`simt::read!`]) with the feature `model-arithmetic`: the scene's tables, which
+/// kernels and CPU integrators read alike. A plain read without the feature.
+#[cfg(feature = "model-arithmetic")]
+macro_rules! read {
+    ($slice:expr, $i:expr) => {
+        simt::read!($slice, $i)
+    };
+}
+
+/// `slice[i]` (without the feature `model-arithmetic`).
+#[cfg(not(feature = "model-arithmetic"))]
+macro_rules! read {
+    ($slice:expr, $i:expr) => {
+        $slice[$i]
+    };
+}
+pub(crate) use read;
 
 /// The caller's inlined copy ([`simt::scope`]) with the feature `model-arithmetic`.
 #[cfg(feature = "model-arithmetic")]

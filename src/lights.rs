@@ -107,7 +107,23 @@ impl Lights {
     }
 
     fn select_pdf(&self, i: usize) -> f32 {
-        self.cdf[i] - if i == 0 { 0.0 } else { self.cdf[i - 1] }
+        use crate::cost::read;
+        read!(self.cdf, i) - if i == 0 { 0.0 } else { read!(self.cdf, i - 1) }
+    }
+
+    /// The first light whose cumulative probability exceeds `u_select` (the last if
+    /// none does): a binary search, each trip one read of the table.
+    fn select(&self, u_select: f32) -> usize {
+        let (mut lo, mut hi) = (0, self.cdf.len());
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if crate::cost::read!(self.cdf, mid) <= u_select {
+                lo = mid + 1;
+            } else {
+                hi = mid;
+            }
+        }
+        lo.min(self.lights.len() - 1)
     }
 
     /// Picks a light with `u_select` and a point on it with `u`.
@@ -121,29 +137,33 @@ impl Lights {
         // (`simt`'s model: the binary search's trips, the selection's difference.)
         let trips = usize::BITS - self.cdf.len().leading_zeros();
         crate::cost::declare!(6 * trips + 4 + 2 * crate::cost::BRANCH);
-        let i = self.cdf.partition_point(|&c| c <= u_select).min(self.lights.len() - 1);
+        let i = self.select(u_select);
         let p_sel = self.select_pdf(i);
         if p_sel <= 0.0 {
             return None;
         }
         crate::cost::declare!(crate::cost::BRANCH);
-        Some(match self.lights[i] {
+        let light = &self.lights[i];
+        Some(match *light {
             Light::Area { tri, area, normal, radiance } => {
                 use crate::cost::{DIV, SQRT, V3};
-                crate::cost::declare!(SQRT + 3 + 6 * V3 + DIV);
+                crate::cost::declare!(SQRT + 3 + 6 * V3 + DIV, reads light, 9);
                 let [a, b, c] = scene.vertices(tri);
                 let (b1, b2) = uniform_triangle(u);
                 let position = a * (1.0 - b1 - b2) + b * b1 + c * b2;
                 LightSample { position, normal, emitted: radiance, pdf: p_sel / area, is_delta: false, tri }
             }
-            Light::Point { position, intensity } => LightSample {
-                position,
-                normal: Vec3::ZERO,
-                emitted: intensity,
-                pdf: p_sel,
-                is_delta: true,
-                tri: u32::MAX,
-            },
+            Light::Point { position, intensity } => {
+                crate::cost::reads!(light, 7);
+                LightSample {
+                    position,
+                    normal: Vec3::ZERO,
+                    emitted: intensity,
+                    pdf: p_sel,
+                    is_delta: true,
+                    tri: u32::MAX,
+                }
+            }
         })
     }
 
@@ -151,19 +171,32 @@ impl Lights {
     pub fn point_select_pdf(&self, position: Vec3) -> f32 {
         self.lights
             .iter()
-            .position(|l| matches!(l, Light::Point { position: p, .. } if *p == position))
+            .position(|l| {
+                crate::cost::reads!(l, 4);
+                matches!(l, Light::Point { position: p, .. } if *p == position)
+            })
             .map_or(0.0, |i| self.select_pdf(i))
     }
 
     /// Area density (selection × 1/area) with which [`Lights::sample`] picks a point on
     /// scene triangle `tri`; 0 for non-emitters.
     pub fn pdf_area(&self, tri: u32) -> f32 {
-        match self.light_of_tri.get(tri as usize) {
-            Some(&i) if i != u32::MAX => match self.lights[i as usize] {
-                Light::Area { area, .. } => self.select_pdf(i as usize) / area,
-                Light::Point { .. } => 0.0,
-            },
-            _ => 0.0,
+        if tri as usize >= self.light_of_tri.len() {
+            return 0.0;
+        }
+        match crate::cost::read!(self.light_of_tri, tri as usize) {
+            u32::MAX => 0.0,
+            i => {
+                let light = &self.lights[i as usize];
+                crate::cost::reads!(light, 1);
+                match *light {
+                    Light::Area { area, .. } => {
+                        crate::cost::reads!(light, 1);
+                        self.select_pdf(i as usize) / area
+                    }
+                    Light::Point { .. } => 0.0,
+                }
+            }
         }
     }
 }

@@ -154,6 +154,9 @@ enum Cmd {
         /// A shipped profile's name (`h200`) or a profile file.
         #[arg(long, default_value = "h200")]
         gpu_profile: String,
+        /// Also print how the check moves when each profile value alone is scaled.
+        #[arg(long)]
+        sensitivity: bool,
     },
     /// Join a `simt` TSV and an ncu CSV into the comparison table.
     Report {
@@ -230,7 +233,9 @@ fn run(a: Args) -> Result<(), String> {
                 .map_err(|e| format!("{} / {}: {e}", probes.display(), csv.display()))?;
             print!("{}", c.to_text(&header));
         }
-        Cmd::Time { records, ncu: csv, ncu_all, gpu_profile } => time_run(&records, &csv, &ncu_all, &gpu_profile)?,
+        Cmd::Time { records, ncu: csv, ncu_all, gpu_profile, sensitivity } => {
+            time_run(&records, &csv, &ncu_all, &gpu_profile, sensitivity)?
+        }
         Cmd::Report { simt, ncu: csv } => {
             let simt = tsv::read(&read(&simt)?).map_err(|e| format!("{}: {e}", simt.display()))?;
             let gpu = ncu::parse_csv(&read(&csv)?).map_err(|e| format!("{}: {e}", csv.display()))?;
@@ -272,22 +277,26 @@ fn time_run(
     csv: &[std::path::PathBuf],
     all: &[std::path::PathBuf],
     profile: &str,
+    sensitivity: bool,
 ) -> Result<(), String> {
     use warpray::gpu::time_check;
     let p = simt::GpuProfile::load(profile)?;
     println!("Profile: {} ({profile}).\n", p.name);
-    let mut every = Vec::new();
+    let (mut every, mut runs) = (Vec::new(), Vec::new());
     for (i, path) in records.iter().enumerate() {
         let recs = simt::records_from_tsv(&read(path)?).map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut run = time_check::CheckedRun { records: Vec::new(), kernels: Vec::new(), every: None };
         if let Some(c) = csv.get(i) {
             let gpu = ncu::parse_csv(&read(c)?).map_err(|e| format!("{}: {e}", c.display()))?;
             let rows = time_check::kernel_times(&recs, &gpu, &p);
             println!("{} against {}:\n\n{}", path.display(), c.display(), time_check::table(&rows));
             every.extend(rows);
+            run.kernels = gpu;
         }
         if let Some(a) = all.get(i) {
             let gpu = ncu::parse_csv(&read(a)?).map_err(|e| format!("{}: {e}", a.display()))?;
             let measured: f64 = gpu.iter().map(|g| g.seconds).sum();
+            run.every = Some(measured);
             let predicted = time_check::predicted_total(&recs, &p);
             println!(
                 "Pipeline: predicted {:.3} ms ({} launches), measured {:.3} ms ({} launches, every kernel): {:+.0} %\n",
@@ -298,6 +307,8 @@ fn time_run(
                 (predicted - measured) / measured * 100.0
             );
         }
+        run.records = recs;
+        runs.push(run);
     }
     if csv.len() > 1 {
         let (mape, worst) = time_check::errors(&every);
@@ -306,6 +317,12 @@ fn time_run(
             mape * 100.0,
             every.len(),
             worst.map_or("-".into(), |w| format!("{} ({:+.0} %)", w.name, w.error() * 100.0))
+        );
+    }
+    if sensitivity {
+        println!(
+            "\nEach profile value alone scaled: the kernels' mean absolute error; the pipelines' errors\n\n{}",
+            time_check::sensitivity(&runs, &p)
         );
     }
     Ok(())

@@ -1,7 +1,8 @@
 //! Work declared by code that does not hold the [`Thread`]: functions a kernel shares
 //! with host code (a renderer's BSDFs, its MIS weights) declare their arithmetic with
-//! [`declare!`](crate::declare!) and mark the calls and loops whose copies a GPU compiler keeps apart with
-//! [`scope`]. Inside [`Thread::ambient`] these record into that lane's measurement as
+//! [`declare!`](crate::declare!), their reads of memory the kernel sees as global (a
+//! scene's tables, read through plain references) with [`read!`](crate::read!), and mark
+//! the calls and loops whose copies a GPU compiler keeps apart with [`scope`]. Inside [`Thread::ambient`] these record into that lane's measurement as
 //! [`Thread::work`] would; anywhere else (host code, an unmeasured launch) they cost a
 //! thread-local read and do nothing.
 //!
@@ -13,7 +14,8 @@
 //! times the lane entered it: the lanes' k-th entries are one copy, in which trips are
 //! matched again from the first.
 
-use crate::exec::{Thread, leave_copy, note_work, site};
+use crate::exec::{Thread, access_width, leave_copy, note_global, note_work, site};
+use crate::meter::Kind;
 use crate::meter::Meter;
 use std::cell::{Cell, RefCell};
 
@@ -87,6 +89,73 @@ macro_rules! declare {
             $units,
         )
     };
+}
+
+/// Reads `$slice[$i]` and, for the ambient lane ([`Thread::ambient`]), records it as a
+/// global load of the element at its address, at a site of its own (the macro's place,
+/// in the lane's current copy, as [`declare!`]): what [`Thread::load`] records for a
+/// view. Outside an ambient lane it is the plain read.
+#[macro_export]
+macro_rules! read {
+    ($slice:expr, $i:expr) => {{
+        let (slice, i) = (&$slice, $i);
+        $crate::ambient::read_at(
+            {
+                const SITE: usize = $crate::ambient::site_of(::core::file!(), ::core::line!(), ::core::column!());
+                SITE
+            },
+            &slice[i],
+        );
+        slice[i]
+    }};
+}
+
+/// Records, for the ambient lane, `$words` 4-byte loads from the start of the record
+/// `$place` points at (a `&T` into memory the kernel sees as global), at a site of its
+/// own: compiled code that reads a record through a reference loads the fields it uses,
+/// one instruction each, where it uses them. Like an instruction, a site loads the same
+/// number of words every time. Outside an ambient lane, nothing.
+#[macro_export]
+macro_rules! read_words {
+    ($place:expr, $words:expr) => {
+        $crate::ambient::read_words_at(
+            {
+                const SITE: usize = $crate::ambient::site_of(::core::file!(), ::core::line!(), ::core::column!());
+                SITE
+            },
+            $place,
+            $words,
+        )
+    };
+}
+
+/// The function behind [`read!`]: records a load of `value` for the ambient lane;
+/// outside one, nothing.
+#[doc(hidden)]
+#[inline(always)]
+pub fn read_at<T>(site: usize, value: &T) {
+    note_read(site, value as *const T as u64, std::mem::size_of::<T>() as u64, access_width::<T>());
+}
+
+/// The function behind [`read_words!`]: records `words` 4-byte loads from the start of
+/// `record` for the ambient lane; outside one, nothing.
+#[doc(hidden)]
+#[inline(always)]
+pub fn read_words_at<T: ?Sized>(site: usize, record: &T, words: u32) {
+    if words > 0 {
+        note_read(site, record as *const T as *const u8 as u64, 4 * words as u64, 4);
+    }
+}
+
+#[inline(always)]
+fn note_read(site: usize, addr: u64, size: u64, width: u64) {
+    if let Some(a) = ambient() {
+        // Salted: a macro that declares work and records a read expands both at one
+        // place in the source, and they are two instructions.
+        let site = site ^ 0x2545_f491_4f6c_dd1d_u64 as usize;
+        // SAFETY: as in `declare_at`.
+        note_global(unsafe { &*a.meter }, site, Kind::Load, addr, size, width, true);
+    }
 }
 
 /// A site key for a place in the source, computed when the crate compiles (what

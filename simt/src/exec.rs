@@ -463,7 +463,7 @@ fn read_field<T: DeviceCopy, U: DeviceCopy, V: Readable<T>>(v: &V, i: usize, fie
 // code they sit in stays small enough to inline.
 #[cold]
 #[inline(never)]
-fn note_global(m: &RefCell<Meter>, site: usize, kind: Kind, addr: u64, size: u64, width: u64, on: bool) {
+pub(crate) fn note_global(m: &RefCell<Meter>, site: usize, kind: Kind, addr: u64, size: u64, width: u64, on: bool) {
     m.borrow_mut().global(site, kind, addr, size, width, on);
 }
 

@@ -96,3 +96,29 @@ fn work_in_a_region_the_launch_does_not_name_is_refused() {
     let res = dev.launch("unnamed", cfg, |blk| blk.for_each_thread(|t| t.ambient(3, || simt::declare!(1))));
     assert!(res.is_err(), "region 3 is not named by the launch");
 }
+
+#[test]
+fn reads_through_plain_references_count_as_the_lanes_global_loads() {
+    let dev = measured();
+    // A table of 256 16-byte elements of 4-byte alignment (so 4 load instructions per
+    // element, as for a view) and a record of 12 words, read by shared code that holds
+    // no view.
+    let table: Vec<[f32; 4]> = (0..256).map(|i| [i as f32; 4]).collect();
+    let record = [0u32; 12];
+    let rec = dev.for_each_in("ambient", &["shared"], 32, |t, i| {
+        t.ambient(0, || {
+            // Lane k reads element 2k: each of the 4 loads touches 32 sectors.
+            let v = simt::read!(table, 2 * i);
+            assert_eq!(v[0], (2 * i) as f32);
+            // Every lane reads the record's first 5 words: 5 loads of one sector.
+            simt::read_words!(&record, 5);
+        })
+    });
+    assert_eq!((rec.loads.requests, rec.loads.sectors, rec.loads.lanes), (4 + 5, 4 * 32 + 5, 9 * 32));
+    // Outside an ambient lane the same reads record nothing.
+    let rec = dev.for_each_in("plain", &["shared"], 32, |_t, i| {
+        std::hint::black_box(simt::read!(table, i));
+        simt::read_words!(&record, 5);
+    });
+    assert_eq!(rec.loads.requests, 0);
+}

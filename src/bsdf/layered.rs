@@ -29,8 +29,8 @@
 
 use super::microfacet::{Ggx, fresnel_conductor, fresnel_dielectric};
 use super::sample::{BsdfSample, TransportMode};
-use crate::cost::declare;
 use crate::cost::{BRANCH, DIV, DOT, EXP, SQRT, V3, V3_DIV};
+use crate::cost::{declare, reads};
 use crate::sampling::cosine_hemisphere;
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
@@ -82,13 +82,19 @@ pub struct Layered {
 impl Layered {
     /// The coats in use, outermost first.
     pub fn coats(&self) -> &[Coat] {
+        reads!(&self.coat_count, 1);
         &self.coats[..self.coat_count.min(2) as usize]
     }
 
     /// No continuous lobe anywhere (smooth coats over a smooth conductor).
     pub fn is_delta(&self) -> bool {
-        self.coats().iter().all(|c| c.roughness < SMOOTH)
-            && matches!(self.base, LayerBase::Conductor { roughness, .. } if roughness < SMOOTH)
+        self.coats().iter().all(|c| {
+            reads!(&c.roughness, 1);
+            c.roughness < SMOOTH
+        }) && {
+            reads!(&self.base, 2);
+            matches!(self.base, LayerBase::Conductor { roughness, .. } if roughness < SMOOTH)
+        }
     }
 
     /// Value of the continuous part, both directions on `+z`.
@@ -151,7 +157,7 @@ fn out_of_film(w: Vec3, ior: f32) -> Option<Vec3> {
 #[track_caller]
 fn attenuation(c: &Coat, wo: Vec3, wi: Vec3) -> Vec3 {
     let _inlined = crate::cost::scope();
-    declare!(2 * DIV + 3 + 2 * V3 + 3 * EXP);
+    declare!(2 * DIV + 3 + 2 * V3 + 3 * EXP, reads & c.absorption, 3);
     (-c.absorption * (1.0 / wo.z.max(1e-6) + 1.0 / wi.z.max(1e-6))).exp()
 }
 
@@ -159,16 +165,17 @@ fn attenuation(c: &Coat, wo: Vec3, wi: Vec3) -> Vec3 {
 #[track_caller]
 fn base_f(b: &LayerBase, wo: Vec3, wi: Vec3) -> Vec3 {
     let _inlined = crate::cost::scope();
-    declare!(2 * BRANCH);
+    declare!(2 * BRANCH, reads b, 1);
     match *b {
         LayerBase::Diffuse { albedo } => {
-            declare!(V3);
+            declare!(V3, reads b, 3);
             albedo * FRAC_1_PI
         }
         LayerBase::Conductor { eta, k, roughness } if roughness >= SMOOTH => {
+            reads!(b, 1);
             let ggx = Ggx { alpha: roughness };
             ggx.reflection(wo, wi).map_or(Vec3::ZERO, |(v, _, wm)| {
-                declare!(DOT + V3);
+                declare!(DOT + V3, reads b, 6);
                 fresnel_conductor(wo.dot(wm), eta, k) * v
             })
         }
@@ -180,13 +187,14 @@ fn base_f(b: &LayerBase, wo: Vec3, wi: Vec3) -> Vec3 {
 #[track_caller]
 fn base_pdf(b: &LayerBase, wo: Vec3, wi: Vec3) -> f32 {
     let _inlined = crate::cost::scope();
-    declare!(2 * BRANCH);
+    declare!(2 * BRANCH, reads b, 1);
     match *b {
         LayerBase::Diffuse { .. } => {
             declare!(1);
             wi.z * FRAC_1_PI
         }
         LayerBase::Conductor { roughness, .. } if roughness >= SMOOTH => {
+            reads!(b, 1);
             Ggx { alpha: roughness }.reflection(wo, wi).map_or(0.0, |(_, p, _)| p)
         }
         LayerBase::Conductor { .. } => 0.0,
@@ -197,11 +205,11 @@ fn base_pdf(b: &LayerBase, wo: Vec3, wi: Vec3) -> f32 {
 #[track_caller]
 fn base_sample(b: &LayerBase, wo: Vec3, u: Vec2) -> Option<BsdfSample> {
     let _inlined = crate::cost::scope();
-    declare!(2 * BRANCH);
+    declare!(2 * BRANCH, reads b, 2);
     match *b {
         LayerBase::Diffuse { albedo } => {
             let wi = cosine_hemisphere(u);
-            declare!(1 + BRANCH + V3);
+            declare!(1 + BRANCH + V3, reads b, 3);
             let pdf = wi.z * FRAC_1_PI;
             (pdf > 0.0).then(|| BsdfSample { wi, f: albedo * FRAC_1_PI, pdf, weight: albedo, delta: false })
         }
@@ -211,14 +219,14 @@ fn base_sample(b: &LayerBase, wo: Vec3, u: Vec2) -> Option<BsdfSample> {
             declare!(DOT + 1 + 2 * V3);
             let wi = 2.0 * wo.dot(wm) * wm - wo;
             let (v, pdf, _) = ggx.reflection(wo, wi)?;
-            declare!(DOT + V3 + BRANCH + 2 * V3 + V3_DIV);
+            declare!(DOT + V3 + BRANCH + 2 * V3 + V3_DIV, reads b, 6);
             let f = fresnel_conductor(wo.dot(wm), eta, k) * v;
             (pdf > 0.0).then(|| BsdfSample { wi, f, pdf, weight: f * wi.z / pdf, delta: false })
         }
         LayerBase::Conductor { eta, k, .. } => {
             let wi = Vec3::new(-wo.x, -wo.y, wo.z);
             let fr = fresnel_conductor(wo.z, eta, k);
-            declare!(V3_DIV);
+            declare!(V3_DIV, reads b, 6);
             Some(BsdfSample { wi, f: fr / wi.z, pdf: 1.0, weight: fr, delta: true })
         }
     }
@@ -232,7 +240,7 @@ fn f_stack(coats: &[Coat], base: &LayerBase, wo: Vec3, wi: Vec3) -> Vec3 {
     let Some((c, rest)) = coats.split_first() else {
         return base_f(base, wo, wi);
     };
-    declare!(BRANCH);
+    declare!(BRANCH, reads c, 2);
     let top = if c.roughness >= SMOOTH {
         Ggx { alpha: c.roughness }.reflection(wo, wi).map_or(0.0, |(v, _, wm)| {
             declare!(DOT + 1);
@@ -255,7 +263,7 @@ fn pdf_stack(coats: &[Coat], base: &LayerBase, wo: Vec3, wi: Vec3) -> f32 {
     let Some((c, rest)) = coats.split_first() else {
         return base_pdf(base, wo, wi);
     };
-    declare!(BRANCH + 8 + DIV);
+    declare!(BRANCH + 8 + DIV, reads c, 2);
     let p_coat = fresnel_dielectric(wo.z, c.ior);
     let top = if c.roughness >= SMOOTH {
         Ggx { alpha: c.roughness }.reflection(wo, wi).map_or(0.0, |(_, p, _)| p)
@@ -274,10 +282,11 @@ fn sample_stack(coats: &[Coat], base: &LayerBase, wo: Vec3, u_lobe: f32, u: Vec2
     let Some((c, rest)) = coats.split_first() else {
         return base_sample(base, wo, u);
     };
+    reads!(c, 1);
     let p_coat = fresnel_dielectric(wo.z, c.ior);
     declare!(BRANCH);
     if u_lobe < p_coat {
-        declare!(BRANCH);
+        declare!(BRANCH, reads c, 1);
         return if c.roughness >= SMOOTH {
             let wm = Ggx { alpha: c.roughness }.sample_visible(wo, u);
             declare!(DOT + 1 + 2 * V3 + BRANCH);

@@ -12,8 +12,8 @@ pub mod microfacet;
 pub mod plastic;
 mod sample;
 
-use crate::cost::declare;
 use crate::cost::{BRANCH, DIV, DOT, LUMINANCE, SQRT, V3, V3_DIV};
+use crate::cost::{declare, reads};
 use crate::film::luminance;
 use crate::scene::Material;
 use glam::{Vec2, Vec3};
@@ -60,6 +60,7 @@ impl Material {
     /// True for interfaces between two media (glass, rough glass), which scatter on
     /// both sides whatever the scene says about sidedness.
     pub fn is_dielectric(&self) -> bool {
+        reads!(self, 1);
         matches!(self, Material::Glass { .. } | Material::RoughGlass { .. })
     }
 
@@ -67,13 +68,11 @@ impl Material {
     /// the exterior's for a refraction into a dielectric, its inverse out of one, 1 for
     /// every reflection (Mitsuba's `BSDFSample3f::eta`).
     pub fn eta(&self, wo: Vec3, wi: Vec3) -> f32 {
+        reads!(self, 1);
         match *self {
             Material::Glass { ior, .. } | Material::RoughGlass { ior, .. } if wo.z * wi.z < 0.0 => {
-                if wo.z > 0.0 {
-                    ior
-                } else {
-                    1.0 / ior
-                }
+                reads!(self, 1);
+                if wo.z > 0.0 { ior } else { 1.0 / ior }
             }
             _ => 1.0,
         }
@@ -82,9 +81,13 @@ impl Material {
     /// True when the material scatters only into discrete directions (no light
     /// sampling is possible at such a vertex).
     pub fn is_delta(&self) -> bool {
+        reads!(self, 1);
         match *self {
             Material::Mirror { .. } | Material::Glass { .. } => true,
-            Material::Conductor { roughness, .. } | Material::RoughGlass { roughness, .. } => roughness < SMOOTH,
+            Material::Conductor { roughness, .. } | Material::RoughGlass { roughness, .. } => {
+                reads!(self, 1);
+                roughness < SMOOTH
+            }
             Material::Layered(l) => l.is_delta(),
             Material::Diffuse { .. } | Material::Glossy { .. } | Material::Plastic(_) => false,
         }
@@ -95,16 +98,16 @@ impl Material {
     #[track_caller]
     pub fn f(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> Vec3 {
         let _inlined = crate::cost::scope();
-        declare!(BRANCH);
+        declare!(BRANCH, reads self, 1);
         if let Material::RoughGlass { ior, roughness, tint } = *self {
-            declare!(BRANCH);
+            declare!(BRANCH, reads self, 1);
             if roughness < SMOOTH {
                 return Vec3::ZERO;
             }
-            declare!(BRANCH + 4 + DIV);
+            declare!(BRANCH + 4 + DIV, reads self, 1);
             let (wo_u, wi_u, eta) = if wo.z < 0.0 { (flip(wo), flip(wi), 1.0 / ior) } else { (wo, wi, ior) };
             let (v, _) = rough_dielectric(Ggx { alpha: roughness }, eta, wo_u, wi_u, mode);
-            declare!(1 + BRANCH + V3);
+            declare!(1 + BRANCH + V3, reads self, 3);
             return if wo.z * wi.z < 0.0 { tint * v } else { Vec3::splat(v) };
         }
         declare!(3 * BRANCH + 2);
@@ -115,17 +118,17 @@ impl Material {
         declare!(BRANCH);
         match *self {
             Material::Diffuse { albedo } => {
-                declare!(V3);
+                declare!(V3, reads self, 3);
                 albedo * FRAC_1_PI
             }
             Material::Glossy { diffuse, specular, roughness } => {
                 let spec = Ggx { alpha: roughness }.reflection(wo, wi).map_or(0.0, |(v, _, _)| v);
-                declare!(3 * V3);
+                declare!(3 * V3, reads self, 7);
                 diffuse * FRAC_1_PI + specular * spec
             }
             Material::Conductor { eta, k, roughness } if roughness >= SMOOTH => {
                 Ggx { alpha: roughness }.reflection(wo, wi).map_or(Vec3::ZERO, |(v, _, wm)| {
-                    declare!(DOT + V3);
+                    declare!(DOT + V3, reads self, 7);
                     fresnel_conductor(wo.dot(wm), eta, k) * v
                 })
             }
@@ -140,13 +143,13 @@ impl Material {
     #[track_caller]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         let _inlined = crate::cost::scope();
-        declare!(BRANCH);
+        declare!(BRANCH, reads self, 1);
         if let Material::RoughGlass { ior, roughness, .. } = *self {
-            declare!(BRANCH);
+            declare!(BRANCH, reads self, 1);
             if roughness < SMOOTH {
                 return 0.0;
             }
-            declare!(BRANCH + 4 + DIV);
+            declare!(BRANCH + 4 + DIV, reads self, 1);
             let (wo_u, wi_u, eta) = if wo.z < 0.0 { (flip(wo), flip(wi), 1.0 / ior) } else { (wo, wi, ior) };
             return rough_dielectric(Ggx { alpha: roughness }, eta, wo_u, wi_u, TransportMode::Radiance).1;
         }
@@ -164,10 +167,11 @@ impl Material {
             Material::Glossy { diffuse, specular, roughness } => {
                 let ws = Self::specular_weight(diffuse, specular);
                 let spec = Ggx { alpha: roughness }.reflection(wo, wi).map_or(0.0, |(_, p, _)| p);
-                declare!(5);
+                declare!(5, reads self, 7);
                 (1.0 - ws) * wi.z * FRAC_1_PI + ws * spec
             }
             Material::Conductor { roughness, .. } if roughness >= SMOOTH => {
+                reads!(self, 1);
                 Ggx { alpha: roughness }.reflection(wo, wi).map_or(0.0, |(_, p, _)| p)
             }
             Material::Layered(l) => l.pdf(wo, wi),
@@ -185,19 +189,22 @@ impl Material {
         if wo.z == 0.0 {
             return None;
         }
-        declare!(2 * BRANCH + 1);
+        declare!(2 * BRANCH + 1, reads self, 1);
         let side = if wo.z < 0.0 { -1.0 } else { 1.0 };
         let to_side = |w: Vec3| Vec3::new(w.x, w.y, w.z * side);
         let wo_up = to_side(wo);
         match *self {
             Material::Diffuse { .. } | Material::Glossy { .. } => {
                 let wi_up = match *self {
-                    Material::Glossy { diffuse, specular, roughness }
-                        if u_lobe < Self::specular_weight(diffuse, specular) =>
-                    {
-                        let wm = Ggx { alpha: roughness }.sample_visible(wo_up, u);
-                        declare!(DOT + 1 + 2 * V3);
-                        2.0 * wo_up.dot(wm) * wm - wo_up
+                    Material::Glossy { diffuse, specular, roughness } => {
+                        reads!(self, 7);
+                        if u_lobe < Self::specular_weight(diffuse, specular) {
+                            let wm = Ggx { alpha: roughness }.sample_visible(wo_up, u);
+                            declare!(DOT + 1 + 2 * V3);
+                            2.0 * wo_up.dot(wm) * wm - wo_up
+                        } else {
+                            crate::sampling::cosine_hemisphere(u)
+                        }
                     }
                     _ => crate::sampling::cosine_hemisphere(u),
                 };
@@ -210,11 +217,11 @@ impl Material {
                 continuous(wi, self.f(wo, wi, mode), self.pdf(wo, wi))
             }
             Material::Conductor { eta, k, roughness } => {
-                declare!(BRANCH);
+                declare!(BRANCH, reads self, 1);
                 if roughness < SMOOTH {
                     let wi = reflect_z(wo);
                     let fr = fresnel_conductor(wo_up.z, eta, k);
-                    declare!(1 + V3_DIV);
+                    declare!(1 + V3_DIV, reads self, 6);
                     return Some(BsdfSample { wi, f: fr / wi.z.abs(), pdf: 1.0, weight: fr, delta: true });
                 }
                 let wm = Ggx { alpha: roughness }.sample_visible(wo_up, u);
@@ -237,12 +244,12 @@ impl Material {
                 Some(BsdfSample { wi: to_side(s.wi), ..s })
             }
             Material::Mirror { reflectance } => {
-                declare!(1 + V3_DIV);
+                declare!(1 + V3_DIV, reads self, 3);
                 let wi = reflect_z(wo);
                 Some(BsdfSample { wi, f: reflectance / wi.z.abs(), pdf: 1.0, weight: reflectance, delta: true })
             }
             Material::RoughGlass { ior, roughness, .. } if roughness >= SMOOTH => {
-                declare!(BRANCH + DIV);
+                declare!(BRANCH + DIV, reads self, 2);
                 let eta = if wo.z > 0.0 { ior } else { 1.0 / ior };
                 let wi_up = sample_rough_dielectric(Ggx { alpha: roughness }, eta, wo_up, u_lobe, u)?;
                 declare!(1);
@@ -250,7 +257,7 @@ impl Material {
                 continuous(wi, self.f(wo, wi, mode), self.pdf(wo, wi))
             }
             Material::Glass { ior, tint } | Material::RoughGlass { ior, tint, .. } => {
-                declare!(BRANCH + DIV + 1);
+                declare!(BRANCH + DIV + 1, reads self, 1);
                 let entering = wo.z > 0.0;
                 let eta = if entering { ior } else { 1.0 / ior };
                 let fr = fresnel_dielectric(wo.z.abs(), eta);
@@ -267,7 +274,7 @@ impl Material {
                     });
                 }
                 // Refraction about the normal on wo's side.
-                declare!(12 + 4 * DIV + SQRT + BRANCH + 2 * V3);
+                declare!(12 + 4 * DIV + SQRT + BRANCH + 2 * V3, reads self, 3);
                 let cos_i = wo.z.abs();
                 let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
                 let cos_t = (1.0 - sin2_t).max(0.0).sqrt();

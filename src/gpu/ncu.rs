@@ -70,6 +70,12 @@ impl GpuKernel {
     }
 }
 
+/// The name after the last `::`: ncu reports a kernel with or without its namespace,
+/// depending on how it was asked to name kernels, so kernels are matched by this.
+pub fn base_name(name: &str) -> &str {
+    name.rsplit("::").next().unwrap_or(name)
+}
+
 /// The kernel's name without parameters, template arguments or return type, under the
 /// namespace `pdacrt::` when it is one of ours (`void pdacrt::filter_rays(...)`,
 /// `filter_rays`), `cis::` for CIS-LBDPT's (`cis::shade_sorted(cis::ShadeArgs)`) and
@@ -146,13 +152,39 @@ fn value(text: &str, unit: &str, line: usize, column: &str) -> Result<f64, Strin
 /// Per-kernel sums from `ncu --csv --page raw` output (other lines, such as the
 /// profiler's `==PROF==` notes, are skipped). Errors name the line and column.
 pub fn parse_csv(text: &str) -> Result<Vec<GpuKernel>, String> {
+    let mut kernels: Vec<GpuKernel> = Vec::new();
+    for launch in parse_launches(text)? {
+        match kernels.iter_mut().find(|k| k.name == launch.name) {
+            Some(k) => {
+                k.launches += 1;
+                k.inst += launch.inst;
+                k.thread_inst += launch.thread_inst;
+                k.loads.add(&launch.loads);
+                k.stores.add(&launch.stores);
+                k.atomics.add(&launch.atomics);
+                k.shared_bytes = k.shared_bytes.max(launch.shared_bytes);
+                k.seconds += launch.seconds;
+                k.dram_bytes += launch.dram_bytes;
+                k.l2_sectors += launch.l2_sectors;
+                k.registers = k.registers.max(launch.registers);
+                k.clock_hz_sum += launch.clock_hz_sum;
+            }
+            None => kernels.push(launch),
+        }
+    }
+    Ok(kernels)
+}
+
+/// Every launch of an ncu CSV export, in the export's order (one [`GpuKernel`] with
+/// `launches` 1 each); [`parse_csv`] sums them per kernel.
+pub fn parse_launches(text: &str) -> Result<Vec<GpuKernel>, String> {
     let mut lines = text.lines().enumerate().skip_while(|(_, l)| !l.trim_start().starts_with("\"ID\""));
     let (_, header) = lines.next().ok_or("no ncu CSV header (a line starting with \"ID\") found")?;
     let header = split_csv(header);
     let col = |name: &str| header.iter().position(|h| h == name);
     let name_col = col("Kernel Name").ok_or("the CSV has no 'Kernel Name' column")?;
     let mut units: Option<Vec<String>> = None;
-    let mut kernels: Vec<GpuKernel> = Vec::new();
+    let mut launches = Vec::new();
     for (i, line) in lines {
         let row = split_csv(line);
         if row.len() < header.len() {
@@ -181,7 +213,7 @@ pub fn parse_csv(text: &str) -> Result<Vec<GpuKernel>, String> {
         let name = short_name(&row[name_col]);
         let (atom, red) = (traffic("atom")?, traffic("red")?);
         let launch = GpuKernel {
-            name: name.clone(),
+            name,
             launches: 1,
             inst: get("smsp__inst_executed.sum")?,
             thread_inst: get("smsp__thread_inst_executed.sum")?,
@@ -196,25 +228,9 @@ pub fn parse_csv(text: &str) -> Result<Vec<GpuKernel>, String> {
             registers: get("launch__registers_per_thread")? as u64,
             clock_hz_sum: get("sm__cycles_elapsed.avg.per_second")?,
         };
-        match kernels.iter_mut().find(|k| k.name == name) {
-            Some(k) => {
-                k.launches += 1;
-                k.inst += launch.inst;
-                k.thread_inst += launch.thread_inst;
-                k.loads.add(&launch.loads);
-                k.stores.add(&launch.stores);
-                k.atomics.add(&launch.atomics);
-                k.shared_bytes = k.shared_bytes.max(launch.shared_bytes);
-                k.seconds += launch.seconds;
-                k.dram_bytes += launch.dram_bytes;
-                k.l2_sectors += launch.l2_sectors;
-                k.registers = k.registers.max(launch.registers);
-                k.clock_hz_sum += launch.clock_hz_sum;
-            }
-            None => kernels.push(launch),
-        }
+        launches.push(launch);
     }
-    Ok(kernels)
+    Ok(launches)
 }
 
 /// One kernel, predicted and measured.
@@ -240,8 +256,8 @@ pub fn relative(predicted: Option<f64>, measured: Option<f64>) -> Option<f64> {
 pub fn compare(simt: &[KernelSummary], gpu: &[GpuKernel]) -> Vec<Comparison> {
     gpu.iter()
         .filter_map(|g| {
-            simt.iter().find(|s| s.name == g.name).map(|s| Comparison {
-                name: g.name.clone(),
+            simt.iter().find(|s| base_name(s.name) == base_name(&g.name)).map(|s| Comparison {
+                name: s.name.to_string(),
                 simt: s.clone(),
                 gpu: g.clone(),
             })

@@ -1,7 +1,7 @@
 //! `simt`'s predicted GPU time set beside Nsight Compute's, kernel by kernel and for
 //! whole pipelines (`docs/simt.md`, "Predicted GPU time"; `gpu_check time`).
 
-use super::ncu::GpuKernel;
+use super::ncu::{GpuKernel, base_name};
 use simt::timing::{Prediction, predict};
 use simt::{GpuProfile, LaunchRecord};
 use std::fmt::Write;
@@ -37,18 +37,12 @@ pub fn predicted_total(records: &[LaunchRecord], p: &GpuProfile) -> f64 {
     records.iter().filter_map(|r| predict(r, p)).map(|t| t.seconds).sum()
 }
 
-/// The name after the last `::` (ncu may report a kernel with or without its
-/// namespace, depending on how it was asked to name kernels).
-fn base(name: &str) -> &str {
-    name.rsplit("::").next().unwrap_or(name)
-}
-
 /// Every kernel in `gpu` that the records also have (matched by the name without its
 /// namespace), in the GPU's order.
 pub fn kernel_times(records: &[LaunchRecord], gpu: &[GpuKernel], p: &GpuProfile) -> Vec<KernelTime> {
     gpu.iter()
         .filter_map(|g| {
-            let mine: Vec<&LaunchRecord> = records.iter().filter(|r| base(r.name) == base(&g.name)).collect();
+            let mine: Vec<&LaunchRecord> = records.iter().filter(|r| base_name(r.name) == base_name(&g.name)).collect();
             if mine.is_empty() || g.seconds <= 0.0 {
                 return None;
             }
@@ -109,6 +103,60 @@ pub fn table(rows: &[KernelTime]) -> String {
             w.name,
             w.error() * 100.0
         );
+    }
+    s
+}
+
+/// One checked run: the emulator's launch records, ncu's per-kernel counters of the same
+/// launches, and (for a pipeline) ncu's total over every kernel it launched.
+pub struct CheckedRun {
+    /// The emulator's launch records.
+    pub records: Vec<LaunchRecord>,
+    /// ncu's counters of the same launches, per kernel.
+    pub kernels: Vec<GpuKernel>,
+    /// Measured seconds of every kernel of the pipeline (CUB's too), if profiled.
+    pub every: Option<f64>,
+}
+
+/// Every kernel row of every run, and each pipeline's relative error.
+pub fn check(runs: &[CheckedRun], p: &GpuProfile) -> (Vec<KernelTime>, Vec<f64>) {
+    let mut rows = Vec::new();
+    let mut pipelines = Vec::new();
+    for r in runs {
+        rows.extend(kernel_times(&r.records, &r.kernels, p));
+        if let Some(measured) = r.every {
+            pipelines.push((predicted_total(&r.records, p) - measured) / measured);
+        }
+    }
+    (rows, pipelines)
+}
+
+/// How the check moves when one profile value alone is wrong: for each value scaled by
+/// 0.5, 0.95, 1.05 and 2, the kernels' mean absolute error and the pipelines' errors,
+/// as a markdown table (`docs/simt.md`, "What the check can see").
+pub fn sensitivity(runs: &[CheckedRun], p: &GpuProfile) -> String {
+    type Scale = fn(&mut GpuProfile, f64);
+    let values: [(&str, Scale); 7] = [
+        ("HBM latency", |q, k| q.hbm_latency_s *= k),
+        ("L2 latency", |q, k| q.l2_latency_s *= k),
+        ("arithmetic latency", |q, k| q.alu_latency_cycles *= k),
+        ("launch cost", |q, k| q.launch_s *= k),
+        ("HBM bandwidth", |q, k| q.hbm_bytes_per_s *= k),
+        ("L2 bandwidth", |q, k| q.l2_bytes_per_s *= k),
+        ("issue rate", |q, k| q.issue_per_cycle_per_sm *= k),
+    ];
+    let scales = [0.5, 0.95, 1.05, 2.0];
+    let mut s = String::from("| planted | × 0.5 | × 0.95 | × 1.05 | × 2 |\n|---|---|---|---|---|\n");
+    for (name, scale) in values {
+        let _ = write!(s, "| {name} |");
+        for k in scales {
+            let mut q = p.clone();
+            scale(&mut q, k);
+            let (rows, pipes) = check(runs, &q);
+            let pipes: Vec<String> = pipes.iter().map(|e| format!("{:+.0}", e * 100.0)).collect();
+            let _ = write!(s, " {:.1} %; {} % |", errors(&rows).0 * 100.0, pipes.join("/"));
+        }
+        s.push('\n');
     }
     s
 }

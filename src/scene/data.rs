@@ -57,8 +57,9 @@ impl Scene {
     /// The three corners of triangle `i`.
     #[inline]
     pub fn vertices(&self, i: u32) -> [Vec3; 3] {
-        let [a, b, c] = self.triangles[i as usize];
-        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+        use crate::cost::read;
+        let [a, b, c] = read!(self.triangles, i as usize);
+        [read!(self.positions, a as usize), read!(self.positions, b as usize), read!(self.positions, c as usize)]
     }
 
     /// All triangles as corner triples, in scene order (what the casters consume).
@@ -76,7 +77,7 @@ impl Scene {
     #[inline]
     /// The material of a triangle.
     pub fn material(&self, tri: u32) -> &Material {
-        &self.materials[self.material_of[tri as usize] as usize]
+        &self.materials[crate::cost::read!(self.material_of, tri as usize) as usize]
     }
 
     /// What scatters at triangle `tri` for outgoing direction `wo_local` (in the frame
@@ -85,8 +86,9 @@ impl Scene {
     #[inline]
     pub fn bsdf(&self, tri: u32, wo_local: Vec3) -> &Material {
         const BLACK: Material = Material::Diffuse { albedo: Vec3::ZERO };
-        let m = self.material_of[tri as usize] as usize;
-        if wo_local.z < 0.0 && !self.two_sided[m] && !self.materials[m].is_dielectric() {
+        use crate::cost::read;
+        let m = read!(self.material_of, tri as usize) as usize;
+        if wo_local.z < 0.0 && !read!(self.two_sided, m) && !self.materials[m].is_dielectric() {
             &BLACK
         } else {
             &self.materials[m]
@@ -105,7 +107,8 @@ impl Scene {
     #[inline]
     /// Radiance a triangle emits from its front face.
     pub fn emission_of(&self, tri: u32) -> Vec3 {
-        self.emission[self.material_of[tri as usize] as usize]
+        use crate::cost::read;
+        read!(self.emission, read!(self.material_of, tri as usize) as usize)
     }
 
     /// The box around every vertex.

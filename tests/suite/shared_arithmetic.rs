@@ -53,12 +53,15 @@ fn warp_of(materials: impl Fn(usize) -> Material + Sync) -> (u64, u64) {
             std::hint::black_box(materials(i).f(wo, wi, TransportMode::Radiance));
         })
     });
+    // The declared arithmetic, without the loads of the material's fields (counted in
+    // the next test).
     let all = rec.all_regions();
+    let (issued, active) = (all.issued - rec.loads.requests, all.active - rec.loads.lanes);
     // Each declaration lands in its part's region: the BSDF's dispatch in `bsdf`, GGX
     // and Fresnel in `microfacet`, nothing elsewhere.
     let part = |name: &str| rec.regions.iter().find(|r| r.name == name).map_or(0, |r| r.issued);
-    assert_eq!(part("bsdf") + part("microfacet"), all.issued, "{:?}", rec.regions);
-    (all.issued, all.active)
+    assert_eq!(part("bsdf") + part("microfacet"), issued, "{:?}", rec.regions);
+    (issued, active)
 }
 
 /// The regions of the code's parts, as `cis::shade` names them after its arithmetic
@@ -86,6 +89,29 @@ fn a_warp_split_between_materials_issues_each_arm_for_its_own_lanes() {
     let (issued, active) = warp_of(|i| if i < 16 { diffuse() } else { conductor() });
     assert_eq!(active, 16 * (PREFIX + DIFFUSE_ARM) + 16 * (PREFIX + CONDUCTOR_ARM));
     assert_eq!(issued, PREFIX + DIFFUSE_ARM + CONDUCTOR_ARM);
+}
+
+/// The scene reads a BSDF records (`cost::declare!(.., reads ..)`): the diffuse arm of
+/// `Material::f` loads its material's kind and albedo, four 4-byte loads, each one warp
+/// request; the lanes that read one material share each load's sector, so a warp split
+/// between two materials touches two sectors per load.
+#[cfg(feature = "model-arithmetic")]
+#[test]
+fn a_bsdf_loads_the_words_it_reads_of_its_material_one_sector_per_material() {
+    let materials = [diffuse(), Material::Diffuse { albedo: Vec3::splat(0.25) }];
+    assert!(std::mem::size_of::<Material>() >= 32, "two materials' kinds must lie in different sectors");
+    let (wo, wi) = (Vec3::new(0.3, 0.1, 0.9).normalize(), Vec3::new(-0.2, 0.4, 0.8).normalize());
+    let loads = |pick: &(dyn Fn(usize) -> usize + Sync)| {
+        let dev = Device::new(DeviceConfig { measure: true, ..Default::default() });
+        let rec = dev.for_each_in("bsdf::f", PARTS, 32, |t, i| {
+            t.ambient(0, || {
+                std::hint::black_box(materials[pick(i)].f(wo, wi, TransportMode::Radiance));
+            })
+        });
+        (rec.loads.requests, rec.loads.sectors, rec.loads.lanes)
+    };
+    assert_eq!(loads(&|_| 0), (4, 4, 4 * 32));
+    assert_eq!(loads(&|i| i / 16), (4, 8, 4 * 32));
 }
 
 #[test]
