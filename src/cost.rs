@@ -61,17 +61,18 @@ pub const VERTEX_COPY: u32 = 16;
 pub const LUMINANCE: u32 = 5;
 
 /// Declares `units` instructions of arithmetic here ([`simt::declare!`]) with the
-/// feature `model-arithmetic`, in the region of its part of the code ([`part_of`]);
-/// nothing without it. `declare!(units, reads record, words)` also records the
+/// feature `model-arithmetic`, in the region of its part of the code: the [`Part`] the
+/// calling module names as its `COST_PART` (a module that declares work and names none
+/// does not compile); nothing without the feature. `declare!(units, reads record, words)` also records the
 /// `words` 4-byte loads with which compiled code reads the fields it uses of `record`,
 /// a reference into the scene ([`simt::read_words!`]).
 #[cfg(feature = "model-arithmetic")]
 macro_rules! declare {
     ($units:expr) => {
-        simt::declare!($units, part { const PART: usize = $crate::cost::part_of(file!()); PART })
+        simt::declare!($units, part { const PART: usize = COST_PART.index(); PART })
     };
     ($units:expr, reads $record:expr, $words:expr) => {{
-        simt::declare!($units, part { const PART: usize = $crate::cost::part_of(file!()); PART });
+        simt::declare!($units, part { const PART: usize = COST_PART.index(); PART });
         simt::read_words!($record, $words)
     }};
 }
@@ -81,10 +82,10 @@ macro_rules! declare {
 #[cfg(not(feature = "model-arithmetic"))]
 macro_rules! declare {
     ($units:expr) => {{
-        let _ = $units;
+        let _ = (COST_PART, $units);
     }};
     ($units:expr, reads $record:expr, $words:expr) => {{
-        let _ = ($units, $words);
+        let _ = (COST_PART, $units, $words);
     }};
 }
 pub(crate) use declare;
@@ -147,37 +148,49 @@ pub(crate) fn scope() -> NoScope {
 #[cfg(not(feature = "model-arithmetic"))]
 pub(crate) struct NoScope;
 
-/// The part of the code a source file belongs to, whose declared work a kernel's
-/// statistics keep apart (the k-th region after the kernel's arithmetic region: 0 the
-/// kernel's own, 1 microfacet, 2 BSDFs, 3 bidirectional, 4 sampling, 5 lights), as
-/// `gpu_check source --lines` groups the twin's source lines.
-#[cfg_attr(not(feature = "model-arithmetic"), allow(dead_code))]
-pub const fn part_of(file: &str) -> usize {
-    const fn ends_with(a: &[u8], b: &[u8]) -> bool {
-        if b.len() > a.len() {
-            return false;
-        }
-        let mut i = 0;
-        while i < b.len() {
-            if a[a.len() - b.len() + i] != b[i] {
-                return false;
-            }
-            i += 1;
-        }
-        true
+/// The parts of the code whose declared work a kernel's statistics keep apart, named
+/// by what the code is: each module that declares work says which it is
+/// (`const COST_PART: Part = Part::Microfacet;`), and its work goes to the part's region
+/// after the kernel's arithmetic region (`cis::shade` names them in this order, and
+/// `gpu_check source --lines` groups the twin's source lines the same way).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Part {
+    /// The kernel's own arithmetic.
+    Kernel,
+    /// The microfacet distribution and Fresnel terms ([`crate::bsdf::microfacet`]).
+    Microfacet,
+    /// The BSDFs' dispatch and lobes ([`crate::scene::Material`], layered stacks).
+    Bsdf,
+    /// Bidirectional strategies: connections, MIS weights, the light vertex cache's.
+    Bidirectional,
+    /// Sampling routines and random numbers ([`crate::sampling`]).
+    Sampling,
+    /// Light selection and sampling ([`crate::lights`]).
+    Lights,
+}
+
+impl Part {
+    /// Every part, in region order.
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub const ALL: [Part; 6] =
+        [Part::Kernel, Part::Microfacet, Part::Bsdf, Part::Bidirectional, Part::Sampling, Part::Lights];
+
+    /// The part's region, counted after the kernel's arithmetic region.
+    #[cfg_attr(not(any(test, feature = "model-arithmetic")), allow(dead_code))]
+    pub const fn index(self) -> usize {
+        self as usize
     }
-    let f = file.as_bytes();
-    if ends_with(f, b"microfacet.rs") {
-        1
-    } else if ends_with(f, b"bsdf/mod.rs") || ends_with(f, b"layered.rs") {
-        2
-    } else if ends_with(f, b"bidir.rs") || ends_with(f, b"mis.rs") || ends_with(f, b"lvc.rs") {
-        3
-    } else if ends_with(f, b"sampling.rs") {
-        4
-    } else if ends_with(f, b"lights.rs") {
-        5
-    } else {
-        0
+
+    /// The part's name in a kernel's region list.
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Part::Kernel => "kernel",
+            Part::Microfacet => "microfacet",
+            Part::Bsdf => "bsdf",
+            Part::Bidirectional => "bidirectional",
+            Part::Sampling => "sampling",
+            Part::Lights => "lights",
+        }
     }
 }

@@ -8,6 +8,9 @@ use crate::scene::Scene;
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
+/// The part of the code this module's declared arithmetic counts as ([`crate::cost::Part`]).
+const COST_PART: crate::cost::Part = crate::cost::Part::Lights;
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 /// A light source the integrators can sample.
 pub enum Light {

@@ -7,6 +7,9 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 
+/// The part of the code this module's declared arithmetic counts as ([`crate::cost::Part`]).
+const COST_PART: crate::cost::Part = crate::cost::Part::Sampling;
+
 /// 64-bit finaliser (splitmix64 / Stafford variant 13): a bijective, well-mixed hash.
 #[inline]
 pub fn mix64(mut z: u64) -> u64 {

@@ -92,7 +92,7 @@ macro_rules! declare {
 }
 
 /// Reads `$slice[$i]` and, for the ambient lane ([`Thread::ambient`]), records it as a
-/// global load of the element at its address, at a site of its own (the macro's place,
+/// global load of the element (the slice placed on a 256-byte boundary), at a site of its own (the macro's place,
 /// in the lane's current copy, as [`declare!`]): what [`Thread::load`] records for a
 /// view. Outside an ambient lane it is the plain read.
 #[macro_export]
@@ -104,7 +104,8 @@ macro_rules! read {
                 const SITE: usize = $crate::ambient::site_of(::core::file!(), ::core::line!(), ::core::column!());
                 SITE
             },
-            &slice[i],
+            &slice[..],
+            i,
         );
         slice[i]
     }};
@@ -129,12 +130,22 @@ macro_rules! read_words {
     };
 }
 
-/// The function behind [`read!`]: records a load of `value` for the ambient lane;
+/// Where the model places host memory that shared code reads: at 256 times its host
+/// address, so that each slice (or record) begins on a 256-byte boundary, as a
+/// `cudaMalloc` allocation does, whatever alignment the host allocator gave it, and
+/// sector counts do not change from run to run; distinct host objects stay apart.
+#[inline(always)]
+fn model_address(host: *const u8) -> u64 {
+    (host as u64).wrapping_shl(8)
+}
+
+/// The function behind [`read!`]: records a load of `slice[i]` for the ambient lane;
 /// outside one, nothing.
 #[doc(hidden)]
 #[inline(always)]
-pub fn read_at<T>(site: usize, value: &T) {
-    note_read(site, value as *const T as u64, std::mem::size_of::<T>() as u64, access_width::<T>());
+pub fn read_at<T>(site: usize, slice: &[T], i: usize) {
+    let addr = model_address(slice.as_ptr().cast()) + (i * std::mem::size_of::<T>()) as u64;
+    note_read(site, addr, std::mem::size_of::<T>() as u64, access_width::<T>());
 }
 
 /// The function behind [`read_words!`]: records `words` 4-byte loads from the start of
@@ -143,7 +154,7 @@ pub fn read_at<T>(site: usize, value: &T) {
 #[inline(always)]
 pub fn read_words_at<T: ?Sized>(site: usize, record: &T, words: u32) {
     if words > 0 {
-        note_read(site, record as *const T as *const u8 as u64, 4 * words as u64, 4);
+        note_read(site, model_address((record as *const T).cast()), 4 * words as u64, 4);
     }
 }
 

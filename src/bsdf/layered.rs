@@ -35,6 +35,9 @@ use crate::sampling::cosine_hemisphere;
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
 
+/// The part of the code this module's declared arithmetic counts as ([`crate::cost::Part`]).
+const COST_PART: crate::cost::Part = crate::cost::Part::Bsdf;
+
 /// Roughness below which a lobe is treated as perfectly smooth (a delta lobe).
 pub const SMOOTH: f32 = 1e-3;
 

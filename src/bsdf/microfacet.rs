@@ -8,6 +8,9 @@ use crate::cost::{BRANCH, CROSS, DIV, DOT, NORMALIZE, NORMALIZE_OR_ZERO, SIN_COS
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
+/// The part of the code this module's declared arithmetic counts as ([`crate::cost::Part`]).
+const COST_PART: crate::cost::Part = crate::cost::Part::Microfacet;
+
 /// GGX microfacet distribution of roughness `alpha`.
 #[derive(Clone, Copy, Debug)]
 pub struct Ggx {

@@ -22,6 +22,9 @@ use microfacet::{Ggx, fresnel_conductor, fresnel_dielectric, rough_dielectric, s
 pub use sample::{BsdfSample, TransportMode};
 use std::f32::consts::FRAC_1_PI;
 
+/// The part of the code this module's declared arithmetic counts as ([`crate::cost::Part`]).
+const COST_PART: crate::cost::Part = crate::cost::Part::Bsdf;
+
 /// Flips both directions so that `wo` lies on `+z` (two-sided opaque surfaces).
 #[inline]
 fn upper(wo: Vec3, wi: Vec3) -> (Vec3, Vec3) {

@@ -25,6 +25,9 @@ use crate::sampling::{Frame, Rng};
 use crate::scene::Camera;
 use glam::{Vec2, Vec3};
 
+/// The part of the code this module's declared arithmetic counts as ([`crate::cost::Part`]).
+const COST_PART: crate::cost::Part = crate::cost::Part::Bidirectional;
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(u32)]
 /// What a subpath vertex is.

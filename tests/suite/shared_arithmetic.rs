@@ -65,7 +65,7 @@ fn warp_of(materials: impl Fn(usize) -> Material + Sync) -> (u64, u64) {
 }
 
 /// The regions of the code's parts, as `cis::shade` names them after its arithmetic
-/// region (`warpray::cost::part_of`).
+/// region (`warpray::cost::Part`).
 const PARTS: &[&str] = &["kernel", "microfacet", "bsdf", "bidirectional", "sampling", "lights"];
 
 fn diffuse() -> Material {

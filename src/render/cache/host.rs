@@ -17,6 +17,9 @@ use crate::sampling::Rng;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+/// The part of the code this module's declared arithmetic counts as ([`crate::cost::Part`]).
+const COST_PART: crate::cost::Part = crate::cost::Part::Bidirectional;
+
 /// The light vertices of one iteration.
 #[derive(Clone, Debug, Default)]
 pub struct LightVertexCache {

@@ -13,6 +13,9 @@ use crate::scene::Camera;
 use glam::{Vec2, Vec3};
 use simt::{DeviceCopy, Global, GlobalMut, Thread};
 
+/// The part of the code this module's declared arithmetic counts as ([`crate::cost::Part`]).
+const COST_PART: crate::cost::Part = crate::cost::Part::Kernel;
+
 /// Camera vertices kept per pool slot (`max_depth + 2` at most).
 pub const MAX_CAMERA_VERTICES: usize = MAX_PATH / 2;
 /// Pending contributions per slot and bounce: emitter, light sample, and connections.
@@ -134,7 +137,7 @@ pub struct ShadeArgs<'a> {
 /// the regions after it.
 pub const ARITHMETIC_REGION: usize = 1;
 /// The shading launch's regions, in index order: the dispatch, then the declared
-/// arithmetic by part of the code ([`crate::cost::part_of`]).
+/// arithmetic by part of the code ([`crate::cost::Part`], in its order).
 pub const SHADE_REGIONS: &[&str] = &[
     "shade",
     "arithmetic",
@@ -274,5 +277,23 @@ pub fn retire(t: &Thread, i: usize, active: &Global<u32>, slots: &Global<Slot>, 
     let slot = t.load(slots, t.load(active, i) as usize);
     if slot.alive == 0 {
         t.store(estimates, slot.pixel as usize, slot.radiance.to_array());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{ARITHMETIC_REGION, SHADE_REGIONS};
+    use crate::cost::Part;
+
+    #[test]
+    fn the_shading_regions_name_the_parts_of_the_code_in_their_order() {
+        for part in Part::ALL {
+            let name = SHADE_REGIONS[ARITHMETIC_REGION + part.index()];
+            match part {
+                Part::Kernel => assert_eq!(name, "arithmetic"),
+                _ => assert_eq!(name, format!("arithmetic: {}", part.name())),
+            }
+        }
+        assert_eq!(SHADE_REGIONS.len(), ARITHMETIC_REGION + Part::ALL.len());
     }
 }
