@@ -285,9 +285,8 @@ fn sample_stack(coats: &[Coat], base: &LayerBase, wo: Vec3, u_lobe: f32, u: Vec2
     let Some((c, rest)) = coats.split_first() else {
         return base_sample(base, wo, u);
     };
-    reads!(c, 1);
+    declare!(BRANCH, reads c, 1);
     let p_coat = fresnel_dielectric(wo.z, c.ior);
-    declare!(BRANCH);
     if u_lobe < p_coat {
         declare!(BRANCH, reads c, 1);
         return if c.roughness >= SMOOTH {

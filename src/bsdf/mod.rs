@@ -107,10 +107,9 @@ impl Material {
             if roughness < SMOOTH {
                 return Vec3::ZERO;
             }
-            declare!(BRANCH + 4 + DIV, reads self, 1);
+            declare!(2 * BRANCH + 5 + DIV + V3, reads self, 4);
             let (wo_u, wi_u, eta) = if wo.z < 0.0 { (flip(wo), flip(wi), 1.0 / ior) } else { (wo, wi, ior) };
             let (v, _) = rough_dielectric(Ggx { alpha: roughness }, eta, wo_u, wi_u, mode);
-            declare!(1 + BRANCH + V3, reads self, 3);
             return if wo.z * wi.z < 0.0 { tint * v } else { Vec3::splat(v) };
         }
         declare!(3 * BRANCH + 2);
@@ -260,11 +259,10 @@ impl Material {
                 continuous(wi, self.f(wo, wi, mode), self.pdf(wo, wi))
             }
             Material::Glass { ior, tint } | Material::RoughGlass { ior, tint, .. } => {
-                declare!(BRANCH + DIV + 1, reads self, 1);
+                declare!(2 * BRANCH + DIV + 1, reads self, 1);
                 let entering = wo.z > 0.0;
                 let eta = if entering { ior } else { 1.0 / ior };
                 let fr = fresnel_dielectric(wo.z.abs(), eta);
-                declare!(BRANCH);
                 if u_lobe < fr {
                     declare!(2 + DIV);
                     let wi = reflect_z(wo);

@@ -342,11 +342,10 @@ pub(crate) fn strategy_light_sample(
     if d2 == 0.0 {
         return None;
     }
-    declare!(SQRT + V3_DIV);
+    declare!(SQRT + V3_DIV + 2 + DIV + 4 * V3 + 2 + BRANCH);
     let wdir = d / d2.sqrt();
     let le = vertex_f(ctx, &lv, None, c.p, TransportMode::Importance);
     let f = vertex_f(ctx, c, cam.get(t - 2), lv.p, TransportMode::Radiance);
-    declare!(2 + DIV + 4 * V3 + 2 + BRANCH);
     let g = cos_at(c, wdir) * cos_at(&lv, wdir) / d2;
     let l = c.beta * f * le * lv.beta * g;
     if l.max_element() <= 0.0 {
@@ -415,11 +414,10 @@ fn connect_contribution_inlined(
     if d2 == 0.0 {
         return None;
     }
-    declare!(SQRT + V3_DIV);
+    declare!(SQRT + V3_DIV + 2 + DIV + 4 * V3 + 2 + BRANCH);
     let wdir = d / d2.sqrt();
     let fl = vertex_f(ctx, lv, lv_prev, c.p, TransportMode::Importance);
     let fc = vertex_f(ctx, c, cam.get(t - 2), lv.p, TransportMode::Radiance);
-    declare!(2 + DIV + 4 * V3 + 2 + BRANCH);
     let g = cos_at(lv, wdir) * cos_at(c, wdir) / d2;
     let l = lv.beta * fl * g * fc * c.beta;
     (l.max_element() > 0.0).then_some(l)
