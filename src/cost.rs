@@ -14,13 +14,14 @@
 //! instruction per scalar f32 add, subtract, multiply, compare, min, max, abs or select
 //! (the twin is compiled with `-fmad=false`, so no multiply fuses with an add); for the
 //! operations that compile to sequences on sm_90 with `-prec-div=true -prec-sqrt=true`,
-//! the length of their common path as nvcc 13.0 emits it for sm_90 (read from the SASS
-//! of `cuda/probe_costs.cu`, `sh cuda/probe_costs.sh`): a division is 10 instructions
-//! (the convergence barrier, `MUFU.RCP`, `FCHK`, five `FFMA`, the branch around the slow
-//! path, the barrier's end), a square root 10 (`MUFU.RSQ`, a range check and its branch,
-//! four refinements, the barrier), `expf` 10 (a range reduction and `MUFU.EX2`), `sinf`
-//! or `cosf` 27 (a Cody–Waite reduction, the large-argument test and its branch, the
-//! polynomial with its selects). Vector operations are three scalar ones. The weights
+//! the length of their common path as nvcc 13.0 emits it for sm_90: a division is 10
+//! instructions (the convergence barrier, `MUFU.RCP`, `FCHK`, five `FFMA`, the branch
+//! around the slow path, the barrier's end), a square root 10 (`MUFU.RSQ`, a range check
+//! and its branch, four refinements, the barrier), `expf` 10 (a range reduction and
+//! `MUFU.EX2`), `sinf` 26 and `cosf` 27, one weight of 27 for both (a Cody–Waite
+//! reduction, the large-argument test and its branch, the polynomial with its selects).
+//! This module's test derives these from the stored SASS of `cuda/probe_costs.cu`
+//! (`docs/measured/probe-costs-sm90.sass`; `sh cuda/probe_costs.sh` prints it again). Vector operations are three scalar ones. The weights
 //! are counted from the Rust source, not fitted to any measurement: the GPU's counts of
 //! the same launches judge them.
 
@@ -32,7 +33,7 @@ pub const DIV: u32 = 10;
 pub const SQRT: u32 = 10;
 /// `expf`.
 pub const EXP: u32 = 10;
-/// `sinf` or `cosf`.
+/// `sinf` or `cosf` (the longer, `cosf`'s).
 pub const SIN_COS: u32 = 27;
 /// A component-wise `Vec3` add, subtract or multiply.
 pub const V3: u32 = 3;
@@ -192,5 +193,101 @@ impl Part {
             Part::Sampling => "sampling",
             Part::Lights => "lights",
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The weights nvcc's code gives (division, square root, `expf`, sine and cosine),
+    //! derived from the stored SASS of `cuda/probe_costs.cu`
+    //! (`docs/measured/probe-costs-sm90.sass`, printed by `sh cuda/probe_costs.sh`) and
+    //! checked against the constants above.
+
+    /// One instruction: its address, whether it is predicated, its opcode and operands.
+    struct Inst {
+        at: u32,
+        predicated: bool,
+        op: String,
+        args: String,
+    }
+
+    /// The instructions of each function of a `cuobjdump -sass` listing.
+    fn functions(sass: &str) -> Vec<(String, Vec<Inst>)> {
+        let mut out: Vec<(String, Vec<Inst>)> = Vec::new();
+        for line in sass.lines() {
+            if let Some(name) = line.trim().strip_prefix("Function : ") {
+                out.push((name.trim().to_string(), Vec::new()));
+            } else if let (Some(rest), Some(f)) = (line.trim().strip_prefix("/*"), out.last_mut()) {
+                let (at, text) = rest.split_once("*/").expect("an address");
+                let text = text.trim().trim_end_matches(';').trim();
+                let (predicated, text) = match text.strip_prefix('@') {
+                    Some(t) => (true, t.split_once(' ').map_or("", |(_, r)| r.trim())),
+                    None => (false, text),
+                };
+                let (op, args) = text.split_once(' ').unwrap_or((text, ""));
+                let at = u32::from_str_radix(at, 16).expect("a hex address");
+                f.1.push(Inst { at, predicated, op: op.to_string(), args: args.to_string() });
+            }
+        }
+        out
+    }
+
+    fn target(i: &Inst) -> u32 {
+        let hex = i.args.split("0x").nth(1).expect("a branch target");
+        u32::from_str_radix(hex.trim_end_matches(|c: char| !c.is_ascii_hexdigit()), 16).unwrap()
+    }
+
+    /// The instructions a lane issues on the common path from the kernel's start to its
+    /// exit: a predicated forward branch around a slow path (a block that calls a
+    /// subroutine or loops back) is taken, any other falls through. Operand and address
+    /// set-up (constant loads, the thread index, the address arithmetic, the global load
+    /// and store, the exit) is left out, so what remains is the operation.
+    fn common_path(code: &[Inst]) -> usize {
+        let index = |at: u32| code.iter().position(|i| i.at == at).expect("a branch target in the function");
+        let (mut k, mut n) = (0, 0);
+        while k < code.len() {
+            let i = &code[k];
+            let setup =
+                ["LDC", "ULDC", "S2R", "LDG", "STG", "EXIT", "IMAD.WIDE", "LEA"].iter().any(|p| i.op.starts_with(p))
+                    || (i.op == "SHF.R.S32.HI" && i.args.contains("0x1f"));
+            n += usize::from(!setup);
+            if i.op == "EXIT" && !i.predicated {
+                break;
+            }
+            if i.op == "BRA" {
+                let to = target(i);
+                if !i.predicated {
+                    k = index(to);
+                    continue;
+                }
+                let slow = to > i.at
+                    && code[k + 1..index(to)]
+                        .iter()
+                        .any(|j| j.op.starts_with("CALL") || (j.op == "BRA" && target(j) < j.at));
+                if slow {
+                    k = index(to);
+                    continue;
+                }
+            }
+            k += 1;
+        }
+        n
+    }
+
+    #[test]
+    fn the_weights_of_the_compiled_operations_are_their_sass_common_paths() {
+        let sass = include_str!("../docs/measured/probe-costs-sm90.sass");
+        let weight = |name: &str| -> u32 {
+            let (_, code) = functions(sass).into_iter().find(|(n, _)| n == name).expect(name);
+            common_path(&code) as u32
+        };
+        // The probe of one addition, to show the set-up is left out.
+        assert_eq!(weight("probe_add"), 1);
+        assert_eq!(weight("probe_div"), super::DIV);
+        assert_eq!(weight("probe_sqrt"), super::SQRT);
+        assert_eq!(weight("probe_exp"), super::EXP);
+        // One weight for both: the longer (sinf 26, cosf 27).
+        assert_eq!(weight("probe_sin").max(weight("probe_cos")), super::SIN_COS);
+        assert_eq!((weight("probe_sin"), weight("probe_cos")), (26, 27));
     }
 }
