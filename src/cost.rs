@@ -64,7 +64,7 @@ pub const LUMINANCE: u32 = 5;
 /// Declares `units` instructions of arithmetic here ([`simt::declare!`]) with the
 /// feature `model-arithmetic`, in the region of its part of the code: the [`Part`] the
 /// calling module names as its `COST_PART` (a module that declares work and names none
-/// does not compile); nothing without the feature. `declare!(units, reads record, words)` also records the
+/// does not compile); nothing without the feature. `declare!(units, reads(record, words))` also records the
 /// `words` 4-byte loads with which compiled code reads the fields it uses of `record`,
 /// a reference into the scene ([`simt::read_words!`]).
 #[cfg(feature = "model-arithmetic")]
@@ -72,7 +72,7 @@ macro_rules! declare {
     ($units:expr) => {
         simt::declare!($units, part { const PART: usize = COST_PART.index(); PART })
     };
-    ($units:expr, reads $record:expr, $words:expr) => {{
+    ($units:expr, reads($record:expr, $words:expr)) => {{
         simt::declare!($units, part { const PART: usize = COST_PART.index(); PART });
         simt::read_words!($record, $words)
     }};
@@ -85,7 +85,7 @@ macro_rules! declare {
     ($units:expr) => {{
         let _ = (COST_PART, $units);
     }};
-    ($units:expr, reads $record:expr, $words:expr) => {{
+    ($units:expr, reads($record:expr, $words:expr)) => {{
         let _ = (COST_PART, $units, $words);
     }};
 }
@@ -94,7 +94,7 @@ pub(crate) use declare;
 /// Records the `words` 4-byte loads with which compiled code reads the fields it uses
 /// of `record`, a reference into the scene ([`simt::read_words!`]), with the feature
 /// `model-arithmetic`; nothing without it. (With arithmetic to declare at the same
-/// place, `declare!(units, reads record, words)`.)
+/// place, `declare!(units, reads(record, words))`.)
 #[cfg(feature = "model-arithmetic")]
 macro_rules! reads {
     ($record:expr, $words:expr) => {

@@ -150,7 +150,7 @@ impl Lights {
         Some(match *light {
             Light::Area { tri, area, normal, radiance } => {
                 use crate::cost::{DIV, SQRT, V3};
-                crate::cost::declare!(SQRT + 3 + 6 * V3 + DIV, reads light, 9);
+                crate::cost::declare!(SQRT + 3 + 6 * V3 + DIV, reads(light, 9));
                 let [a, b, c] = scene.vertices(tri);
                 let (b1, b2) = uniform_triangle(u);
                 let position = a * (1.0 - b1 - b2) + b * b1 + c * b2;

@@ -160,7 +160,7 @@ fn out_of_film(w: Vec3, ior: f32) -> Option<Vec3> {
 #[track_caller]
 fn attenuation(c: &Coat, wo: Vec3, wi: Vec3) -> Vec3 {
     let _inlined = crate::cost::scope();
-    declare!(2 * DIV + 3 + 2 * V3 + 3 * EXP, reads & c.absorption, 3);
+    declare!(2 * DIV + 3 + 2 * V3 + 3 * EXP, reads(&c.absorption, 3));
     (-c.absorption * (1.0 / wo.z.max(1e-6) + 1.0 / wi.z.max(1e-6))).exp()
 }
 
@@ -168,17 +168,17 @@ fn attenuation(c: &Coat, wo: Vec3, wi: Vec3) -> Vec3 {
 #[track_caller]
 fn base_f(b: &LayerBase, wo: Vec3, wi: Vec3) -> Vec3 {
     let _inlined = crate::cost::scope();
-    declare!(2 * BRANCH, reads b, 1);
+    declare!(2 * BRANCH, reads(b, 1));
     match *b {
         LayerBase::Diffuse { albedo } => {
-            declare!(V3, reads b, 3);
+            declare!(V3, reads(b, 3));
             albedo * FRAC_1_PI
         }
         LayerBase::Conductor { eta, k, roughness } if roughness >= SMOOTH => {
             reads!(b, 1);
             let ggx = Ggx { alpha: roughness };
             ggx.reflection(wo, wi).map_or(Vec3::ZERO, |(v, _, wm)| {
-                declare!(DOT + V3, reads b, 6);
+                declare!(DOT + V3, reads(b, 6));
                 fresnel_conductor(wo.dot(wm), eta, k) * v
             })
         }
@@ -190,7 +190,7 @@ fn base_f(b: &LayerBase, wo: Vec3, wi: Vec3) -> Vec3 {
 #[track_caller]
 fn base_pdf(b: &LayerBase, wo: Vec3, wi: Vec3) -> f32 {
     let _inlined = crate::cost::scope();
-    declare!(2 * BRANCH, reads b, 1);
+    declare!(2 * BRANCH, reads(b, 1));
     match *b {
         LayerBase::Diffuse { .. } => {
             declare!(1);
@@ -208,11 +208,11 @@ fn base_pdf(b: &LayerBase, wo: Vec3, wi: Vec3) -> f32 {
 #[track_caller]
 fn base_sample(b: &LayerBase, wo: Vec3, u: Vec2) -> Option<BsdfSample> {
     let _inlined = crate::cost::scope();
-    declare!(2 * BRANCH, reads b, 2);
+    declare!(2 * BRANCH, reads(b, 2));
     match *b {
         LayerBase::Diffuse { albedo } => {
             let wi = cosine_hemisphere(u);
-            declare!(1 + BRANCH + V3, reads b, 3);
+            declare!(1 + BRANCH + V3, reads(b, 3));
             let pdf = wi.z * FRAC_1_PI;
             (pdf > 0.0).then(|| BsdfSample { wi, f: albedo * FRAC_1_PI, pdf, weight: albedo, delta: false })
         }
@@ -222,14 +222,14 @@ fn base_sample(b: &LayerBase, wo: Vec3, u: Vec2) -> Option<BsdfSample> {
             declare!(DOT + 1 + 2 * V3);
             let wi = 2.0 * wo.dot(wm) * wm - wo;
             let (v, pdf, _) = ggx.reflection(wo, wi)?;
-            declare!(DOT + V3 + BRANCH + 2 * V3 + V3_DIV, reads b, 6);
+            declare!(DOT + V3 + BRANCH + 2 * V3 + V3_DIV, reads(b, 6));
             let f = fresnel_conductor(wo.dot(wm), eta, k) * v;
             (pdf > 0.0).then(|| BsdfSample { wi, f, pdf, weight: f * wi.z / pdf, delta: false })
         }
         LayerBase::Conductor { eta, k, .. } => {
             let wi = Vec3::new(-wo.x, -wo.y, wo.z);
             let fr = fresnel_conductor(wo.z, eta, k);
-            declare!(V3_DIV, reads b, 6);
+            declare!(V3_DIV, reads(b, 6));
             Some(BsdfSample { wi, f: fr / wi.z, pdf: 1.0, weight: fr, delta: true })
         }
     }
@@ -243,7 +243,7 @@ fn f_stack(coats: &[Coat], base: &LayerBase, wo: Vec3, wi: Vec3) -> Vec3 {
     let Some((c, rest)) = coats.split_first() else {
         return base_f(base, wo, wi);
     };
-    declare!(BRANCH, reads c, 2);
+    declare!(BRANCH, reads(c, 2));
     let top = if c.roughness >= SMOOTH {
         Ggx { alpha: c.roughness }.reflection(wo, wi).map_or(0.0, |(v, _, wm)| {
             declare!(DOT + 1);
@@ -266,7 +266,7 @@ fn pdf_stack(coats: &[Coat], base: &LayerBase, wo: Vec3, wi: Vec3) -> f32 {
     let Some((c, rest)) = coats.split_first() else {
         return base_pdf(base, wo, wi);
     };
-    declare!(BRANCH + 8 + DIV, reads c, 2);
+    declare!(BRANCH + 8 + DIV, reads(c, 2));
     let p_coat = fresnel_dielectric(wo.z, c.ior);
     let top = if c.roughness >= SMOOTH {
         Ggx { alpha: c.roughness }.reflection(wo, wi).map_or(0.0, |(_, p, _)| p)
@@ -285,10 +285,10 @@ fn sample_stack(coats: &[Coat], base: &LayerBase, wo: Vec3, u_lobe: f32, u: Vec2
     let Some((c, rest)) = coats.split_first() else {
         return base_sample(base, wo, u);
     };
-    declare!(BRANCH, reads c, 1);
+    declare!(BRANCH, reads(c, 1));
     let p_coat = fresnel_dielectric(wo.z, c.ior);
     if u_lobe < p_coat {
-        declare!(BRANCH, reads c, 1);
+        declare!(BRANCH, reads(c, 1));
         return if c.roughness >= SMOOTH {
             let wm = Ggx { alpha: c.roughness }.sample_visible(wo, u);
             declare!(DOT + 1 + 2 * V3 + BRANCH);

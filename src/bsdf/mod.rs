@@ -101,13 +101,13 @@ impl Material {
     #[track_caller]
     pub fn f(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> Vec3 {
         let _inlined = crate::cost::scope();
-        declare!(BRANCH, reads self, 1);
+        declare!(BRANCH, reads(self, 1));
         if let Material::RoughGlass { ior, roughness, tint } = *self {
-            declare!(BRANCH, reads self, 1);
+            declare!(BRANCH, reads(self, 1));
             if roughness < SMOOTH {
                 return Vec3::ZERO;
             }
-            declare!(2 * BRANCH + 5 + DIV + V3, reads self, 4);
+            declare!(2 * BRANCH + 5 + DIV + V3, reads(self, 4));
             let (wo_u, wi_u, eta) = if wo.z < 0.0 { (flip(wo), flip(wi), 1.0 / ior) } else { (wo, wi, ior) };
             let (v, _) = rough_dielectric(Ggx { alpha: roughness }, eta, wo_u, wi_u, mode);
             return if wo.z * wi.z < 0.0 { tint * v } else { Vec3::splat(v) };
@@ -120,17 +120,17 @@ impl Material {
         declare!(BRANCH);
         match *self {
             Material::Diffuse { albedo } => {
-                declare!(V3, reads self, 3);
+                declare!(V3, reads(self, 3));
                 albedo * FRAC_1_PI
             }
             Material::Glossy { diffuse, specular, roughness } => {
                 let spec = Ggx { alpha: roughness }.reflection(wo, wi).map_or(0.0, |(v, _, _)| v);
-                declare!(3 * V3, reads self, 7);
+                declare!(3 * V3, reads(self, 7));
                 diffuse * FRAC_1_PI + specular * spec
             }
             Material::Conductor { eta, k, roughness } if roughness >= SMOOTH => {
                 Ggx { alpha: roughness }.reflection(wo, wi).map_or(Vec3::ZERO, |(v, _, wm)| {
-                    declare!(DOT + V3, reads self, 7);
+                    declare!(DOT + V3, reads(self, 7));
                     fresnel_conductor(wo.dot(wm), eta, k) * v
                 })
             }
@@ -145,13 +145,13 @@ impl Material {
     #[track_caller]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         let _inlined = crate::cost::scope();
-        declare!(BRANCH, reads self, 1);
+        declare!(BRANCH, reads(self, 1));
         if let Material::RoughGlass { ior, roughness, .. } = *self {
-            declare!(BRANCH, reads self, 1);
+            declare!(BRANCH, reads(self, 1));
             if roughness < SMOOTH {
                 return 0.0;
             }
-            declare!(BRANCH + 4 + DIV, reads self, 1);
+            declare!(BRANCH + 4 + DIV, reads(self, 1));
             let (wo_u, wi_u, eta) = if wo.z < 0.0 { (flip(wo), flip(wi), 1.0 / ior) } else { (wo, wi, ior) };
             return rough_dielectric(Ggx { alpha: roughness }, eta, wo_u, wi_u, TransportMode::Radiance).1;
         }
@@ -169,7 +169,7 @@ impl Material {
             Material::Glossy { diffuse, specular, roughness } => {
                 let ws = Self::specular_weight(diffuse, specular);
                 let spec = Ggx { alpha: roughness }.reflection(wo, wi).map_or(0.0, |(_, p, _)| p);
-                declare!(5, reads self, 7);
+                declare!(5, reads(self, 7));
                 (1.0 - ws) * wi.z * FRAC_1_PI + ws * spec
             }
             Material::Conductor { roughness, .. } if roughness >= SMOOTH => {
@@ -191,7 +191,7 @@ impl Material {
         if wo.z == 0.0 {
             return None;
         }
-        declare!(2 * BRANCH + 1, reads self, 1);
+        declare!(2 * BRANCH + 1, reads(self, 1));
         let side = if wo.z < 0.0 { -1.0 } else { 1.0 };
         let to_side = |w: Vec3| Vec3::new(w.x, w.y, w.z * side);
         let wo_up = to_side(wo);
@@ -219,11 +219,11 @@ impl Material {
                 continuous(wi, self.f(wo, wi, mode), self.pdf(wo, wi))
             }
             Material::Conductor { eta, k, roughness } => {
-                declare!(BRANCH, reads self, 1);
+                declare!(BRANCH, reads(self, 1));
                 if roughness < SMOOTH {
                     let wi = reflect_z(wo);
                     let fr = fresnel_conductor(wo_up.z, eta, k);
-                    declare!(1 + V3_DIV, reads self, 6);
+                    declare!(1 + V3_DIV, reads(self, 6));
                     return Some(BsdfSample { wi, f: fr / wi.z.abs(), pdf: 1.0, weight: fr, delta: true });
                 }
                 let wm = Ggx { alpha: roughness }.sample_visible(wo_up, u);
@@ -246,12 +246,12 @@ impl Material {
                 Some(BsdfSample { wi: to_side(s.wi), ..s })
             }
             Material::Mirror { reflectance } => {
-                declare!(1 + V3_DIV, reads self, 3);
+                declare!(1 + V3_DIV, reads(self, 3));
                 let wi = reflect_z(wo);
                 Some(BsdfSample { wi, f: reflectance / wi.z.abs(), pdf: 1.0, weight: reflectance, delta: true })
             }
             Material::RoughGlass { ior, roughness, .. } if roughness >= SMOOTH => {
-                declare!(BRANCH + DIV, reads self, 2);
+                declare!(BRANCH + DIV, reads(self, 2));
                 let eta = if wo.z > 0.0 { ior } else { 1.0 / ior };
                 let wi_up = sample_rough_dielectric(Ggx { alpha: roughness }, eta, wo_up, u_lobe, u)?;
                 declare!(1);
@@ -259,7 +259,7 @@ impl Material {
                 continuous(wi, self.f(wo, wi, mode), self.pdf(wo, wi))
             }
             Material::Glass { ior, tint } | Material::RoughGlass { ior, tint, .. } => {
-                declare!(2 * BRANCH + DIV + 1, reads self, 1);
+                declare!(2 * BRANCH + DIV + 1, reads(self, 1));
                 let entering = wo.z > 0.0;
                 let eta = if entering { ior } else { 1.0 / ior };
                 let fr = fresnel_dielectric(wo.z.abs(), eta);
@@ -275,7 +275,7 @@ impl Material {
                     });
                 }
                 // Refraction about the normal on wo's side.
-                declare!(12 + 4 * DIV + SQRT + BRANCH + 2 * V3, reads self, 3);
+                declare!(12 + 4 * DIV + SQRT + BRANCH + 2 * V3, reads(self, 3));
                 let cos_i = wo.z.abs();
                 let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
                 let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
