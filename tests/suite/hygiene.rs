@@ -226,3 +226,68 @@ fn the_stated_size_check_reads_sizes() {
     assert_eq!(stated_lines("//! about 3 times faster"), None);
     assert_eq!(stated_lines("//! about 3 times faster, and about 610 lines on purpose"), Some(610));
 }
+
+/// Pairs of cost markers (`declare!`, `reads!`) with nothing between them that could
+/// make a lane run one and not the other: no branch, return, `?`, loop, closure or block
+/// end. Such a pair is one marker written twice (the style guide: at most one per
+/// function or branch arm); each is `file:line-line`. Conservative: an `if` used as a
+/// select also separates two markers.
+fn markers_in_one_stretch(name: &str, text: &str) -> Vec<String> {
+    let is_marker = |l: &str| {
+        let code = l.split("//").next().unwrap_or("");
+        code.contains("declare!(") || code.contains("reads!(")
+    };
+    let separates = |code: &str| {
+        ["return", "?", "if ", "match ", "=>", "else", "for ", "while ", "loop", "|"].iter().any(|k| code.contains(k))
+    };
+    let lines: Vec<&str> = text.lines().collect();
+    let sites: Vec<usize> = (0..lines.len()).filter(|&i| is_marker(lines[i])).collect();
+    let mut out = Vec::new();
+    for pair in sites.windows(2) {
+        let (a, b) = (pair[0], pair[1]);
+        let mut depth = 0i32;
+        let mut apart = false;
+        for l in &lines[a + 1..b] {
+            let code = l.split("//").next().unwrap_or("");
+            for c in code.chars() {
+                depth += match c {
+                    '{' => 1,
+                    '}' => -1,
+                    _ => 0,
+                };
+                apart |= depth < 0;
+            }
+            apart |= separates(code);
+        }
+        if !apart && depth == 0 {
+            out.push(format!("{name}:{}-{}", a + 1, b + 1));
+        }
+    }
+    out
+}
+
+#[test]
+fn cost_markers_are_at_most_one_per_straight_stretch() {
+    // The check finds a planted pair, and lets markers in two arms or around a return be.
+    let planted = "fn f() {\n    declare!(1);\n    let x = g();\n    declare!(2, reads(self, 1));\n}\n";
+    assert_eq!(markers_in_one_stretch("planted", planted), vec!["planted:2-4".to_string()]);
+    let apart = "fn f() {\n    declare!(1);\n    if x {\n        return;\n    }\n    declare!(2);\n}\n";
+    assert!(markers_in_one_stretch("apart", apart).is_empty());
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut stack = vec![root.join("src")];
+    let (mut found, mut files) = (Vec::new(), 0);
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                let text = std::fs::read_to_string(&path).unwrap();
+                files += usize::from(text.contains("declare!("));
+                found.extend(markers_in_one_stretch(&path.display().to_string(), &text));
+            }
+        }
+    }
+    assert!(files >= 8, "only {files} files declare work");
+    assert!(found.is_empty(), "two cost markers in one straight stretch (merge them): {found:?}");
+}
