@@ -144,8 +144,9 @@ fn model_address(host: *const u8) -> u64 {
 #[doc(hidden)]
 #[inline(always)]
 pub fn read_at<T>(site: usize, slice: &[T], i: usize) {
-    let addr = model_address(slice.as_ptr().cast()) + (i * std::mem::size_of::<T>()) as u64;
-    note_read(site, addr, std::mem::size_of::<T>() as u64, access_width::<T>());
+    note_read(site, std::mem::size_of::<T>() as u64, access_width::<T>(), || {
+        model_address(slice.as_ptr().cast()) + (i * std::mem::size_of::<T>()) as u64
+    });
 }
 
 /// The function behind [`read_words!`]: records `words` 4-byte loads from the start of
@@ -154,13 +155,14 @@ pub fn read_at<T>(site: usize, slice: &[T], i: usize) {
 #[inline(always)]
 pub fn read_words_at<T: ?Sized>(site: usize, record: &T, words: u32) {
     if words > 0 {
-        note_read(site, model_address((record as *const T).cast()), 4 * words as u64, 4);
+        note_read(site, 4 * words as u64, 4, || model_address((record as *const T).cast()));
     }
 }
 
 #[inline(always)]
-fn note_read(site: usize, addr: u64, size: u64, width: u64) {
+fn note_read(site: usize, size: u64, width: u64, addr: impl FnOnce() -> u64) {
     if let Some(a) = ambient() {
+        let addr = addr();
         // Salted: a macro that declares work and records a read expands both at one
         // place in the source, and they are two instructions.
         let site = site ^ 0x2545_f491_4f6c_dd1d_u64 as usize;

@@ -63,6 +63,23 @@ impl GpuKernel {
         (self.inst > 0.0).then(|| self.thread_inst / (32.0 * self.inst))
     }
 
+    /// Adds another profile of the same kernel (launches, counters and time summed; the
+    /// largest shared memory and register count kept).
+    pub fn add(&mut self, o: &GpuKernel) {
+        self.launches += o.launches;
+        self.inst += o.inst;
+        self.thread_inst += o.thread_inst;
+        self.loads.add(&o.loads);
+        self.stores.add(&o.stores);
+        self.atomics.add(&o.atomics);
+        self.shared_bytes = self.shared_bytes.max(o.shared_bytes);
+        self.seconds += o.seconds;
+        self.dram_bytes += o.dram_bytes;
+        self.l2_sectors += o.l2_sectors;
+        self.registers = self.registers.max(o.registers);
+        self.clock_hz_sum += o.clock_hz_sum;
+    }
+
     /// The SM clock, cycles per second, over this kernel's launches (`None` if not
     /// collected).
     pub fn clock_hz(&self) -> Option<f64> {
@@ -155,20 +172,7 @@ pub fn parse_csv(text: &str) -> Result<Vec<GpuKernel>, String> {
     let mut kernels: Vec<GpuKernel> = Vec::new();
     for launch in parse_launches(text)? {
         match kernels.iter_mut().find(|k| k.name == launch.name) {
-            Some(k) => {
-                k.launches += 1;
-                k.inst += launch.inst;
-                k.thread_inst += launch.thread_inst;
-                k.loads.add(&launch.loads);
-                k.stores.add(&launch.stores);
-                k.atomics.add(&launch.atomics);
-                k.shared_bytes = k.shared_bytes.max(launch.shared_bytes);
-                k.seconds += launch.seconds;
-                k.dram_bytes += launch.dram_bytes;
-                k.l2_sectors += launch.l2_sectors;
-                k.registers = k.registers.max(launch.registers);
-                k.clock_hz_sum += launch.clock_hz_sum;
-            }
+            Some(k) => k.add(&launch),
             None => kernels.push(launch),
         }
     }

@@ -181,32 +181,41 @@ fn modules_import_only_downwards() {
 fn files_past_500_lines_say_why_at_the_top() {
     // The style guide: files of 150-400 lines, split past ~500 unless the file's
     // header states a reason (the phrase "on purpose" in its opening comment).
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let mut stack = vec![root.join("src"), root.join("simt/src")];
     let mut long = Vec::new();
+    for path in rust_files(&["src", "simt/src"]) {
+        let text = std::fs::read_to_string(&path).unwrap();
+        let header: String = text.lines().take_while(|l| l.starts_with("//!")).collect::<Vec<_>>().join(" ");
+        let lines = text.lines().count();
+        if lines > 500 && !header.contains("on purpose") {
+            long.push(format!("{} ({lines} lines)", path.display()));
+        }
+        // A size the header states must be true within 15 % (exec.rs said
+        // about 660 lines and had 887).
+        if let Some(stated) = stated_lines(&header)
+            && (stated as f64 - lines as f64).abs() > 0.15 * lines as f64
+        {
+            long.push(format!("{}: says about {stated} lines, has {lines}", path.display()));
+        }
+    }
+    assert!(long.is_empty(), "files over 500 lines with no reason at the top, or a stale size: {long:?}");
+}
+
+/// Every `.rs` file under the given folders of the workspace.
+fn rust_files(folders: &[&str]) -> Vec<std::path::PathBuf> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut stack: Vec<_> = folders.iter().map(|f| root.join(f)).collect();
+    let mut out = Vec::new();
     while let Some(dir) = stack.pop() {
         for entry in std::fs::read_dir(&dir).unwrap() {
             let path = entry.unwrap().path();
             if path.is_dir() {
                 stack.push(path);
             } else if path.extension().is_some_and(|e| e == "rs") {
-                let text = std::fs::read_to_string(&path).unwrap();
-                let header: String = text.lines().take_while(|l| l.starts_with("//!")).collect::<Vec<_>>().join(" ");
-                let lines = text.lines().count();
-                if lines > 500 && !header.contains("on purpose") {
-                    long.push(format!("{} ({lines} lines)", path.display()));
-                }
-                // A size the header states must be true within 15 % (exec.rs said
-                // about 660 lines and had 887).
-                if let Some(stated) = stated_lines(&header)
-                    && (stated as f64 - lines as f64).abs() > 0.15 * lines as f64
-                {
-                    long.push(format!("{}: says about {stated} lines, has {lines}", path.display()));
-                }
+                out.push(path);
             }
         }
     }
-    assert!(long.is_empty(), "files over 500 lines with no reason at the top, or a stale size: {long:?}");
+    out
 }
 
 /// The size a file's header states ("about 660 lines"), if it states one.
@@ -273,20 +282,11 @@ fn cost_markers_are_at_most_one_per_straight_stretch() {
     assert_eq!(markers_in_one_stretch("planted", planted), vec!["planted:2-4".to_string()]);
     let apart = "fn f() {\n    declare!(1);\n    if x {\n        return;\n    }\n    declare!(2);\n}\n";
     assert!(markers_in_one_stretch("apart", apart).is_empty());
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let mut stack = vec![root.join("src")];
     let (mut found, mut files) = (Vec::new(), 0);
-    while let Some(dir) = stack.pop() {
-        for entry in std::fs::read_dir(&dir).unwrap() {
-            let path = entry.unwrap().path();
-            if path.is_dir() {
-                stack.push(path);
-            } else if path.extension().is_some_and(|e| e == "rs") {
-                let text = std::fs::read_to_string(&path).unwrap();
-                files += usize::from(text.contains("declare!("));
-                found.extend(markers_in_one_stretch(&path.display().to_string(), &text));
-            }
-        }
+    for path in rust_files(&["src"]) {
+        let text = std::fs::read_to_string(&path).unwrap();
+        files += usize::from(text.contains("declare!("));
+        found.extend(markers_in_one_stretch(&path.display().to_string(), &text));
     }
     assert!(files >= 8, "only {files} files declare work");
     assert!(found.is_empty(), "two cost markers in one straight stretch (merge them): {found:?}");
