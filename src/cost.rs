@@ -203,39 +203,7 @@ mod tests {
     //! (`docs/measured/probe-costs-sm90.sass`, printed by `sh cuda/probe_costs.sh`) and
     //! checked against the constants above.
 
-    /// One instruction: its address, whether it is predicated, its opcode and operands.
-    struct Inst {
-        at: u32,
-        predicated: bool,
-        op: String,
-        args: String,
-    }
-
-    /// The instructions of each function of a `cuobjdump -sass` listing.
-    fn functions(sass: &str) -> Vec<(String, Vec<Inst>)> {
-        let mut out: Vec<(String, Vec<Inst>)> = Vec::new();
-        for line in sass.lines() {
-            if let Some(name) = line.trim().strip_prefix("Function : ") {
-                out.push((name.trim().to_string(), Vec::new()));
-            } else if let (Some(rest), Some(f)) = (line.trim().strip_prefix("/*"), out.last_mut()) {
-                let (at, text) = rest.split_once("*/").expect("an address");
-                let text = text.trim().trim_end_matches(';').trim();
-                let (predicated, text) = match text.strip_prefix('@') {
-                    Some(t) => (true, t.split_once(' ').map_or("", |(_, r)| r.trim())),
-                    None => (false, text),
-                };
-                let (op, args) = text.split_once(' ').unwrap_or((text, ""));
-                let at = u32::from_str_radix(at, 16).expect("a hex address");
-                f.1.push(Inst { at, predicated, op: op.to_string(), args: args.to_string() });
-            }
-        }
-        out
-    }
-
-    fn target(i: &Inst) -> u32 {
-        let hex = i.args.split("0x").nth(1).expect("a branch target");
-        u32::from_str_radix(hex.trim_end_matches(|c: char| !c.is_ascii_hexdigit()), 16).unwrap()
-    }
+    use crate::sass::{Inst, functions, target};
 
     /// The instructions a lane issues on the common path from the kernel's start to its
     /// exit: a predicated forward branch around a slow path (a block that calls a

@@ -43,6 +43,8 @@ pub mod inspector;
 pub mod lights;
 pub mod limits;
 pub mod machine;
+#[cfg(test)]
+pub(crate) mod sass;
 /// PDACRT, one of the casters (`cast::pdacrt`), also at the crate's root.
 pub use cast::pdacrt;
 /// CIS-LBDPT lives with the other integrators under `render`; this is its old path.

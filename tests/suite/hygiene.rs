@@ -142,7 +142,10 @@ fn modules_import_only_downwards() {
     // `gpu` holds the GPU twins of a caster (PDACRT) and of an integrator's kernels
     // (CIS-LBDPT), so it sits above `render`; nothing below it names it.
     let layers: [&[&str]; 5] = [
-        &["error", "cost", "machine", "geometry", "sampling", "limits", "filter", "film", "scene", "bsdf", "lights"],
+        &[
+            "error", "cost", "sass", "machine", "geometry", "sampling", "limits", "filter", "film", "scene", "bsdf",
+            "lights",
+        ],
         &["cast"],
         &["render", "aov"],
         &["gpu"],

@@ -44,11 +44,14 @@ fn brute_force_counts_its_tests_and_the_path_past_the_edges_per_trip() {
     let tests = &bf[0].regions[0];
     // The root's split leaves the eight far triangles in a child no ray enters, so the
     // one terminal node holds A and B and all 32 rays (one block, one warp).
-    // Tests: 2 per lane, 99 instructions each besides the shared load, all 32 lanes.
-    // Past the edges: A on one trip (16 lanes) and B on the other (16 lanes), 27 each:
-    // two warp instructions of 16 lanes, not one of 32. Staging: 2 triangles, one
-    // 19-instruction trip for lanes 0 and 1. No search steps: one terminal node.
-    let issued = 2 * 99 + 2 * 27 + 19;
-    let active = 32 * 2 * 99 + 32 * 27 + 2 * 19;
+    // Tests: 2 per lane, 102 instructions each besides the shared load (closest hit),
+    // all 32 lanes. Past the edges: A on one trip (16 lanes) and B on the other (16
+    // lanes), 28 each, and a distance in range, so 13 more for the candidate key: two
+    // warp instructions of 16 lanes each, not one of 32. Staging: 2 triangles, one
+    // 19-instruction trip for lanes 0 and 1, and one stage: the rays' set-up, 104 for
+    // every lane. No search steps: one terminal node. (The weights are derived from the
+    // twin's SASS by `cast::pdacrt::tests`.)
+    let issued = 2 * 102 + 2 * 28 + 2 * 13 + 19 + 104;
+    let active = 32 * 2 * 102 + 32 * 28 + 32 * 13 + 2 * 19 + 32 * 104;
     assert_eq!((tests.issued, tests.active), (issued, active));
 }

@@ -1,7 +1,7 @@
 //! PDACRT's kernels. Each takes a thread and plain `Copy` data (views and work items);
 //! none allocates, forks or launches. The host code in `mod.rs` launches them.
 //!
-//! About 740 lines on purpose: these are the stages of the paper's pipeline (filter,
+//! About 770 lines on purpose: these are the stages of the paper's pipeline (filter,
 //! status codes, partition, terminal brute force) in the order they run, sharing the
 //! same views and work items; split, the order and the shared data would be harder to
 //! follow.
@@ -129,13 +129,23 @@ pub(crate) fn node_bounds(
         {
             let _word = t.unroll(copy);
             let old = t.load(bounds, base + word);
-            t.work(0, 0, BOUNDS_WORD_TEST);
-            if word < 3 && value < old {
-                t.atomic_min(bounds, base + word, value);
-            } else if word >= 3 && value > old {
-                t.atomic_max(bounds, base + word, value);
+            // The last word has no reconvergence of its own: it joins the trip's (in
+            // the loop) or exits (after it).
+            let last = copy == 5;
+            t.work(0, 0, if last { BOUNDS_LAST_WORD_TEST } else { BOUNDS_WORD_TEST });
+            if (word < 3 && value < old) || (word >= 3 && value > old) {
+                if word < 3 {
+                    t.atomic_min(bounds, base + word, value);
+                } else {
+                    t.atomic_max(bounds, base + word, value);
+                }
+                if last && in_loop {
+                    t.work(0, 0, BOUNDS_LAST_ATOMIC_MOVE);
+                }
             }
-            t.work(0, 0, BOUNDS_WORD_JOIN);
+            if !last {
+                t.work(0, 0, BOUNDS_WORD_JOIN);
+            }
         }
     };
     let mut current = t.load(tri_node, first);
@@ -160,21 +170,26 @@ pub(crate) fn node_bounds(
     flush(current, acc, false);
 }
 
-// Instructions of `pdacrt::node_bounds` besides its loads and atomics, counted in the
-// twin's SASS (sm_90, `cuobjdump -sass`; docs/gpu-check.md): after the bounds check,
-// the addresses, the first node, the empty box and the loop's set-up; per trip, the
-// node test before the branch, and after it the triangle's address, the box union
-// (18 FMNMX) and the loop counter; per flush, the word address (and, inside the loop,
-// the box reset); per word, the ordered encoding, the compare and the branch, then the
-// reconvergence; between the loop and the last flush, the loop's reconvergence.
-const BOUNDS_HEAD: u32 = 33;
-const BOUNDS_TRIP_TEST: u32 = 5;
-const BOUNDS_TRIP_UNION: u32 = 38;
-const BOUNDS_FLUSH_ADDRESS: u32 = 2;
-const BOUNDS_FLUSH_RESET: u32 = 7;
-const BOUNDS_WORD_TEST: u32 = 6;
-const BOUNDS_WORD_JOIN: u32 = 1;
-const BOUNDS_TAIL: u32 = 3;
+// Instructions of `pdacrt::node_bounds` besides its loads and atomics, as the twin's
+// SASS has them (sm_90; `docs/measured/pdacrt-kernels-sm90.sass`, whose paths
+// `tests.rs` walks to derive each of these): after the bounds check, the addresses,
+// the first node, the empty box and the loop's set-up; per trip, the node test before
+// the branch, and after it the triangle's address, the box union (18 FMNMX) and the
+// loop counter; per flush, the word address (and, inside the loop, the box reset); per
+// word, the ordered encoding, the compare and the branch, then the reconvergence (the
+// last word has neither its own set-up of the reconvergence nor the reconvergence, and
+// inside the loop, a lane that makes its atomic copies the node once more); between
+// the loop and the last flush, the loop's reconvergence.
+pub(super) const BOUNDS_HEAD: u32 = 33;
+pub(super) const BOUNDS_TRIP_TEST: u32 = 5;
+pub(super) const BOUNDS_TRIP_UNION: u32 = 38;
+pub(super) const BOUNDS_FLUSH_ADDRESS: u32 = 2;
+pub(super) const BOUNDS_FLUSH_RESET: u32 = 7;
+pub(super) const BOUNDS_WORD_TEST: u32 = 6;
+pub(super) const BOUNDS_WORD_JOIN: u32 = 1;
+pub(super) const BOUNDS_LAST_WORD_TEST: u32 = 5;
+pub(super) const BOUNDS_LAST_ATOMIC_MOVE: u32 = 1;
+pub(super) const BOUNDS_TAIL: u32 = 3;
 
 /// `pdacrt::split_nodes`: shrinks node `n`'s box to its triangles (stored back into the
 /// node) and writes children `2n` and `2n + 1`: the halves at the spatial median of the
@@ -322,19 +337,22 @@ pub(crate) struct LeafRule {
 }
 
 // Instructions of `pdacrt::classify_children` besides its loads and stores, block by
-// block, counted in the twin's SASS (sm_90, `cuobjdump -sass`; docs/gpu-check.md): the
-// shared head after the loads, the first block of either arm on `stuck`, the stuck
-// arm's branch-free leaf rule, the other arm's short-circuit tests, and the shared tail
-// before the stores (address arithmetic, predicates, the reconvergence).
-const CLASSIFY_HEAD: u32 = 27;
-const CLASSIFY_ARM: u32 = 9;
-const CLASSIFY_STUCK_RULE: u32 = 11;
-const CLASSIFY_TRIS_TEST: u32 = 4;
-const CLASSIFY_RAYS_TEST: u32 = 3;
-const CLASSIFY_PAIRS_TEST: u32 = 8;
-const CLASSIFY_DEPTH_TEST: u32 = 3;
-const CLASSIFY_INNER: u32 = 2;
-const CLASSIFY_TAIL: u32 = 18;
+// block, as the twin's SASS has them (sm_90; derived from
+// `docs/measured/pdacrt-kernels-sm90.sass` by `tests.rs`): the shared head after the
+// loads, the first block of either arm on `stuck`, the stuck arm's branch-free leaf
+// rule, the other arm's short-circuit tests (the pairs test's terminal lanes jump to
+// the join, its inner lanes fall into the inner block), and the shared tail before the
+// stores (address arithmetic, predicates, the reconvergence).
+pub(super) const CLASSIFY_HEAD: u32 = 27;
+pub(super) const CLASSIFY_ARM: u32 = 9;
+pub(super) const CLASSIFY_STUCK_RULE: u32 = 13;
+pub(super) const CLASSIFY_TRIS_TEST: u32 = 4;
+pub(super) const CLASSIFY_RAYS_TEST: u32 = 3;
+pub(super) const CLASSIFY_PAIRS_TEST: u32 = 7;
+pub(super) const CLASSIFY_PAIRS_JUMP: u32 = 1;
+pub(super) const CLASSIFY_DEPTH_TEST: u32 = 3;
+pub(super) const CLASSIFY_INNER: u32 = 2;
+pub(super) const CLASSIFY_TAIL: u32 = 18;
 
 /// `pdacrt::classify_children`: child `c` of node `c / 2`: sizes, source ranges, and
 /// whether it is dropped (no rays or no triangles), terminal, or an inner node of the
@@ -401,7 +419,11 @@ pub(crate) fn classify_child(
                 t.work(0, 0, CLASSIFY_RAYS_TEST);
                 let inner = if r <= rule.leaf_rays {
                     t.work(0, 0, CLASSIFY_PAIRS_TEST);
-                    r as u64 * tr as u64 > pairs && !rule.at_max_depth
+                    let inner = r as u64 * tr as u64 > pairs && !rule.at_max_depth;
+                    if !inner {
+                        t.work(0, 0, CLASSIFY_PAIRS_JUMP);
+                    }
+                    inner
                 } else {
                     t.work(0, 0, CLASSIFY_DEPTH_TEST);
                     !rule.at_max_depth
@@ -544,25 +566,37 @@ pub(crate) fn scatter_ref(
 pub(crate) const STAGE: usize = 128;
 
 // Instruction weights of the brute-force kernel's arithmetic: what the GPU twin
-// executes, as nvcc 13.0 compiles it for sm_90 (`cuobjdump -sass`, and Nsight Compute's
-// per-instruction counts on the H100: `docs/gpu-check.md`, "Instruction weights"),
-// less the memory instructions that `simt` counts itself. Declared as work, region 0.
+// executes, as nvcc 13.0 compiles it for sm_90 (`docs/measured/pdacrt-kernels-sm90.sass`,
+// whose paths `tests.rs` walks to derive each), less the memory instructions that
+// `simt` counts itself. Declared as work, region 0.
 
-/// One ray–triangle test up to its edge test: 100 instructions per trip of the twin's
-/// test loop (the shared loads of the triangle, the shear, the edge functions, the
-/// loop's own), less the shared load counted by `simt`. Path 0.
-const TEST_INSTRUCTIONS: u32 = 99;
-/// The path past the edge test (determinant, distance, the candidate key and its
-/// comparison), run only by the lanes whose ray's line meets the triangle: 27 per warp
-/// that takes it. Path 1.
-const PAST_EDGES_INSTRUCTIONS: u32 = 27;
+/// One ray–triangle test up to its edge test, closest hit: 103 instructions per trip of
+/// the twin's test loop (the shared loads of the triangle, the cull distance's next
+/// float up, the shear, the edge functions, the loop's own), less the one shared load
+/// `simt` counts for the triangle. Path 0.
+pub(super) const TEST_INSTRUCTIONS: u32 = 102;
+/// The same for any hit (the loop compiled apart, without the next float up): 82
+/// instructions per trip, less the shared load.
+pub(super) const ANY_HIT_TEST_INSTRUCTIONS: u32 = 81;
+/// The path past the edge test to the distance test (determinant, reciprocal,
+/// distance), run only by the lanes whose ray's line meets the triangle. Path 1.
+pub(super) const PAST_EDGES_INSTRUCTIONS: u32 = 28;
+/// Closest hit, a distance inside the ray's range: the triangle's id, the candidate
+/// key and its comparison (14 instructions, less the id's shared load).
+pub(super) const CANDIDATE_INSTRUCTIONS: u32 = 13;
+/// Any hit, a distance inside the ray's range: the result kept and the loop left.
+pub(super) const ANY_HIT_LEAVE_INSTRUCTIONS: u32 = 4;
+/// A lane with a ray, once per stage of triangles: the shear's set-up (three divisions
+/// on their fast paths), the test loop's, and the stage loop's own after the tests.
+/// Path 5.
+pub(super) const RAY_SETUP_INSTRUCTIONS: u32 = 104;
 /// One step of the binary search for the block's terminal node: a 10-instruction loop
 /// body, less its load. Path 2.
-const SEARCH_STEP_INSTRUCTIONS: u32 = 9;
+pub(super) const SEARCH_STEP_INSTRUCTIONS: u32 = 9;
 /// One trip of the staging loop: a 31-instruction body, less the 12 memory instructions
 /// `simt` counts itself (the id's load, the triangle's nine 4-byte loads, and the two
 /// shared stores, one instruction each in the model). Path 3.
-const STAGE_STEP_INSTRUCTIONS: u32 = 19;
+pub(super) const STAGE_STEP_INSTRUCTIONS: u32 = 19;
 
 /// Shared memory of one brute-force block: `STAGE` (128) triangles (36 bytes) and their
 /// ids (4 bytes), and the block's test count (8 bytes).
@@ -650,6 +684,7 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
             if a.any_hit && key == BLOCKED {
                 return;
             }
+            t.work(0, 5, RAY_SETUP_INSTRUCTIONS);
             let r = t.get(ray_reg);
             let shear = RayShear::new(r.dir);
             let mut far = t_far(&r, key);
@@ -667,6 +702,7 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
                 let blocked = t.unrolled(s, || {
                     t.work(0, 1, PAST_EDGES_INSTRUCTIONS);
                     let (th, _, _) = hit?;
+                    t.work(0, 4, if a.any_hit { ANY_HIT_LEAVE_INSTRUCTIONS } else { CANDIDATE_INSTRUCTIONS });
                     if !a.any_hit {
                         let candidate = hit_key::pack(th, t.load_shared(stage_ids, s));
                         if candidate < key {
@@ -681,7 +717,7 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
                     break;
                 }
             }
-            t.work(0, 0, done * TEST_INSTRUCTIONS);
+            t.work(0, 0, done * if a.any_hit { ANY_HIT_TEST_INSTRUCTIONS } else { TEST_INSTRUCTIONS });
             t.set(tests, t.get(tests) + done as u64);
             t.set(best, key);
         });
