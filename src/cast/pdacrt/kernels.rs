@@ -584,7 +584,9 @@ pub(super) const PAST_EDGES_INSTRUCTIONS: u32 = 28;
 /// Closest hit, a distance inside the ray's range: the triangle's id, the candidate
 /// key and its comparison (14 instructions, less the id's shared load).
 pub(super) const CANDIDATE_INSTRUCTIONS: u32 = 13;
-/// Any hit, a distance inside the ray's range: the result kept and the loop left.
+/// Any hit, a distance inside the ray's range: the result kept and the loop left. (The
+/// trip it leaves from is still counted whole, so such a lane is counted 5 instructions
+/// of the loop's tail that it skips, once per ray.)
 pub(super) const ANY_HIT_LEAVE_INSTRUCTIONS: u32 = 4;
 /// A lane with a ray, once per stage of triangles: the shear's set-up (three divisions
 /// on their fast paths), the test loop's, and the stage loop's own after the tests.
