@@ -133,10 +133,13 @@ macro_rules! read_words {
 /// Where the model places host memory that shared code reads: at 256 times its host
 /// address, so that each slice (or record) begins on a 256-byte boundary, as a
 /// `cudaMalloc` allocation does, whatever alignment the host allocator gave it, and
-/// sector counts do not change from run to run; distinct host objects stay apart.
+/// sector counts do not change from run to run; distinct host objects stay apart. The
+/// top bit marks the address as host memory (`limits::HOST_ADDRESS_BIT`), whose
+/// sectors the footprint counts one by one: a hash sample of them would change with
+/// the host addresses.
 #[inline(always)]
 fn model_address(host: *const u8) -> u64 {
-    (host as u64).wrapping_shl(8)
+    (host as u64).wrapping_shl(8) | crate::limits::HOST_ADDRESS_BIT
 }
 
 /// The function behind [`read!`]: records a load of `slice[i]` for the ambient lane;

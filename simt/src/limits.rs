@@ -31,3 +31,21 @@ pub const FOOTPRINT_HASH: u64 = 0x9e37_79b9_7f4a_7c15;
 pub fn footprint_sampled(sector: u64) -> bool {
     sector.wrapping_mul(FOOTPRINT_HASH) >> (64 - FOOTPRINT_SAMPLE_BITS) == 0
 }
+
+/// The bit that marks a model address as host memory read by shared code
+/// (`ambient::read!`): its place derives from a host address, which changes from run
+/// to run, so its sectors are counted one by one rather than sampled by their hash.
+pub const HOST_ADDRESS_BIT: u64 = 1 << 63;
+
+/// Whether `sector` lies in host memory read by shared code (see [`HOST_ADDRESS_BIT`]).
+#[inline]
+pub fn host_sector(sector: u64) -> bool {
+    sector & (HOST_ADDRESS_BIT / SECTOR_BYTES) != 0
+}
+
+/// How many sectors one kept sector stands for in a footprint: a sampled one
+/// `2^FOOTPRINT_SAMPLE_BITS`, a host one (kept whenever touched) one.
+#[inline]
+pub fn footprint_weight(sector: u64) -> u64 {
+    if host_sector(sector) { 1 } else { 1 << FOOTPRINT_SAMPLE_BITS }
+}

@@ -27,6 +27,7 @@
 
 use crate::limits::{
     FOOTPRINT_HASH, MAX_PATHS, MAX_REGIONS, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES, WARP_SIZE, footprint_sampled,
+    footprint_weight, host_sector,
 };
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
@@ -89,8 +90,9 @@ pub(crate) struct Counters {
     pub atomics: Traffic,
     pub barriers: u64,
     pub threads: u64,
-    /// The sampled sectors (`limits::footprint_sampled`) of global accesses, with
-    /// repeats: sorted and deduplicated when the launch is recorded.
+    /// The sampled sectors (`limits::footprint_sampled`) of global accesses, and every
+    /// sector of host memory read by shared code (`limits::host_sector`), with repeats:
+    /// sorted and deduplicated when the launch is recorded.
     pub footprint: Vec<u64>,
     /// Distinct sectors per block, summed (estimated from the sampled ones): what
     /// reaches L2 when a block's repeated accesses hit its SM's L1.
@@ -127,7 +129,7 @@ impl Counters {
         use rayon::slice::ParallelSliceMut;
         self.footprint.par_sort_unstable();
         self.footprint.dedup();
-        (self.footprint.len() as u64) << crate::limits::FOOTPRINT_SAMPLE_BITS
+        self.footprint.iter().map(|&s| footprint_weight(s)).sum()
     }
 }
 
@@ -370,7 +372,7 @@ impl Meter {
     /// Keeps a sector for the block's (and so the launch's) footprint if it is sampled.
     #[inline]
     fn sample(&mut self, sector: u64) {
-        if self.predicting && footprint_sampled(sector) {
+        if self.predicting && (host_sector(sector) || footprint_sampled(sector)) {
             self.block_sampled.push(sector);
         }
     }
@@ -409,7 +411,7 @@ impl Meter {
         if !self.block_sampled.is_empty() {
             self.block_sampled.sort_unstable();
             self.block_sampled.dedup();
-            self.totals.block_sectors += (self.block_sampled.len() as u64) << crate::limits::FOOTPRINT_SAMPLE_BITS;
+            self.totals.block_sectors += self.block_sampled.iter().map(|&s| footprint_weight(s)).sum::<u64>();
             // The launch's footprint gathers each block's distinct samples.
             self.totals.footprint.extend_from_slice(&self.block_sampled);
             self.block_sampled.clear();

@@ -122,3 +122,31 @@ fn reads_through_plain_references_count_as_the_lanes_global_loads() {
     });
     assert_eq!(rec.loads.requests, 0);
 }
+
+/// The footprint (distinct sectors, for the GPU time model) of host memory read by
+/// shared code is counted sector by sector, not sampled by a hash of the address: the
+/// host address moves from run to run, and a sample of it would move the count.
+/// Copies of one table at different host addresses give the same, exact footprint.
+#[test]
+fn reads_through_plain_references_have_an_exact_footprint_wherever_the_table_lives() {
+    let dev = measured();
+    dev.set_gpu_profile(Some(simt::GpuProfile::named("h200").unwrap()));
+    let footprint = |table: &[[f32; 4]]| {
+        let rec = dev.for_each_in("ambient", &["shared"], 64, |t, i| {
+            t.ambient(0, || {
+                // Lane k reads element 3k: 64 elements of 16 bytes, 48 bytes apart
+                // from a 256-byte boundary, each in a sector of its own.
+                std::hint::black_box(simt::read!(table, 3 * i));
+            })
+        });
+        rec.footprint_sectors
+    };
+    // The sectors of elements 3k (bytes 48k .. 48k + 16 of a 256-byte aligned start).
+    let want =
+        (0..64u64).flat_map(|k| [48 * k / 32, (48 * k + 15) / 32]).collect::<std::collections::BTreeSet<_>>().len()
+            as u64;
+    let tables: Vec<Vec<[f32; 4]>> = (0..8).map(|j| vec![[j as f32; 4]; 200 + j]).collect();
+    for t in &tables {
+        assert_eq!(footprint(t), want, "table at {:p}", t.as_ptr());
+    }
+}
