@@ -168,8 +168,8 @@ struct RenderArgs {
     /// rr_depth) [default: 4, or the scene file's; Mitsuba scenes: their rr_depth or 5].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     rr_depth: Option<u32>,
-    /// Pixel filter: box, gaussian (sigma 0.5, radius 2, Mitsuba's) or
-    /// gaussian:SIGMA:RADIUS, RADIUS in [0.5, 16] and SIGMA in [0.01, 16 × RADIUS]
+    /// Pixel filter: box, gaussian (sigma 0.5, radius 2, from Mitsuba's 31-step table) or
+    /// gaussian:SIGMA:RADIUS (the exact Gaussian), RADIUS in [0.5, 16] and SIGMA in [0.01, 16 × RADIUS]
     /// [default: box, or the scene file's].
     #[arg(long)]
     filter: Option<warpray::filter::Filter>,

@@ -267,8 +267,9 @@ impl Builder<'_, '_> {
                 "box" => Filter::Box,
                 "gaussian" => {
                     let s = q.number_or("stddev", 0.5)?;
-                    // Mitsuba cuts its Gaussian off at four standard deviations.
-                    Filter::gaussian(s as f32, (4.0 * s) as f32).map_err(|m| doc.err(f, m))?
+                    // Mitsuba cuts its Gaussian off at four standard deviations and
+                    // evaluates it from a table of 31 steps.
+                    Filter::mitsuba(s as f32).map_err(|m| doc.err(f, m))?
                 }
                 _ => return Err(doc.err(f, "filter not supported (box or gaussian)")),
             };
