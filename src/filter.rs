@@ -98,7 +98,6 @@ impl Filter {
             ));
         }
         let bias = (-(radius * radius) / (2.0 * stddev * stddev)).exp();
-        let unit = Filter::Gaussian { stddev, radius, integral: 1.0, bias, steps };
         let integral = if steps == 0 {
             // Simpson's rule in f64; the 1-D integrand is smooth on [−r, r].
             let (s, r) = (stddev as f64, radius as f64);
@@ -114,7 +113,7 @@ impl Filter {
         } else {
             // Both halves of the steps, each `r / n` wide.
             let width = radius as f64 / steps as f64;
-            2.0 * (0..steps).map(|i| gauss(unit.step_start(i), stddev, bias) as f64 * width).sum::<f64>()
+            2.0 * (0..steps).map(|i| gauss(step_start(radius, steps, i), stddev, bias) as f64 * width).sum::<f64>()
         };
         Ok(Filter::Gaussian { stddev, radius, integral: integral as f32, bias, steps })
     }
@@ -123,15 +122,6 @@ impl Filter {
     /// steps.
     pub fn mitsuba_gaussian() -> Filter {
         Filter::mitsuba(0.5).expect("valid constants")
-    }
-
-    /// Where step `i` of a stepped Gaussian begins: `r · i / n`, as Mitsuba computes
-    /// its table's positions.
-    fn step_start(&self, i: u32) -> f32 {
-        match *self {
-            Filter::Gaussian { radius, steps, .. } => radius * i as f32 / steps as f32,
-            Filter::Box => 0.0,
-        }
     }
 
     /// Half-width of the filter's support, pixels.
@@ -165,7 +155,8 @@ impl Filter {
                 }
                 // A stepped filter takes the value at the start of the step |x| is in
                 // (Mitsuba's index: the integer part of |x| · n / r).
-                let x = if steps > 0 { self.step_start((x.abs() * (steps as f32 / radius)) as u32) } else { x };
+                let x =
+                    if steps > 0 { step_start(radius, steps, (x.abs() * (steps as f32 / radius)) as u32) } else { x };
                 gauss(x, stddev, bias) / integral
             }
         }
@@ -231,6 +222,13 @@ impl Filter {
             }
         }
     }
+}
+
+/// Where step `i` of a Gaussian in `steps` steps over `[0, radius)` begins:
+/// `radius · i / steps`, as Mitsuba computes its table's positions.
+#[inline]
+fn step_start(radius: f32, steps: u32, i: u32) -> f32 {
+    radius * i as f32 / steps as f32
 }
 
 /// The truncated Gaussian before its normalisation: `exp(−x²/2σ²) − bias`, at least 0.
