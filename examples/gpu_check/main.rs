@@ -11,9 +11,12 @@
 //! gpu_check gpu --model dragon,bunny,conference --batch primary,shadow,ao --size 1024 --repeat 5 --cpu bvh,dacrt
 //! gpu_check calibrate --probes micro_probes.tsv --ncu micro_ncu.csv   # a GPU profile (cuda/microbench.sh)
 //! gpu_check time --records rec.tsv --ncu ncu.csv --ncu-all ncutime.csv  # predicted GPU time against ncu's
+//! gpu_check simt --caster lbvh --model bunny --batch primary,shadow --out s.tsv --launches rec.tsv  # the GPU BVH's twin
+//! gpu_check gpu --gpu bvh --model bunny --batch primary,shadow --repeat 1   # the GPU BVH, keys against its twin
 //! ```
 //!
-//! About 590 lines: one subcommand per step of the check, sharing the input options.
+//! About 650 lines on purpose: one subcommand per step of the check, sharing the input options
+//! (the GPU BVH's rows are in `gpu_bvh.rs`).
 //!
 //! `gpu` checks every GPU key against the CPU PDACRT's (bit for bit) and every 256th ray
 //! against brute force, and exits non-zero when any differs.
@@ -24,13 +27,14 @@
 //! unmeasured and runs every bounce's shading and compaction again on the GPU, on the
 //! inputs the render captured, and compares (run this one under ncu).
 
+mod gpu_bvh;
 mod source;
 mod tsv;
 
 use clap::{Parser, Subcommand};
 use std::io::Write as _;
 use std::time::Instant;
-use warpray::cast::{BruteForce, BvhCaster, Dacrt, RayCaster, Traversal};
+use warpray::cast::{BruteForce, BvhCaster, Dacrt, Lbvh, RayCaster, Traversal};
 use warpray::geometry::{Hit, Ray};
 use warpray::gpu::{GpuPdacrt, ncu};
 use warpray::pdacrt::{Pdacrt, PdacrtParams};
@@ -43,7 +47,7 @@ struct Args {
 }
 
 #[derive(clap::Args, Clone)]
-struct Input {
+pub(crate) struct Input {
     /// Models (from WARPRAY_MODELS), comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "bunny")]
     model: Vec<String>,
@@ -64,10 +68,15 @@ struct Input {
 enum Cmd {
     /// Print the metrics `ncu --metrics` must collect.
     Metrics,
-    /// PDACRT on the emulator with measurement on: per-kernel summaries to a TSV file.
+    /// PDACRT (or the GPU BVH's twin) on the emulator with measurement on: per-kernel
+    /// summaries to a TSV file.
     Simt {
         #[command(flatten)]
         input: Input,
+        /// `pdacrt`, or `lbvh`: the GPU BVH's build and trace, built again for each batch
+        /// as `gpu --gpu bvh` does.
+        #[arg(long, default_value = "pdacrt")]
+        caster: String,
         #[arg(long)]
         out: std::path::PathBuf,
         /// Also write each launch's statistics, in launch order, to this file (for
@@ -90,6 +99,11 @@ enum Cmd {
         /// Print one JSON object per row too.
         #[arg(long)]
         json: bool,
+        /// GPU casters: `pdacrt`, and `bvh` (the BVH rebuilt for each batch, then traced
+        /// `--repeat` times; its keys checked against the emulated twin `lbvh`),
+        /// comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "pdacrt")]
+        gpu: Vec<String>,
     },
     /// CIS-LBDPT's shading and compaction: emulator statistics, or GPU runs and checks.
     Cis {
@@ -201,10 +215,10 @@ fn params(input: &Input) -> PdacrtParams {
 
 /// One loaded (model, batch): the model's name, its scene, the batch's name, its rays,
 /// and whether they are shadow rays.
-type Loaded = (String, Scene, String, Vec<Ray>, bool);
+pub(crate) type Loaded = (String, Scene, String, Vec<Ray>, bool);
 
 /// Every (model, batch) of the input, loaded.
-fn inputs(input: &Input) -> Result<Vec<Loaded>, String> {
+pub(crate) fn inputs(input: &Input) -> Result<Vec<Loaded>, String> {
     let mut out = Vec::new();
     for m in &input.model {
         let scene = load(m)?;
@@ -220,8 +234,20 @@ fn inputs(input: &Input) -> Result<Vec<Loaded>, String> {
 fn run(a: Args) -> Result<(), String> {
     match a.cmd {
         Cmd::Metrics => println!("{}", ncu::METRICS),
-        Cmd::Simt { input, out, launches } => simt_run(&input, &out, launches.as_deref())?,
-        Cmd::Gpu { input, repeat, cpu, brute_every, json } => gpu_run(&input, repeat, &cpu, brute_every, json)?,
+        Cmd::Simt { input, caster, out, launches } => simt_run(&input, &caster, &out, launches.as_deref())?,
+        Cmd::Gpu { input, repeat, cpu, brute_every, json, gpu } => {
+            for g in &gpu {
+                if g != "pdacrt" && g != "bvh" {
+                    return Err(format!("unknown GPU caster {g} (known: pdacrt, bvh)"));
+                }
+            }
+            if gpu.iter().any(|g| g == "pdacrt") {
+                gpu_run(&input, repeat, &cpu, brute_every, json)?;
+            }
+            if gpu.iter().any(|g| g == "bvh") {
+                gpu_bvh::run(&input, repeat, brute_every)?;
+            }
+        }
         Cmd::Cis { scene, size, simt, simt_launches } => {
             cis_run(&scene, size, simt.as_deref(), simt_launches.as_deref())?
         }
@@ -328,20 +354,33 @@ fn time_run(
     Ok(())
 }
 
-fn simt_run(input: &Input, out: &std::path::Path, launches: Option<&std::path::Path>) -> Result<(), String> {
+fn simt_run(
+    input: &Input,
+    kind: &str,
+    out: &std::path::Path,
+    launches: Option<&std::path::Path>,
+) -> Result<(), String> {
     let mut p = params(input);
     p.measure = true;
     let (mut rows, mut each) = (Vec::new(), Vec::new());
     for (model, scene, name, rays, shadow) in inputs(input)? {
-        let caster = Pdacrt::from_triangles(&scene.triangle_vertices(), p);
         // With a profile the launches also record what the time model reads.
-        caster.device().set_gpu_profile(Some(simt::GpuProfile::named("h200")?));
+        let dev = simt::Device::default();
+        dev.set_measure(true);
+        dev.set_gpu_profile(Some(simt::GpuProfile::named("h200")?));
         let start = Instant::now();
-        cast(&caster, &rays, shadow);
-        eprintln!("simt {model} {name}: {} rays, {:.1} s measured", rays.len(), start.elapsed().as_secs_f64());
-        rows.extend(caster.device().kernel_stats());
-        let log = caster.device().launch_log();
-        if caster.device().launch_mark() > log.len() as u64 {
+        let tris = scene.triangle_vertices();
+        let caster: Box<dyn RayCaster> = match kind {
+            "pdacrt" => Box::new(Pdacrt::on_device(&tris, p, dev)),
+            "lbvh" => Box::new(Lbvh::on_device(&tris, dev)),
+            other => return Err(format!("unknown emulated caster {other} (known: pdacrt, lbvh)")),
+        };
+        cast(caster.as_ref(), &rays, shadow);
+        eprintln!("simt {kind} {model} {name}: {} rays, {:.1} s measured", rays.len(), start.elapsed().as_secs_f64());
+        let dev = caster.device().expect("an emulated caster has a device");
+        rows.extend(dev.kernel_stats());
+        let log = dev.launch_log();
+        if dev.launch_mark() > log.len() as u64 {
             return Err(format!("{model} {name}: more launches than the device's log keeps ({})", log.len()));
         }
         each.extend(log);
@@ -494,7 +533,7 @@ fn cast(c: &dyn RayCaster, rays: &[Ray], shadow: bool) -> (Vec<Hit>, Vec<bool>, 
     }
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
 }
@@ -589,7 +628,13 @@ fn compare_keys(gpu: &GpuPdacrt, keys: &[u64], cpu: &Pdacrt, rays: &[Ray], shado
 }
 
 /// (rays checked, rays that disagree) against brute force, every `every`th ray.
-fn brute_check(gpu: &GpuPdacrt, brute: &BruteForce, rays: &[Ray], shadow: bool, every: usize) -> (usize, usize) {
+pub(crate) fn brute_check(
+    gpu: &dyn RayCaster,
+    brute: &BruteForce,
+    rays: &[Ray],
+    shadow: bool,
+    every: usize,
+) -> (usize, usize) {
     let sample: Vec<Ray> = rays.iter().step_by(every).copied().collect();
     let (gh, go, _) = cast(gpu, &sample, shadow);
     let (bh, bo, _) = cast(brute, &sample, shadow);

@@ -643,6 +643,43 @@ impl Thread<'_> {
         v.write(i, value)
     }
 
+    /// Stores one field of element `i`, `field` picking it (`|n: &Node| &n.count`), and
+    /// nothing else of the element: other threads may store its other fields at the
+    /// same time, as compiled code's store of `p[i].count` leaves them alone.
+    #[inline(always)]
+    #[track_caller]
+    pub fn store_field<T: DeviceCopy + Default, U: DeviceCopy>(
+        &self,
+        v: &GlobalMut<T>,
+        i: usize,
+        field: impl FnOnce(&T) -> &U,
+        value: U,
+    ) {
+        self.store_field_if(true, v, i, field, value)
+    }
+
+    /// A predicated [`Thread::store_field`], as [`Thread::store_if`] is of
+    /// [`Thread::store`]: one instruction of every lane that reaches it, written (and
+    /// making traffic) only where `on`. Element `i` need not exist where `on` is false.
+    #[inline(always)]
+    #[track_caller]
+    pub fn store_field_if<T: DeviceCopy + Default, U: DeviceCopy>(
+        &self,
+        on: bool,
+        v: &GlobalMut<T>,
+        i: usize,
+        field: impl FnOnce(&T) -> &U,
+        value: U,
+    ) {
+        let x = T::default();
+        let at = (field(&x) as *const U as usize).wrapping_sub(&x as *const T as usize);
+        assert!(at < std::mem::size_of::<T>(), "store_field: the projection must return a field of the element");
+        self.note_if::<U>(Kind::Store, v.address(i) + at as u64, on);
+        if on {
+            v.write_at(i, at, value)
+        }
+    }
+
     /// A predicated store: element `i` is written only when `on`, but the store is one
     /// instruction of every lane that reaches it, as compiled code makes of
     /// `x[i] = c ? a : b` with two predicated stores (`@P0 STG`, `@!P0 STG`): the lane is
@@ -846,6 +883,16 @@ impl Thread<'_> {
     pub fn unrolled<R>(&self, copy: usize, f: impl FnOnce() -> R) -> R {
         let _copy = self.unroll(copy);
         f()
+    }
+
+    /// `__threadfence()`: this thread's global writes before it are seen by any thread
+    /// that sees its writes (or atomics) after it. Views store with relaxed atomics, so
+    /// without a fence a thread that learns of another's work through an atomic
+    /// counter may read that work's stores stale. Counts nothing itself: a kernel's
+    /// declared work holds its `MEMBAR` (the SASS has it on the path).
+    #[inline(always)]
+    pub fn thread_fence(&self) {
+        std::sync::atomic::fence(std::sync::atomic::Ordering::SeqCst);
     }
 
     /// Declares `units` instructions of arithmetic on branch arm `path` of region

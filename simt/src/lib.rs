@@ -16,7 +16,7 @@
 //!   with host code declares its arithmetic through the kernel's ambient lane
 //!   ([`ambient`]: [`Thread::ambient`], [`declare!`](crate::declare!), [`scope`]).
 //! * **Primitives** with Thrust names, written as kernels: [`inclusive_scan`],
-//!   [`exclusive_scan`], [`transform_exclusive_scan`], [`reduce`], [`reduce_by_key`], [`sort_by_key`] (stable radix),
+//!   [`exclusive_scan`], [`transform_exclusive_scan`], [`reduce`], [`transform_reduce`], [`reduce_by_key`], [`sort_by_key`] (stable radix),
 //!   [`copy_if`], [`gather`], [`scatter`], [`fill`], [`sequence`], and [`WorkQueue`].
 //!   Each has a sequential twin in [`seq`].
 //!
@@ -69,7 +69,7 @@ pub use limits::{MAX_PATHS, MAX_REGIONS, REGISTER_WORDS_PER_THREAD, RETRY_TRIP_I
 pub use memory::{DeviceBuffer, DeviceCopy, Global, GlobalMut, Readable};
 pub use meter::{Race, Traffic};
 pub use prims::queue::{QueuePusher, WorkQueue};
-pub use prims::scan::{exclusive_scan, inclusive_scan, reduce, transform_exclusive_scan};
+pub use prims::scan::{exclusive_scan, inclusive_scan, reduce, transform_exclusive_scan, transform_reduce};
 pub use prims::select::{Flagged, copy_if, copy_if_stencil, fill, gather, reduce_by_key, scatter, sequence};
 pub use prims::sort::{RadixKey, sort_by_key, sort_by_key_bits};
 pub use stats::{KernelSummary, LaunchRecord, RegionStats, records_from_tsv, records_to_tsv};

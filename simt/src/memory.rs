@@ -403,6 +403,17 @@ impl<'a, T: DeviceCopy> GlobalMut<'a, T> {
         unsafe { write_words(self.ptr.add(i), v) }
     }
 
+    /// Stores `v` at byte `at` of element `i` (a field of it, as `Thread::store_field`
+    /// found it: inside the element and aligned for `U`).
+    #[inline(always)]
+    pub(crate) fn write_at<U: DeviceCopy>(&self, i: usize, at: usize, v: U) {
+        assert!(i < self.len, "store to element {i} of a buffer of {}", self.len);
+        assert!(
+            at + std::mem::size_of::<U>() <= std::mem::size_of::<T>() && at.is_multiple_of(std::mem::align_of::<U>())
+        );
+        unsafe { write_words((self.ptr.add(i) as *mut u8).add(at) as *mut U, v) }
+    }
+
     pub(crate) fn atomic_u32(&self, i: usize) -> &AtomicU32 {
         assert!(i < self.len, "atomic on element {i} of a buffer of {}", self.len);
         const { assert!(std::mem::size_of::<T>() == 4) };

@@ -349,6 +349,31 @@ fn a_field_load_is_the_load_of_that_field_alone() {
 }
 
 #[test]
+fn a_field_store_writes_that_field_alone() {
+    // 64 threads each store one of nine fields of one of eight nodes, at once: every
+    // node ends with all its fields, none clobbered by a whole-element write, and each
+    // warp's stores are one request per call site.
+    let dev = measured();
+    let mut buf = dev.alloc_filled(8, Node::default());
+    let v = buf.view_mut();
+    let rec = dev.for_each("fields", 72, |t, i| {
+        let (node, field) = (i / 9, i % 9);
+        if field < 6 {
+            t.store_field(&v, node, |n: &Node| &n.bounds[field], (i + 1) as f32);
+        } else {
+            t.store_field(&v, node, |n: &Node| [&n.start, &n.count, &n.tries][field - 6], (i + 1) as u32);
+        }
+    });
+    for (k, n) in buf.as_slice().iter().enumerate() {
+        let first = 9 * k as u32 + 1;
+        assert_eq!(n.bounds, std::array::from_fn(|f| (first + f as u32) as f32), "node {k}");
+        assert_eq!((n.start, n.count, n.tries), (first + 6, first + 7, first + 8), "node {k}");
+    }
+    // Warps 0-2 (threads 0-71) each reach both call sites.
+    assert_eq!((rec.stores.requests, rec.stores.lanes), (3 * 2, 72));
+}
+
+#[test]
 #[should_panic(expected = "load_field")]
 fn a_projection_outside_the_element_panics() {
     static OTHER: u32 = 3;

@@ -222,8 +222,7 @@ impl TriangleCorners for Triangles {
 impl TriangleCorners for [[f32; 9]] {
     #[inline]
     fn corners(&self, id: u32) -> [Vec3; 3] {
-        let v = &self[id as usize];
-        [Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]), Vec3::new(v[6], v[7], v[8])]
+        super::flat::corners(self[id as usize])
     }
 }
 

@@ -7,7 +7,8 @@
 //!
 //! Casters here: [`BruteForce`] (the test oracle), [`BvhCaster`] (obvhs' compressed
 //! wide BVH), [`Bvh4`] (warpray's own 4-wide BVH), [`Dacrt`] (divide-and-conquer, no stored structure) and
-//! [`pdacrt::Pdacrt`] (DACRT breadth-first on the `simt` emulator), and with the cargo
+//! [`pdacrt::Pdacrt`] (DACRT breadth-first on the `simt` emulator), [`Lbvh`] (the GPU BVH
+//! baseline's build and traversal on the emulator, kernel for kernel `cuda/bvh.cu`), and with the cargo
 //! feature `embree`, [`embree::EmbreeCaster`] (Intel's Embree, the CPU baseline).
 
 pub mod batches;
@@ -18,6 +19,8 @@ mod caster;
 mod dacrt;
 #[cfg(feature = "embree")]
 pub mod embree;
+pub(crate) mod flat;
+mod lbvh;
 pub mod pdacrt;
 
 pub use brute::BruteForce;
@@ -25,6 +28,7 @@ pub use bvh::{BvhBuild, BvhCaster, Traversal};
 pub use bvh4::Bvh4;
 pub use caster::{CastStats, CountingCaster, RayCaster, Triangles, any_hit_ids, intersect_ids};
 pub use dacrt::{Dacrt, DacrtParams};
+pub use lbvh::Lbvh;
 
 use crate::scene::Scene;
 
@@ -43,6 +47,9 @@ pub enum CasterKind {
     Dacrt,
     /// Breadth-first parallel DACRT (Ravichandran & Narayanan 2013) on the simt emulator.
     Pdacrt,
+    /// A linear BVH built from Morton codes and traversed one ray per thread, on the
+    /// simt emulator: the GPU baseline PDACRT is measured against.
+    Lbvh,
     /// Intel's Embree with its default build (cargo feature `embree`).
     #[cfg(feature = "embree")]
     Embree,
@@ -58,6 +65,7 @@ impl CasterKind {
             CasterKind::Brute => Box::new(BruteForce::new(scene)),
             CasterKind::Dacrt => Box::new(Dacrt::new(scene)),
             CasterKind::Pdacrt => Box::new(crate::cast::pdacrt::Pdacrt::new(scene)),
+            CasterKind::Lbvh => Box::new(Lbvh::new(scene)),
             #[cfg(feature = "embree")]
             CasterKind::Embree => Box::new(embree::EmbreeCaster::new(scene)?),
         })
@@ -71,6 +79,7 @@ impl CasterKind {
             CasterKind::Brute,
             CasterKind::Dacrt,
             CasterKind::Pdacrt,
+            CasterKind::Lbvh,
             #[cfg(feature = "embree")]
             CasterKind::Embree,
         ]

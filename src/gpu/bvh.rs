@@ -64,7 +64,7 @@ impl GpuBvh {
     /// Replaces the triangles and rebuilds; returns what the build did. On an error
     /// the structure is empty (every ray misses), never stale.
     pub fn rebuild(&mut self, tris: &[[glam::Vec3; 3]]) -> Result<GpuBvhStats> {
-        (self.tris, _, self.magnitude) = crate::cast::pdacrt::flatten(tris);
+        (self.tris, _, self.magnitude) = crate::cast::flat::flatten(tris);
         self.build = GpuBvhStats::default();
         let handle = self.handle.get_mut().unwrap_or_else(|e| e.into_inner());
         let stats = self.lib.bvh_build(handle, &self.tris);

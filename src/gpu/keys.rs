@@ -1,19 +1,11 @@
 //! What the GPU casters' keys (`geometry::hit_key`) stand for on the host: the one
 //! reading of a key that the PDACRT twin and the BVH baseline share.
 
-use crate::cast::pdacrt::kernels::{BLOCKED, NO_HIT, hit_of_key};
+pub(crate) use crate::cast::flat::hits_of_keys;
 use crate::error::Result;
-use crate::geometry::{Hit, Ray, hit_key};
+use crate::geometry::hit_key::BLOCKED;
+use crate::geometry::{Hit, Ray};
 use std::time::Instant;
-
-/// The hits that closest-hit keys stand for, barycentrics recomputed on the host from
-/// the triangles the keys index.
-pub(crate) fn hits_of_keys(tris: &[[f32; 9]], rays: &[Ray], keys: &[u64], hits: &mut [Hit]) {
-    for ((h, r), &k) in hits.iter_mut().zip(rays).zip(keys) {
-        let tri = if k == NO_HIT { [0.0; 9] } else { tris[hit_key::prim_of(k) as usize] };
-        *h = hit_of_key(r, k, tri);
-    }
-}
 
 /// Any-hit keys as occlusion flags.
 fn occlusion_of_keys(keys: &[u64], out: &mut [bool]) {

@@ -70,7 +70,7 @@ impl GpuPdacrt {
     pub fn with_library(path: impl Into<PathBuf>, tris: &[[glam::Vec3; 3]], params: PdacrtParams) -> Result<Self> {
         let lib = Library::open(path.into())?;
         let device = lib.device_name()?;
-        let (flat, scene_box, magnitude) = crate::cast::pdacrt::flatten(tris);
+        let (flat, scene_box, magnitude) = crate::cast::flat::flatten(tris);
         let handle = lib.create(&flat, scene_box)?;
         Ok(GpuPdacrt {
             lib,
@@ -89,7 +89,7 @@ impl GpuPdacrt {
     /// the device (as [`super::GpuBvhStats::upload_ms`]), milliseconds. On an error no
     /// triangle is left (every ray misses).
     pub fn set_triangles(&mut self, tris: &[[glam::Vec3; 3]]) -> Result<f64> {
-        let (flat, scene_box, magnitude) = crate::cast::pdacrt::flatten(tris);
+        let (flat, scene_box, magnitude) = crate::cast::flat::flatten(tris);
         self.magnitude = magnitude;
         let start = std::time::Instant::now();
         let handle = self.handle.get_mut().unwrap_or_else(|e| e.into_inner());

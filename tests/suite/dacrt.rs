@@ -3,7 +3,7 @@
 //! ambient-occlusion batches over real scenes, and on adversarial input.
 
 use crate::common::*;
-use warpray::cast::{BruteForce, Bvh4, BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster};
+use warpray::cast::{BruteForce, Bvh4, BvhCaster, CastStats, Dacrt, DacrtParams, Lbvh, RayCaster};
 use warpray::geometry::{Hit, Ray};
 use warpray::glam::Vec3;
 use warpray::pdacrt::{Pdacrt, PdacrtParams};
@@ -40,8 +40,13 @@ fn casters_under_test(scene: &Scene, measured: bool) -> Vec<Box<dyn RayCaster>> 
         Box::new(Pdacrt::new(scene)),
         // The 4-wide BVH meets the same batches and adversarial sets.
         Box::new(Bvh4::new(scene)),
+        // So does the GPU BVH's emulated twin.
+        Box::new(Lbvh::new(scene)),
     ];
     if measured {
+        let dev = simt::Device::default();
+        dev.set_measure(true);
+        casters.push(Box::new(Lbvh::on_device(&scene.triangle_vertices(), dev)));
         casters.push(Box::new(Pdacrt::from_triangles(
             &scene.triangle_vertices(),
             PdacrtParams { leaf_rays: 1, leaf_triangles: 1, measure: true, ..PdacrtParams::default() },
@@ -360,7 +365,7 @@ fn dacrt_reports_its_stages() {
 }
 
 #[test]
-fn dacrt_pdacrt_and_bvh4_keep_the_smallest_key_where_triangles_tie() {
+fn dacrt_pdacrt_and_both_bvhs_keep_the_smallest_key_where_triangles_tie() {
     // Rays aimed exactly at corners and edge midpoints, where several triangles are hit
     // at one distance and the smallest id must win (brute force's answer), bit for bit.
     // A box culled at the best distance itself, unwidened, loses some of these ties: a
@@ -379,8 +384,9 @@ fn dacrt_pdacrt_and_bvh4_keep_the_smallest_key_where_triangles_tie() {
         BruteForce::new(&scene).closest(&rays, &mut want);
         let tiny = PdacrtParams { leaf_rays: 4, leaf_triangles: 2, ..PdacrtParams::default() };
         let tiny_dacrt = DacrtParams { leaf_rays: 1, leaf_triangles: 1, ..DacrtParams::default() };
-        let casters: [(&str, Box<dyn RayCaster>); 5] = [
+        let casters: [(&str, Box<dyn RayCaster>); 6] = [
             ("bvh4", Box::new(Bvh4::from_triangles(tris.clone()))),
+            ("lbvh", Box::new(Lbvh::on_device(&tris, simt::Device::default()))),
             ("pdacrt", Box::new(Pdacrt::from_triangles(&tris, PdacrtParams::default()))),
             ("pdacrt, tiny leaves", Box::new(Pdacrt::from_triangles(&tris, tiny))),
             ("dacrt", Box::new(Dacrt::from_triangles(tris.clone(), DacrtParams::default()))),

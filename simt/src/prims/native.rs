@@ -77,12 +77,14 @@ where
         .for_each(|((i, o), offset)| scan_chunk(i, o, offset));
 }
 
-pub(crate) fn reduce<T, F>(input: &[T], init: T, identity: T, op: F) -> T
+pub(crate) fn reduce<I, T, M, F>(input: &[I], map: M, init: T, identity: T, op: F) -> T
 where
+    I: DeviceCopy,
     T: DeviceCopy,
+    M: Fn(I) -> T + Sync + Copy,
     F: Fn(T, T) -> T + Sync + Copy,
 {
-    let totals: Vec<T> = input.par_chunks(CHUNK).map(|c| c.iter().fold(identity, |a, &x| op(a, x))).collect();
+    let totals: Vec<T> = input.par_chunks(CHUNK).map(|c| c.iter().fold(identity, |a, &x| op(a, map(x)))).collect();
     totals.into_iter().fold(init, op)
 }
 

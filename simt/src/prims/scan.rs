@@ -275,12 +275,31 @@ where
     T: DeviceCopy,
     F: Fn(T, T) -> T + Sync + Copy,
 {
+    transform_reduce(dev, input, same, init, identity, op)
+}
+
+/// `init ⊕ map(input[0]) ⊕ … ⊕ map(input[n-1])` without storing the mapped values
+/// (Thrust's `transform_reduce`; CUB's reduce over a transform iterator): the first
+/// pass reads the inputs themselves.
+///
+/// ```
+/// let dev = simt::Device::default();
+/// let input = dev.alloc_from(&[[3u32, 1], [9, 2], [1, 5]]);
+/// assert_eq!(simt::transform_reduce(&dev, &input, |p: [u32; 2]| p[0] * p[1], 0, 0, |a, b| a + b), 26);
+/// ```
+pub fn transform_reduce<I, T, M, F>(dev: &Device, input: &DeviceBuffer<I>, map: M, init: T, identity: T, op: F) -> T
+where
+    I: DeviceCopy,
+    T: DeviceCopy,
+    M: Fn(I) -> T + Sync + Copy,
+    F: Fn(T, T) -> T + Sync + Copy,
+{
     let n = input.len();
     if n == 0 {
         return init;
     }
     if !dev.measuring() {
-        return dev.host("simt::reduce [cpu]", n, || super::native::reduce(input.as_slice(), init, identity, op));
+        return dev.host("simt::reduce [cpu]", n, || super::native::reduce(input.as_slice(), map, init, identity, op));
     }
     let blocks = n.div_ceil(TILE);
     let mut partial = dev.alloc_filled(blocks, identity);
@@ -299,7 +318,7 @@ where
                 for k in 0..ITEMS {
                     let i = base + t.thread_idx() as usize * ITEMS + k;
                     if i < n {
-                        acc = op(acc, t.load(&inp, i));
+                        acc = op(acc, map(t.load(&inp, i)));
                     }
                 }
                 v[t.lane_id() as usize] = acc;

@@ -7,8 +7,9 @@
 //! follow.
 
 use crate::cast::dacrt::leaf_pairs;
+use crate::cast::flat::{corners, hit_of_key};
 use crate::geometry::hit_key;
-use crate::geometry::{Aabb, Hit, Ray, RayShear, cull_distance, intersect_triangle, inv_dir, triangle_test};
+use crate::geometry::{Aabb, Hit, Ray, RayShear, cull_distance, inv_dir, triangle_test};
 use glam::Vec3;
 use simt::{Block, DeviceCopy, Global, GlobalMut, Place, Readable, Thread};
 
@@ -71,12 +72,6 @@ unsafe impl DeviceCopy for ChildData {}
 #[inline]
 fn t_far(ray: &Ray, key: u64) -> f32 {
     if key == NO_HIT { ray.t_max } else { hit_key::t_of(key).min(ray.t_max) }
-}
-
-/// A triangle's corners from its flat device record.
-#[inline]
-pub(crate) fn corners(v: [f32; 9]) -> [Vec3; 3] {
-    [Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]), Vec3::new(v[6], v[7], v[8])]
 }
 
 /// `f32` to `u32` with the same order, so boxes can grow by integer atomics.
@@ -744,19 +739,6 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
             t.atomic_add_u64(&a.tests, 0, t.load_shared(block_tests, 0));
         }
     });
-}
-
-/// The hit a key stands for, with barycentrics from the same watertight test
-/// (`tri` is the key's triangle; ignored for [`NO_HIT`]).
-pub(crate) fn hit_of_key(ray: &Ray, key: u64, tri: [f32; 9]) -> Hit {
-    if key == NO_HIT {
-        return Hit::MISS;
-    }
-    let prim = hit_key::prim_of(key);
-    let t = hit_key::t_of(key);
-    let [a, b, c] = corners(tri);
-    intersect_triangle(ray.origin, &RayShear::new(ray.dir), a, b, c, ray.t_min, t.next_up())
-        .map_or(Hit { t, prim, u: 0.0, v: 0.0 }, |(t, u, v)| Hit { t, prim, u, v })
 }
 
 /// `pdacrt::resolve_hits`: key of ray `i` into its [`Hit`].

@@ -33,8 +33,9 @@
 pub(crate) mod kernels;
 
 use crate::cast::caster::{CastStats, RayCaster, any_hit_ids, intersect_ids};
+use crate::cast::flat::{flatten, hit_of_key};
 use crate::geometry::hit_key;
-use crate::geometry::{Aabb, Hit, Ray, RayShear, batch_slack, magnitude};
+use crate::geometry::{Aabb, Hit, Ray, RayShear, batch_slack};
 use crate::scene::Scene;
 use kernels::*;
 use rayon::prelude::*;
@@ -257,19 +258,6 @@ impl Workspace {
             grow: 0.0,
         }
     }
-}
-
-/// Triangles as the kernels read them (nine floats each), their bounding box and the
-/// largest magnitude of their coordinates (`geometry::batch_slack`).
-pub(crate) fn flatten(tris: &[[glam::Vec3; 3]]) -> (Vec<[f32; 9]>, Aabb, f32) {
-    let flat = tris
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|v| v.to_array());
-            [a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]]
-        })
-        .collect();
-    (flat, tris.iter().fold(Aabb::EMPTY, |b, t| b.union(Aabb::from_points(t))), magnitude(tris))
 }
 
 /// What one chunk's trace leaves for the caller: per level, its record and launches.

@@ -161,7 +161,7 @@ fn classify_children_declares_its_sass_counts_arm_by_arm() {
 
 /// The instruction weights the kernels declare, derived from the twin's compiled code:
 /// each is the path one lane takes through a stretch of the stored SASS
-/// (`docs/measured/pdacrt-kernels-sm90.sass`, printed by `sh cuda/pdacrt_sass.sh`),
+/// (`docs/measured/pdacrt-kernels-sm90.sass`, printed by `sh cuda/kernels_sass.sh pdacrt`),
 /// named by its first address, the address it stops at and the branches it takes, less
 /// the memory instructions `simt` counts itself. A recompiled twin whose code changes
 /// fails here until the weights follow it.
