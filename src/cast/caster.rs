@@ -76,12 +76,27 @@ pub trait RayCaster: Send + Sync {
     fn device(&self) -> Option<&simt::Device> {
         None
     }
+    /// A traversal that one kernel thread runs itself, for casters that have one (the
+    /// GPU BVH's twin): the LVC megakernel traces its rays through it inside its
+    /// threads, as a GPU megakernel does, rather than one caster call per ray.
+    fn in_thread(&self) -> Option<&dyn InThread> {
+        None
+    }
     /// Whether the caster suits rays cast one at a time (the LVC megakernel's): true
     /// for casters with a stored structure, false for the divide-and-conquer casters,
     /// which build their work from the batch.
     fn casts_single_rays(&self) -> bool {
         true
     }
+}
+
+/// A caster's traversal run by one thread of a `simt` kernel, its work counted as that
+/// thread's, declared in the launch's region `region` (`RayCaster::in_thread`).
+pub trait InThread: Send + Sync {
+    /// The closest hit of `ray`.
+    fn closest_in_thread(&self, t: &simt::Thread, ray: &Ray, region: usize) -> Hit;
+    /// Whether anything lies on `ray` within `(t_min, t_max)`.
+    fn occluded_in_thread(&self, t: &simt::Thread, ray: &Ray, region: usize) -> bool;
 }
 
 /// Triangle corners in scene order, as the casters store them.
@@ -195,6 +210,10 @@ impl RayCaster for CountingCaster<'_> {
     }
     fn casts_single_rays(&self) -> bool {
         self.inner.casts_single_rays()
+    }
+    /// The inner caster's (rays traced in a kernel's threads are not counted here).
+    fn in_thread(&self) -> Option<&dyn InThread> {
+        self.inner.in_thread()
     }
 }
 

@@ -73,9 +73,12 @@ impl<'a> Renderer<'a> {
                 opts.integrator.name()
             )));
         }
-        if opts.integrator == IntegratorKind::LvcMegakernel && !caster.casts_single_rays() {
+        if opts.integrator == IntegratorKind::LvcMegakernel
+            && !caster.casts_single_rays()
+            && caster.in_thread().is_none()
+        {
             return Err(Error::BadSetting(format!(
-                "the LVC megakernel casts its rays one at a time, which the {} caster is not built for; use --caster bvh",
+                "the LVC megakernel casts its rays one at a time, which the {} caster is not built for; use --caster bvh (or lbvh, traversed in the kernel's threads)",
                 caster.name()
             )));
         }

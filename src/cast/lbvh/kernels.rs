@@ -285,6 +285,40 @@ pub(crate) struct TreeView<'a> {
     pub root: i32,
     /// How far boxes grow (`geometry::batch_slack`).
     pub grow: f32,
+    /// The region the traversal's work is declared in (the launch's name for it).
+    pub region: usize,
+}
+
+/// Where a lane's ray is: in a buffer, loaded where the compiled kernel loads its
+/// fields (`bvh::trace`), or held in registers (a megakernel's own ray).
+#[derive(Clone, Copy)]
+pub(crate) enum RayAt<'a> {
+    Loaded(&'a Global<'a, Ray>, usize),
+    Held(Ray),
+}
+
+impl RayAt<'_> {
+    #[track_caller]
+    fn origin(&self, t: &Thread) -> Vec3 {
+        match self {
+            RayAt::Loaded(rays, i) => ray_vector(t, rays, *i, |r| &r.origin),
+            RayAt::Held(r) => r.origin,
+        }
+    }
+    #[track_caller]
+    fn t_min(&self, t: &Thread) -> f32 {
+        match self {
+            RayAt::Loaded(rays, i) => t.load_field(*rays, *i, |r| &r.t_min),
+            RayAt::Held(r) => r.t_min,
+        }
+    }
+    #[track_caller]
+    fn t_max(&self, t: &Thread) -> f32 {
+        match self {
+            RayAt::Loaded(rays, i) => t.load_field(*rays, *i, |r| &r.t_max),
+            RayAt::Held(r) => r.t_max,
+        }
+    }
 }
 
 /// The root of a tree with no triangles.
@@ -310,18 +344,29 @@ fn ray_vector(t: &Thread, rays: &Global<Ray>, i: usize, pick: fn(&Ray) -> &Vec3)
 /// (`Thread::unroll`), as a warp runs a `while` loop in lockstep. The ray's fields are
 /// loaded where the compiled code loads them: all of them once to test the ray, and its
 /// origin and interval again at every node and leaf (nvcc keeps no copy of them).
-pub(crate) fn trace_key(t: &Thread, tree: &TreeView, rays: &Global<Ray>, i: usize, any_hit: bool) -> (u64, u32, u32) {
+///
+/// A held ray (a megakernel's) makes no loads of its own and is charged the kernel's
+/// weights: the traversal inlined in another kernel is the same code, with other
+/// registers (its SASS was not walked).
+pub(crate) fn trace_key(t: &Thread, tree: &TreeView, ray: RayAt, any_hit: bool) -> (u64, u32, u32) {
     let (mut tests, mut visits) = (0, 0);
     let mut key = NONE;
-    let r = t.load(rays, i);
+    let rg = tree.region;
+    let r = match ray {
+        RayAt::Loaded(rays, i) => t.load(rays, i),
+        RayAt::Held(r) => r,
+    };
     if !r.is_valid() || tree.root == EMPTY_TREE {
         return (key, tests, visits);
     }
-    let dir = ray_vector(t, rays, i, |r| &r.dir);
-    let t_max = t.load_field(rays, i, |r| &r.t_max);
+    let dir = match ray {
+        RayAt::Loaded(rays, i) => ray_vector(t, rays, i, |r| &r.dir),
+        RayAt::Held(r) => r.dir,
+    };
+    let t_max = ray.t_max(t);
     let inv = inv_dir(dir);
     let shear = RayShear::new(dir);
-    t.work(0, 0, TRACE_HEAD);
+    t.work(rg, 0, TRACE_HEAD);
     let mut far = t_max;
     let mut stack = [0i32; STACK];
     let mut sp = 0;
@@ -331,21 +376,21 @@ pub(crate) fn trace_key(t: &Thread, tree: &TreeView, rays: &Global<Ray>, i: usiz
         let _step = t.unroll(step);
         step += 1;
         if cur < 0 {
-            let (origin, t_min) = (ray_vector(t, rays, i, |r| &r.origin), t.load_field(rays, i, |r| &r.t_min));
+            let (origin, t_min) = (ray.origin(t), ray.t_min(t));
             let tri = t.load(&tree.tris, !cur as usize);
-            let t_max = if any_hit { t.load_field(rays, i, |r| &r.t_max) } else { far.next_up() };
+            let t_max = if any_hit { ray.t_max(t) } else { far.next_up() };
             tests += 1;
             let (past_edges, hit) = triangle_test(origin, &shear, corners(tri), t_min, t_max);
-            t.work(0, 1, if any_hit { ANY_HIT_TEST } else { TEST });
+            t.work(rg, 1, if any_hit { ANY_HIT_TEST } else { TEST });
             if past_edges {
-                t.work(0, 2, PAST_EDGES);
+                t.work(rg, 2, PAST_EDGES);
                 if let Some((th, _, _)) = hit {
                     if any_hit {
-                        t.work(0, 3, ANY_HIT_LEAVE);
+                        t.work(rg, 3, ANY_HIT_LEAVE);
                         return (BLOCKED, tests, visits);
                     }
                     let candidate = hit_key::pack(th, t.load(&tree.ids, !cur as usize));
-                    t.work(0, 3, CANDIDATE);
+                    t.work(rg, 3, CANDIDATE);
                     if candidate < key {
                         key = candidate;
                         far = th;
@@ -354,11 +399,11 @@ pub(crate) fn trace_key(t: &Thread, tree: &TreeView, rays: &Global<Ray>, i: usiz
             }
         } else {
             visits += 1;
-            let t_min = t.load_field(rays, i, |r| &r.t_min);
-            let origin = ray_vector(t, rays, i, |r| &r.origin);
+            let t_min = ray.t_min(t);
+            let origin = ray.origin(t);
             let q = [0, 1, 2].map(|k| t.load_field(&tree.nodes, cur as usize, |n| &n.boxes[k]));
             let ch = t.load_field(&tree.nodes, cur as usize, |n| &n.child).0;
-            t.work(0, 4, VISIT);
+            t.work(rg, 4, VISIT);
             let cull = cull_distance(far);
             let enter = |side| {
                 Node::child_box(&q, side).grown(tree.grow).intersect(origin, inv, t_min, cull).map(|(near, _)| near)
@@ -369,24 +414,24 @@ pub(crate) fn trace_key(t: &Thread, tree: &TreeView, rays: &Global<Ray>, i: usiz
                     cur = if swap { ch[1] } else { ch[0] };
                     stack[sp] = if swap { ch[0] } else { ch[1] };
                     sp += 1;
-                    t.work(0, 5, VISIT_BOTH);
+                    t.work(rg, 5, VISIT_BOTH);
                     continue;
                 }
                 (Some(_), None) | (None, Some(_)) => {
                     cur = if enter(0).is_some() { ch[0] } else { ch[1] };
-                    t.work(0, 6, VISIT_ONE);
+                    t.work(rg, 6, VISIT_ONE);
                     continue;
                 }
-                (None, None) => t.work(0, 7, VISIT_NONE),
+                (None, None) => t.work(rg, 7, VISIT_NONE),
             }
         }
         if sp == 0 {
-            t.work(0, 8, LOOP_END);
+            t.work(rg, 8, LOOP_END);
             break;
         }
         sp -= 1;
         cur = stack[sp];
-        t.work(0, 9, POP);
+        t.work(rg, 9, POP);
     }
     (key, tests, visits)
 }

@@ -19,10 +19,10 @@ pub(crate) mod kernels;
 #[cfg(test)]
 mod tests;
 
-use crate::cast::caster::{CastStats, RayCaster};
-use crate::cast::flat::{flatten, hits_of_keys};
-use crate::geometry::hit_key::{BLOCKED, NONE};
-use crate::geometry::{Aabb, Hit, Ray, batch_slack};
+use crate::cast::caster::{CastStats, InThread, RayCaster};
+use crate::cast::flat::{flatten, hit_of_key, hits_of_keys};
+use crate::geometry::hit_key::{BLOCKED, NONE, prim_of};
+use crate::geometry::{Aabb, Hit, Ray, batch_slack, hit_slack};
 use crate::scene::Scene;
 use kernels::*;
 use rayon::prelude::*;
@@ -115,6 +115,19 @@ impl Lbvh {
         (self.sorted, self.ids, self.nodes) = (sorted, ids, nodes);
     }
 
+    /// The tree as one ray's traversal reads it, inside another kernel.
+    fn tree(&self, ray: &Ray, region: usize) -> TreeView<'_> {
+        let origin = ray.origin.abs().max_element();
+        TreeView {
+            nodes: self.nodes.view(),
+            tris: self.sorted.view(),
+            ids: self.ids.view(),
+            root: self.root(),
+            grow: hit_slack(self.magnitude, if origin.is_finite() { origin } else { 0.0 }),
+            region,
+        }
+    }
+
     fn root(&self) -> i32 {
         match self.sorted.len() {
             0 => EMPTY_TREE,
@@ -142,6 +155,7 @@ impl Lbvh {
                 ids: self.ids.view(),
                 root: self.root(),
                 grow,
+                region: 0,
             };
             let (rv, kv, cv) = (rays_dev.view(), keys.view_mut(), counters.view_mut());
             dev.launch("bvh::trace", LaunchConfig::linear(n, BLOCK).with_regions(&["traverse"]), |blk| {
@@ -150,7 +164,7 @@ impl Lbvh {
                     w.for_each_lane(|t| {
                         let i = t.global_idx();
                         if i < n {
-                            let (key, made, seen) = trace_key(t, &tree, &rv, i, any_hit);
+                            let (key, made, seen) = trace_key(t, &tree, RayAt::Loaded(&rv, i), any_hit);
                             t.store(&kv, i, key);
                             t.work(0, 0, TRACE_TAIL);
                             (tests[t.lane_id() as usize], visits[t.lane_id() as usize]) = (made, seen);
@@ -172,6 +186,20 @@ impl Lbvh {
     }
 }
 
+/// The traversal inside another kernel's threads (the LVC megakernel's): the tree's
+/// views, boxes grown for the one ray.
+impl InThread for Lbvh {
+    fn closest_in_thread(&self, t: &simt::Thread, ray: &Ray, region: usize) -> Hit {
+        let (key, _, _) = trace_key(t, &self.tree(ray, region), RayAt::Held(*ray), false);
+        let tri = if key == NONE { [0.0; 9] } else { t.load(&self.tris.view(), prim_of(key) as usize) };
+        hit_of_key(ray, key, tri)
+    }
+
+    fn occluded_in_thread(&self, t: &simt::Thread, ray: &Ray, region: usize) -> bool {
+        trace_key(t, &self.tree(ray, region), RayAt::Held(*ray), true).0 == BLOCKED
+    }
+}
+
 impl RayCaster for Lbvh {
     fn name(&self) -> &'static str {
         "lbvh"
@@ -183,6 +211,10 @@ impl RayCaster for Lbvh {
 
     fn device(&self) -> Option<&Device> {
         Some(&self.dev)
+    }
+
+    fn in_thread(&self) -> Option<&dyn InThread> {
+        Some(self)
     }
 
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {

@@ -1,8 +1,9 @@
 //! The LVC-BDPT megakernel's kernels: each thread does a whole subpath, tracing its
 //! rays one at a time where it needs them, as a GPU megakernel traverses its BVH per
 //! thread. Plain functions of a thread and `Copy` data; none allocates, forks or
-//! launches. Each ray is declared as one instruction of region `trace` (arm 0: closest
-//! hit, arm 1: shadow), and each shading as one of region `shade` on its material's
+//! launches. Each ray is traversed in the thread when the caster can (`--caster lbvh`,
+//! the GPU BVH's twin), its work counted in region `trace`; else it is declared as one
+//! instruction of that region (arm 0: closest hit, arm 1: shadow). Each shading as one of region `shade` on its material's
 //! arm, so that the measured SIMD efficiency counts the lanes idle while others go on.
 
 use crate::bsdf::TransportMode;
@@ -21,16 +22,24 @@ pub const TRACE_REGION: usize = 1;
 /// The regions a megakernel launch names.
 pub const REGIONS: &[&str] = &["shade", "trace"];
 
-/// The closest hit of `ray`, cast alone through the caster.
+/// The closest hit of `ray`: traversed in this thread where the caster can (the GPU
+/// BVH's twin, its work counted in region `trace`), else cast alone through the caster
+/// and declared as one instruction.
 fn trace(t: &Thread, ctx: &Context, ray: Ray) -> Hit {
+    if let Some(k) = ctx.caster.in_thread() {
+        return k.closest_in_thread(t, &ray, TRACE_REGION);
+    }
     t.work(TRACE_REGION, 0, 1);
     let mut hit = [Hit::MISS];
     ctx.caster.closest(std::slice::from_ref(&ray), &mut hit);
     hit[0]
 }
 
-/// Whether nothing blocks shadow ray `ray`, cast alone through the caster.
+/// Whether nothing blocks shadow ray `ray`, traversed as [`trace`] does.
 fn unblocked(t: &Thread, ctx: &Context, ray: Ray) -> bool {
+    if let Some(k) = ctx.caster.in_thread() {
+        return !k.occluded_in_thread(t, &ray, TRACE_REGION);
+    }
     t.work(TRACE_REGION, 1, 1);
     let mut blocked = [false];
     ctx.caster.occluded(std::slice::from_ref(&ray), &mut blocked);

@@ -163,4 +163,34 @@ mod tests {
         let differ = wavefront.iter().zip(&mega).filter(|(a, b)| a != b).count();
         assert_eq!(differ, 0, "{differ} pixels differ");
     }
+
+    /// With the GPU BVH's twin, each thread traverses its own rays (the traversal's
+    /// work counted in the launch's `trace` region, measured): the same image again.
+    #[test]
+    fn the_megakernel_traversing_in_its_threads_renders_the_same_image() {
+        let scene = cornell_box();
+        let image = |caster: &dyn crate::cast::RayCaster, measure: bool| {
+            let mut opts = RenderOptions {
+                width: 24,
+                height: 16,
+                integrator: IntegratorKind::LvcMegakernel,
+                seed: 4,
+                max_depth: 5,
+                ..Default::default()
+            };
+            opts.lvc.measure = measure;
+            let mut r = Renderer::new(&scene, caster, &opts).unwrap();
+            let mut film = r.film().unwrap();
+            r.pass(0, &mut film);
+            let trace = r.device().and_then(|d| {
+                d.kernel_stats().into_iter().find(|k| k.name == "lvc::camera_path").map(|k| k.regions[1].issued)
+            });
+            (film.mean(), trace)
+        };
+        let (want, _) = image(&BvhCaster::new(&scene), false);
+        let (got, trace) = image(&crate::cast::Lbvh::new(&scene), true);
+        assert_eq!(want, got);
+        // Far more than one instruction per ray: the traversal itself was counted.
+        assert!(trace.is_some_and(|issued| issued > 24 * 16 * 100), "{trace:?}");
+    }
 }
