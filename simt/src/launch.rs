@@ -18,18 +18,28 @@ pub struct LaunchConfig {
     pub shared_bytes: usize,
     /// Names of the work regions the kernel declares with `Thread::work`, in order.
     pub regions: &'static [&'static str],
+    /// Registers per thread of the kernel's compiled GPU twin (`ncu`'s
+    /// `launch__registers_per_thread`; the emulator cannot know them), which bound how
+    /// many blocks an SM holds; 0 when not known (no bound).
+    pub registers: u32,
 }
 
 impl LaunchConfig {
     /// Enough blocks of `block` threads to cover `n` threads.
     pub fn linear(n: usize, block: u32) -> LaunchConfig {
         let grid = n.div_ceil(block.max(1) as usize).min(u32::MAX as usize) as u32;
-        LaunchConfig { grid, block, shared_bytes: 0, regions: &[] }
+        LaunchConfig { grid, block, shared_bytes: 0, regions: &[], registers: 0 }
     }
 
     /// This configuration with `bytes` of shared memory per block.
     pub fn with_shared(mut self, bytes: usize) -> LaunchConfig {
         self.shared_bytes = bytes;
+        self
+    }
+
+    /// This configuration with the registers per thread its GPU twin uses.
+    pub fn with_registers(mut self, registers: u32) -> LaunchConfig {
+        self.registers = registers;
         self
     }
 

@@ -46,6 +46,9 @@ pub struct LaunchRecord {
     pub block: u32,
     /// Shared memory per block, bytes.
     pub shared_bytes: usize,
+    /// Registers per thread of the kernel's GPU twin, 0 when not known
+    /// ([`crate::LaunchConfig::registers`]; not kept in the record files, which read back 0).
+    pub registers: u32,
     /// Wall time of the launch, seconds.
     pub seconds: f64,
     /// Whether SIMD efficiency and memory traffic were measured.
@@ -349,6 +352,7 @@ pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
             grid: n(1)? as u32,
             block: n(2)? as u32,
             shared_bytes: n(3)? as usize,
+            registers: 0,
             seconds,
             measured: n(5)? != 0,
             threads: n(6)?,

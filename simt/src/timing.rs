@@ -31,6 +31,8 @@ pub struct GpuProfile {
     pub max_blocks_per_sm: f64,
     /// Shared memory per SM, bytes.
     pub shared_per_sm_bytes: f64,
+    /// 32-bit registers per SM (allocated per warp, 8 per thread at a time).
+    pub registers_per_sm: f64,
     /// L2 cache, bytes.
     pub l2_bytes: f64,
     /// Warp instructions one SM issues per cycle with every scheduler busy.
@@ -69,6 +71,7 @@ const KEYS: &[&str] = &[
     "max_warps_per_sm",
     "max_blocks_per_sm",
     "shared_per_sm_bytes",
+    "registers_per_sm",
     "l2_bytes",
     "issue_per_cycle_per_sm",
     "alu_latency_cycles",
@@ -141,6 +144,7 @@ impl GpuProfile {
             max_warps_per_sm: get("max_warps_per_sm")?,
             max_blocks_per_sm: get("max_blocks_per_sm")?,
             shared_per_sm_bytes: get("shared_per_sm_bytes")?,
+            registers_per_sm: get("registers_per_sm")?,
             l2_bytes: get("l2_bytes")?,
             issue_per_cycle_per_sm: get("issue_per_cycle_per_sm")?,
             alu_latency_cycles: get("alu_latency_cycles")?,
@@ -171,6 +175,7 @@ impl GpuProfile {
             self.max_warps_per_sm,
             self.max_blocks_per_sm,
             self.shared_per_sm_bytes,
+            self.registers_per_sm,
             self.l2_bytes,
             self.issue_per_cycle_per_sm,
             self.alu_latency_cycles,
@@ -256,12 +261,17 @@ impl Prediction {
 }
 
 /// Resident blocks per SM for a launch: the least of the profile's block and warp
-/// limits and what its shared memory allows (registers are not known to the emulator).
-pub fn blocks_per_sm(p: &GpuProfile, block: u32, shared_bytes: usize) -> f64 {
+/// limits, what its shared memory allows, and what its registers per thread allow when
+/// known (0: not known; a warp's registers are allocated 8 per thread at a time).
+pub fn blocks_per_sm(p: &GpuProfile, block: u32, shared_bytes: usize, registers: u32) -> f64 {
     let warps = (block as f64 / WARP_SIZE as f64).ceil().max(1.0);
     let mut n = p.max_blocks_per_sm.min((p.max_warps_per_sm / warps).floor());
     if shared_bytes > 0 {
         n = n.min((p.shared_per_sm_bytes / shared_bytes as f64).floor());
+    }
+    if registers > 0 {
+        let per_warp = (registers.div_ceil(8) * 8) as f64 * WARP_SIZE as f64;
+        n = n.min(((p.registers_per_sm / per_warp).floor() / warps).floor());
     }
     n.max(1.0)
 }
@@ -274,7 +284,7 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
     }
     let grid = r.grid.max(1) as f64;
     let warps_per_block = (r.block as f64 / WARP_SIZE as f64).ceil().max(1.0);
-    let per_sm = blocks_per_sm(p, r.block, r.shared_bytes);
+    let per_sm = blocks_per_sm(p, r.block, r.shared_bytes, r.registers);
     let sms = p.sms.min(grid);
     let waves = (grid / (p.sms * per_sm)).ceil();
     let warps = grid * warps_per_block;
@@ -330,6 +340,7 @@ mod tests {
             grid,
             block: 256,
             shared_bytes: 0,
+            registers: 0,
             seconds: 0.0,
             measured: true,
             threads: warps * 32,
@@ -413,9 +424,15 @@ mod tests {
     #[test]
     fn occupancy_follows_block_size_and_shared_memory() {
         let p = profile();
-        assert_eq!(blocks_per_sm(&p, 256, 0), (p.max_warps_per_sm / 8.0).floor());
-        assert_eq!(blocks_per_sm(&p, 32, 0), p.max_blocks_per_sm);
-        assert_eq!(blocks_per_sm(&p, 128, 100_000), (p.shared_per_sm_bytes / 100_000.0).floor());
-        assert_eq!(blocks_per_sm(&p, 1024, 1 << 30), 1.0);
+        assert_eq!(blocks_per_sm(&p, 256, 0, 0), (p.max_warps_per_sm / 8.0).floor());
+        assert_eq!(blocks_per_sm(&p, 32, 0, 0), p.max_blocks_per_sm);
+        assert_eq!(blocks_per_sm(&p, 128, 100_000, 0), (p.shared_per_sm_bytes / 100_000.0).floor());
+        assert_eq!(blocks_per_sm(&p, 1024, 1 << 30, 0), 1.0);
+        // 167 registers are allocated as 168: 5,376 per warp, 12 warps of 65,536, three
+        // blocks of 128 threads; 32 registers leave the warp limit binding.
+        assert_eq!(p.registers_per_sm, 65536.0);
+        assert_eq!(blocks_per_sm(&p, 128, 0, 167), 3.0);
+        assert_eq!(blocks_per_sm(&p, 256, 0, 32), (p.max_warps_per_sm / 8.0).floor());
+        assert_eq!(blocks_per_sm(&p, 256, 0, 255), 1.0);
     }
 }

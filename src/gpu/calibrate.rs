@@ -42,6 +42,10 @@ fn read_report(text: &str) -> Result<Report, String> {
     Ok(r)
 }
 
+/// Registers per SM where the probe output has no device query of them (runs before it
+/// printed one): the 65,536 of every NVIDIA GPU since Kepler, the H200 included.
+const REGISTERS_PER_SM: f64 = 65536.0;
+
 /// Builds the profile from the probe program's output (`probes`) and ncu's CSV of it.
 pub fn calibrate(probes: &str, ncu_csv: &str) -> Result<Calibration, String> {
     let report = read_report(probes)?;
@@ -109,6 +113,7 @@ pub fn calibrate(probes: &str, ncu_csv: &str) -> Result<Calibration, String> {
         max_warps_per_sm: dev("max_warps_per_sm")?,
         max_blocks_per_sm: dev("max_blocks_per_sm")?,
         shared_per_sm_bytes: dev("shared_per_sm_bytes")?,
+        registers_per_sm: dev("registers_per_sm").unwrap_or(REGISTERS_PER_SM),
         l2_bytes: dev("l2_bytes")?,
         issue_per_cycle_per_sm: alu.inst / (busy(&alu) * clock * sms),
         alu_latency_cycles: busy(&chain) * clock / amount("alu_chain")?,
@@ -130,6 +135,14 @@ pub fn calibrate(probes: &str, ncu_csv: &str) -> Result<Calibration, String> {
         ("max_warps_per_sm", "device query".into()),
         ("max_blocks_per_sm", "device query".into()),
         ("shared_per_sm_bytes", "device query".into()),
+        (
+            "registers_per_sm",
+            if dev("registers_per_sm").is_ok() {
+                "device query".into()
+            } else {
+                "datasheets: 64K 32-bit registers per SM on every NVIDIA GPU since Kepler (this probe output has no query)".into()
+            },
+        ),
         ("l2_bytes", "device query".into()),
         ("issue_per_cycle_per_sm", probe_of("alu_mix", "warp instructions / SM cycles")),
         ("alu_latency_cycles", probe_of("alu_chain", "cycles per dependent FMA, one warp")),

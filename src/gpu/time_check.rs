@@ -37,12 +37,27 @@ pub fn predicted_total(records: &[LaunchRecord], p: &GpuProfile) -> f64 {
     records.iter().filter_map(|r| predict(r, p)).map(|t| t.seconds).sum()
 }
 
+/// A record with the registers per thread the GPU's run of its kernel used, where the
+/// emulated launch did not declare them (the emulator cannot know them).
+fn with_registers(r: &LaunchRecord, registers: u64) -> LaunchRecord {
+    let mut r = r.clone();
+    if r.registers == 0 {
+        r.registers = registers.min(u32::MAX as u64) as u32;
+    }
+    r
+}
+
 /// Every kernel in `gpu` that the records also have (matched by the name without its
-/// namespace), in the GPU's order.
+/// namespace), in the GPU's order, each predicted with the registers the GPU's run of
+/// it used (`launch__registers_per_thread`).
 pub fn kernel_times(records: &[LaunchRecord], gpu: &[GpuKernel], p: &GpuProfile) -> Vec<KernelTime> {
     gpu.iter()
         .filter_map(|g| {
-            let mine: Vec<&LaunchRecord> = records.iter().filter(|r| base_name(r.name) == base_name(&g.name)).collect();
+            let mine: Vec<LaunchRecord> = records
+                .iter()
+                .filter(|r| base_name(r.name) == base_name(&g.name))
+                .map(|r| with_registers(r, g.registers))
+                .collect();
             if mine.is_empty() || g.seconds <= 0.0 {
                 return None;
             }

@@ -29,6 +29,23 @@ use std::ops::Range;
 /// ([`crate::scene::MaterialKind::index`]).
 pub(crate) const SHADE_REGION: usize = 0;
 
+/// Region of the arithmetic a shading kernel (`cis::shade`, the LVC megakernels) runs in
+/// code it shares with the CPU integrators (BSDFs, sampling, MIS weights, connections),
+/// declared there through `simt::declare!` with the weights of [`crate::cost`]; its
+/// parts of the code follow in the regions after it.
+pub const ARITHMETIC_REGION: usize = 1;
+/// A shading launch's regions, in index order: the dispatch, then the declared
+/// arithmetic by part of the code ([`crate::cost::Part`], in its order).
+pub const SHADE_REGIONS: &[&str] = &[
+    "shade",
+    "arithmetic",
+    "arithmetic: microfacet",
+    "arithmetic: bsdf",
+    "arithmetic: bidirectional",
+    "arithmetic: sampling",
+    "arithmetic: lights",
+];
+
 /// Adds a wave's resolved samples to the film in sample order: each sample's splats,
 /// then, at the end of each pass, `before_close(film, pass)` (LVC adds the pass's
 /// light splats there) and that pass's estimates (`add_pass`, when `estimates` is

@@ -35,7 +35,7 @@ where
     let mut totals = dev.alloc_filled(blocks, identity);
     let (inp, out, tot) = (input.view(), output.view_mut(), totals.view_mut());
     let shared = (TILE + BLOCK as usize + 32) * std::mem::size_of::<T>();
-    let cfg = LaunchConfig { grid: blocks as u32, block: BLOCK, shared_bytes: shared, regions: &[] };
+    let cfg = LaunchConfig { grid: blocks as u32, block: BLOCK, shared_bytes: shared, regions: &[], registers: 0 };
     dev.launch("simt::scan_tiles", cfg, |blk| {
         let base = blk.block_idx() as usize * TILE;
         let valid = (n - base).min(TILE);
@@ -138,7 +138,7 @@ fn add_block_offsets<T, F>(
 {
     let n = output.len();
     let (out, tot) = (output.view_mut(), scanned_totals.view());
-    let cfg = LaunchConfig { grid: n.div_ceil(TILE) as u32, block: BLOCK, shared_bytes: 0, regions: &[] };
+    let cfg = LaunchConfig { grid: n.div_ceil(TILE) as u32, block: BLOCK, shared_bytes: 0, regions: &[], registers: 0 };
     dev.launch("simt::scan_add_offsets", cfg, |blk| {
         let b = blk.block_idx() as usize;
         blk.for_each_thread(|t| {
@@ -304,8 +304,13 @@ where
     let blocks = n.div_ceil(TILE);
     let mut partial = dev.alloc_filled(blocks, identity);
     let (inp, part) = (input.view(), partial.view_mut());
-    let cfg =
-        LaunchConfig { grid: blocks as u32, block: BLOCK, shared_bytes: 32 * std::mem::size_of::<T>(), regions: &[] };
+    let cfg = LaunchConfig {
+        grid: blocks as u32,
+        block: BLOCK,
+        shared_bytes: 32 * std::mem::size_of::<T>(),
+        regions: &[],
+        registers: 0,
+    };
     dev.launch("simt::reduce_tiles", cfg, |blk| {
         let base = blk.block_idx() as usize * TILE;
         let warp_sums = blk.shared::<T>(32);

@@ -79,7 +79,7 @@ fn radix_pass<K: RadixKey, V: DeviceCopy>(
     let mut counts = dev.alloc::<u32>(grid * RADIX);
     {
         let (kin, cnt) = (keys_in.view(), counts.view_mut());
-        let cfg = LaunchConfig { grid: grid as u32, block: BLOCK, shared_bytes: RADIX * 4, regions: &[] };
+        let cfg = LaunchConfig { grid: grid as u32, block: BLOCK, shared_bytes: RADIX * 4, regions: &[], registers: 0 };
         dev.launch("simt::radix_histogram", cfg, |blk| {
             let base = blk.block_idx() as usize * TILE;
             let hist = blk.shared::<u32>(RADIX);
@@ -107,7 +107,7 @@ fn radix_pass<K: RadixKey, V: DeviceCopy>(
     let (kin, vin, offs) = (keys_in.view(), vals_in.view(), offsets.view());
     let (kout, vout) = (keys_out.view_mut(), vals_out.view_mut());
     let shared = (RADIX + 2 * WARPS * RADIX) * 4;
-    let cfg = LaunchConfig { grid: grid as u32, block: BLOCK, shared_bytes: shared, regions: &[] };
+    let cfg = LaunchConfig { grid: grid as u32, block: BLOCK, shared_bytes: shared, regions: &[], registers: 0 };
     dev.launch("simt::radix_scatter", cfg, |blk| {
         let b = blk.block_idx() as usize;
         let base = b * TILE;

@@ -158,7 +158,10 @@ impl Lbvh {
                 region: 0,
             };
             let (rv, kv, cv) = (rays_dev.view(), keys.view_mut(), counters.view_mut());
-            dev.launch("bvh::trace", LaunchConfig::linear(n, BLOCK).with_regions(&["traverse"]), |blk| {
+            // The twin's trace kernel uses 48 registers per thread (Nsight Compute on the
+            // H200: docs/measured/h200-time-model/ncu-bvh-*-1024-primary-shadow.csv.gz).
+            let cfg = LaunchConfig::linear(n, BLOCK).with_regions(&["traverse"]).with_registers(48);
+            dev.launch("bvh::trace", cfg, |blk| {
                 blk.for_each_warp(|w| {
                     let (mut tests, mut visits) = ([0u32; 32], [0u32; 32]);
                     w.for_each_lane(|t| {

@@ -131,22 +131,7 @@ pub struct ShadeArgs<'a> {
     pub cache: CacheRead<'a>,
 }
 
-/// Region of the arithmetic the shading kernel runs in code it shares with the CPU
-/// integrators (BSDFs, sampling, MIS weights, connections), declared there through
-/// `simt::declare!` with the weights of [`crate::cost`]; its parts of the code follow in
-/// the regions after it.
-pub const ARITHMETIC_REGION: usize = 1;
-/// The shading launch's regions, in index order: the dispatch, then the declared
-/// arithmetic by part of the code ([`crate::cost::Part`], in its order).
-pub const SHADE_REGIONS: &[&str] = &[
-    "shade",
-    "arithmetic",
-    "arithmetic: microfacet",
-    "arithmetic: bsdf",
-    "arithmetic: bidirectional",
-    "arithmetic: sampling",
-    "arithmetic: lights",
-];
+pub use crate::render::walk::{ARITHMETIC_REGION, SHADE_REGIONS};
 
 /// `cis::shade`: the sample at sorted position `j` meets its hit: the vertex joins its
 /// camera subpath, every strategy at it is evaluated into the pending slots, and the

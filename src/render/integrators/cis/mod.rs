@@ -256,7 +256,9 @@ impl<'d> CameraPool<'d> {
             pending: self.pending.view_mut(),
             cache: CacheRead { vertices: cache.vertices.view(), entries: cache.entries.view(), counts, connections },
         };
-        let cfg = simt::LaunchConfig::linear(n, 128).with_regions(kernels::SHADE_REGIONS);
+        // 240 registers per thread in the GPU twin (`shade_sorted`, Nsight Compute on the
+        // H200: docs/measured/h200-time-model/ncu-cis-shading-compaction-3-scenes-128.csv.gz).
+        let cfg = simt::LaunchConfig::linear(n, 128).with_regions(kernels::SHADE_REGIONS).with_registers(240);
         self.dev
             .launch("cis::shade", cfg, |blk| {
                 blk.for_each_thread(|t| {

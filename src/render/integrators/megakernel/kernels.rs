@@ -12,15 +12,26 @@ use crate::render::bidir::{Vertex, VertexList, camera_vertex};
 use crate::render::cache::host::{StrategyCounts, light_path_rng};
 use crate::render::cache::kernels::{CacheRead, SplatData, splat_entries};
 use crate::render::context::Context;
-use crate::render::walk::{SHADE_REGION, Walker, start_light_subpath, step};
+pub use crate::render::walk::ARITHMETIC_REGION;
+use crate::render::walk::{SHADE_REGION, SHADE_REGIONS, Walker, start_light_subpath, step};
 use crate::sampling::Rng;
 use glam::{Vec2, Vec3};
 use simt::{Global, GlobalMut, Thread};
 
-/// Region of the declared ray casts.
-pub const TRACE_REGION: usize = 1;
-/// The regions a megakernel launch names.
-pub const REGIONS: &[&str] = &["shade", "trace"];
+/// The regions a megakernel launch names: a shading launch's (the dispatch, then the
+/// shared code's arithmetic by part, [`ARITHMETIC_REGION`] on), then the ray casts'.
+pub const REGIONS: [&str; SHADE_REGIONS.len() + 1] = {
+    let mut r = [""; SHADE_REGIONS.len() + 1];
+    let mut k = 0;
+    while k < SHADE_REGIONS.len() {
+        r[k] = SHADE_REGIONS[k];
+        k += 1;
+    }
+    r[k] = "trace";
+    r
+};
+/// Region of the ray casts.
+pub const TRACE_REGION: usize = SHADE_REGIONS.len();
 
 /// The closest hit of `ray`: traversed in this thread where the caster can (the GPU
 /// BVH's twin, its work counted in region `trace`), else cast alone through the caster

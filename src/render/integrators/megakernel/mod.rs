@@ -64,15 +64,30 @@ impl LvcMegakernel {
 /// Threads per block of the megakernel launches.
 const BLOCK: u32 = 128;
 
+/// Registers per thread of each megakernel's GPU twin (`cuda/render.cu`'s
+/// `mk_light_path`, `mk_splat`, `mk_camera_path`, as Nsight Compute reported them on the
+/// H200: `docs/measured/gpu-render-kernels-h200-bedroom-512.md`), which bound the blocks
+/// an SM holds in the time model.
+fn registers(name: &str) -> u32 {
+    match name {
+        "lvc::light_path" => 160,
+        "lvc::splat" => 128,
+        "lvc::camera_path" => 167,
+        _ => 0,
+    }
+}
+
 /// Launches `kernel(thread, i)` for `i` in `0..n` in blocks of [`BLOCK`], with the
-/// `shade` and `trace` regions named.
+/// shading, arithmetic and `trace` regions named.
 fn launch_per_item(dev: &Device, name: &'static str, n: usize, kernel: impl Fn(&simt::Thread, usize) + Sync) {
-    let cfg = LaunchConfig::linear(n, BLOCK).with_regions(REGIONS);
+    let cfg = LaunchConfig::linear(n, BLOCK).with_regions(&REGIONS).with_registers(registers(name));
     dev.launch(name, cfg, |blk| {
         blk.for_each_thread(|t| {
             let i = t.global_idx();
             if i < n {
-                kernel(t, i)
+                // The shared code's declared arithmetic (BSDFs, sampling, connections;
+                // `cost::declare!`) counts as this lane's, as in `cis::shade`.
+                t.ambient(ARITHMETIC_REGION, || kernel(t, i))
             }
         })
     })
@@ -130,6 +145,7 @@ fn light_paths(dev: &Device, ctx: &Context, pass: u32, n_light: u32, stride: usi
 
 #[cfg(test)]
 mod tests {
+    use super::kernels::TRACE_REGION;
     use crate::cast::BvhCaster;
     use crate::render::{IntegratorKind, RenderOptions, Renderer};
     use crate::scene::cornell_box;
@@ -183,7 +199,10 @@ mod tests {
             let mut film = r.film().unwrap();
             r.pass(0, &mut film);
             let trace = r.device().and_then(|d| {
-                d.kernel_stats().into_iter().find(|k| k.name == "lvc::camera_path").map(|k| k.regions[1].issued)
+                d.kernel_stats()
+                    .into_iter()
+                    .find(|k| k.name == "lvc::camera_path")
+                    .map(|k| k.regions[TRACE_REGION].issued)
             });
             (film.mean(), trace)
         };

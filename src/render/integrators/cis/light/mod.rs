@@ -74,7 +74,9 @@ pub(crate) fn light_pass(
             staging: staging.view_mut(),
             stride,
         };
-        let cfg = LaunchConfig::linear(n, 128).with_regions(&["shade"]);
+        // 120 registers per thread in the GPU twin (`light_shade`, Nsight Compute on the
+        // H200: docs/measured/gpu-render-kernels-h200-bedroom-512.md).
+        let cfg = LaunchConfig::linear(n, 128).with_regions(&["shade"]).with_registers(120);
         dev.launch("cis::light_shade", cfg, |blk| {
             blk.for_each_thread(|t| {
                 let j = t.global_idx();
