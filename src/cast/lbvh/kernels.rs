@@ -5,6 +5,9 @@
 //! The arithmetic each lane does besides its loads, stores and atomics is declared with
 //! [`Thread::work`] in the weights at the bottom of this file, counted from the twin's
 //! SASS (`docs/measured/bvh-kernels-sm90.sass`; the test in `tests.rs` walks it).
+//!
+//! About 520 lines on purpose: the five kernels in their launch order, sharing the node
+//! layout, and the weights of all five in one block that reads against the SASS listing.
 
 use crate::cast::flat::corners;
 use crate::geometry::hit_key::{self, BLOCKED, NONE};
