@@ -522,6 +522,11 @@ fn run_render(args: RenderArgs) -> Result<bool> {
                 gpu * 1e3,
                 cpu * 1e3
             );
+            if !cfg!(feature = "model-arithmetic") {
+                eprintln!(
+                    "warning: this build does not count the arithmetic of the code the kernels share with the CPU integrators (BSDFs, sampling, connections), so CIS shading and the megakernels are predicted short; build with --features model-arithmetic (or cuda)"
+                );
+            }
         }
         if film.rejected > 0 {
             eprintln!("warning: {} sample estimates were NaN, infinite or negative and were dropped", film.rejected);

@@ -88,7 +88,7 @@ impl<'a> Renderer<'a> {
         if let Some(p) = &opts.gpu_profile {
             let dev = r.device().ok_or_else(|| {
                 Error::BadSetting(format!(
-                    "a GPU profile predicts the time of emulated GPU kernels, and the {} integrator with the {} caster launches none (CIS-LBDPT, the LVC megakernel and the PDACRT caster do)",
+                    "a GPU profile predicts the time of emulated GPU kernels, and the {} integrator with the {} caster launches none (CIS-LBDPT, the LVC megakernel and the pdacrt and lbvh casters do)",
                     opts.integrator.name(),
                     caster.name()
                 ))
