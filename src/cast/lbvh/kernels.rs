@@ -240,7 +240,7 @@ pub(crate) fn fit_leaf(
     t: &Thread,
     leaf_boxes: &Global<Aabb>,
     leaf_parent: &Global<u32>,
-    inner_parent: &GlobalMut<u32>,
+    inner_parent: &Global<u32>,
     nodes: &GlobalMut<Node>,
     arrivals: &GlobalMut<u32>,
     i: usize,
@@ -482,7 +482,8 @@ pub(crate) const DOUBLING_SETUP: u32 = 3;
 pub(crate) const DOUBLING_STEP: (u32, u32) = (20, 13);
 pub(crate) const BINARY_SETUP: u32 = 7;
 pub(crate) const BINARY_STEP: (u32, u32) = (22, 15);
-pub(crate) const DELTA_NODE: (u32, u32) = (15, 15);
+/// `j` is always inside the array: the second value is never charged.
+pub(crate) const DELTA_NODE: (u32, u32) = (15, 0);
 pub(crate) const SPLIT_SETUP: u32 = 3;
 pub(crate) const SPLIT_STEP: (u32, u32) = (24, 17);
 pub(crate) const LOOP_EXIT: u32 = 1;

@@ -109,7 +109,7 @@ impl Lbvh {
             }
             let mut arrivals = dev.alloc_filled::<u32>(n - 1, 0);
             let (bv, lp, ip, nv, av) =
-                (leaf_boxes.view(), leaf_parent.view(), inner_parent.view_mut(), nodes.view_mut(), arrivals.view_mut());
+                (leaf_boxes.view(), leaf_parent.view(), inner_parent.view(), nodes.view_mut(), arrivals.view_mut());
             dev.for_each_in("bvh::fit_boxes", &["climb"], n, |t, i| fit_leaf(t, &bv, &lp, &ip, &nv, &av, i));
         }
         (self.sorted, self.ids, self.nodes) = (sorted, ids, nodes);

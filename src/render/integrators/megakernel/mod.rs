@@ -68,19 +68,19 @@ const BLOCK: u32 = 128;
 /// `mk_light_path`, `mk_splat`, `mk_camera_path`, as Nsight Compute reported them on the
 /// H200: `docs/measured/gpu-render-kernels-h200-bedroom-512.md`), which bound the blocks
 /// an SM holds in the time model.
-fn registers(name: &str) -> u32 {
-    match name {
-        "lvc::light_path" => 160,
-        "lvc::splat" => 128,
-        "lvc::camera_path" => 167,
-        _ => 0,
-    }
-}
+const LIGHT_PATH_REGISTERS: u32 = 160;
+const SPLAT_REGISTERS: u32 = 128;
+const CAMERA_PATH_REGISTERS: u32 = 167;
 
 /// Launches `kernel(thread, i)` for `i` in `0..n` in blocks of [`BLOCK`], with the
-/// shading, arithmetic and `trace` regions named.
-fn launch_per_item(dev: &Device, name: &'static str, n: usize, kernel: impl Fn(&simt::Thread, usize) + Sync) {
-    let cfg = LaunchConfig::linear(n, BLOCK).with_regions(&REGIONS).with_registers(registers(name));
+/// shading, arithmetic and `trace` regions named and the twin's `registers` per thread.
+fn launch_per_item(
+    dev: &Device,
+    (name, registers): (&'static str, u32),
+    n: usize,
+    kernel: impl Fn(&simt::Thread, usize) + Sync,
+) {
+    let cfg = LaunchConfig::linear(n, BLOCK).with_regions(&REGIONS).with_registers(registers);
     dev.launch(name, cfg, |blk| {
         blk.for_each_thread(|t| {
             let i = t.global_idx();
@@ -106,7 +106,9 @@ fn render_pass(dev: &Device, ctx: &Context, pass: u32, (n_light, n_c): (u32, u32
         let (first, m) = (wave.start as usize, wave.len());
         let mut entries = dev.alloc_pooled::<SplatData>(m * stride);
         let (pv, vv, sv) = (cache.paths.slice(first, m), cache.vertices.view(), entries.view_mut());
-        launch_per_item(dev, "lvc::splat", m, |t, p| splat(t, ctx, p, (&pv, &vv), (counts, n_light), stride, &sv));
+        launch_per_item(dev, ("lvc::splat", SPLAT_REGISTERS), m, |t, p| {
+            splat(t, ctx, p, (&pv, &vv), (counts, n_light), stride, &sv)
+        });
         splats.extend(visible_splats(dev, &entries));
     }
     film.add_splats(splats);
@@ -117,7 +119,9 @@ fn render_pass(dev: &Device, ctx: &Context, pass: u32, (n_light, n_c): (u32, u32
         let connections = Connections::Uniform { n: n_c };
         let read = CacheRead { vertices: cache.vertices.view(), entries: cache.entries.view(), counts, connections };
         let ev = estimates.view_mut();
-        launch_per_item(dev, "lvc::camera_path", pixels, |t, i| camera_path(t, ctx, i as u32, pass, &read, &ev));
+        launch_per_item(dev, ("lvc::camera_path", CAMERA_PATH_REGISTERS), pixels, |t, i| {
+            camera_path(t, ctx, i as u32, pass, &read, &ev)
+        });
     }
     let est: Vec<glam::Vec3> = estimates.as_slice().iter().map(|&e| glam::Vec3::from_array(e)).collect();
     film.add_pass(pass, &est);
@@ -134,7 +138,7 @@ fn light_paths(dev: &Device, ctx: &Context, pass: u32, n_light: u32, stride: usi
         let mut done = dev.alloc_pooled::<[u32; 3]>(m);
         {
             let (sv, dv) = (staging.view_mut(), done.view_mut());
-            launch_per_item(dev, "lvc::light_path", m, |t, i| {
+            launch_per_item(dev, ("lvc::light_path", LIGHT_PATH_REGISTERS), m, |t, i| {
                 light_path(t, ctx, i, (wave.start, pass), stride, &sv, &dv)
             });
         }
