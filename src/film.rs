@@ -147,8 +147,8 @@ impl Film {
     fn splat_pass(&mut self, pass: u32, estimates: &[Vec3]) {
         use rayon::prelude::*;
         let (w, h) = (self.width as usize, self.height as usize);
-        let (filter, seed) = (self.filter, self.seed);
-        let k = filter.splat_reach() as usize;
+        let (filter, seed) = (self.filter.prepared(), self.seed);
+        let k = self.filter.splat_reach() as usize;
         let n = 2 * k + 1;
         const BAND: usize = 32;
         let mut weights = vec![0.0f32; (BAND + 2 * k) * w * 2 * n];

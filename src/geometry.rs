@@ -11,12 +11,15 @@
 //!   normal by an amount that scales with the magnitude of the coordinates (Wächter and
 //!   Binder, Ray Tracing Gems ch. 6), so secondary rays do not re-hit their own triangle.
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 
 pub(crate) mod hit_key;
 mod slack;
 pub(crate) use slack::{batch_slack, hit_slack, magnitude};
 pub mod lanes;
+mod watertight;
+pub(crate) use watertight::triangle_test;
+pub use watertight::{RayShear, intersect_triangle};
 
 /// A ray with a parametric interval `[t_min, t_max)`. `dir` need not be normalised;
 /// distances are in units of `dir`.
@@ -259,117 +262,6 @@ impl Aabb {
 #[inline]
 pub fn inv_dir(dir: Vec3) -> Vec3 {
     Vec3::ONE / dir
-}
-
-/// Per-ray constants of the watertight test: the permutation that makes the dominant
-/// direction axis `z`, and the shear that maps the ray onto `+z`.
-#[derive(Clone, Copy, Debug)]
-pub struct RayShear {
-    /// The permutation and shear as three rows: `x' = rx · v`, `y' = ry · v`,
-    /// `z' = rz · v` for a vertex `v` relative to the ray origin. Each row has one or
-    /// two non-zero entries, so the products are those of the permuted form exactly
-    /// (the zero terms add exactly), with no per-triangle indexing.
-    rx: Vec3A,
-    ry: Vec3A,
-    rz: Vec3A,
-}
-
-impl RayShear {
-    #[inline]
-    /// The shear of a ray direction.
-    pub fn new(dir: Vec3) -> RayShear {
-        let a = dir.abs();
-        let kz = if a.x >= a.y && a.x >= a.z {
-            0
-        } else if a.y >= a.z {
-            1
-        } else {
-            2
-        };
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
-        // Keep the winding of the sheared triangle when the dominant axis points backwards.
-        if dir[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
-        let d = dir.to_array();
-        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
-        let row = |entries: &[(usize, f32)]| {
-            let mut r = [0.0f32; 3];
-            for &(k, v) in entries {
-                r[k] = v;
-            }
-            Vec3A::from(r)
-        };
-        RayShear { rx: row(&[(kx, 1.0), (kz, -sx)]), ry: row(&[(ky, 1.0), (kz, -sy)]), rz: row(&[(kz, sz)]) }
-    }
-
-    /// A vertex relative to the ray origin in ray-aligned axes: sheared `(x, y)` and
-    /// the scaled `z`.
-    #[inline(always)]
-    fn apply(&self, v: Vec3A) -> (f32, f32, f32) {
-        (self.rx.dot(v), self.ry.dot(v), self.rz.dot(v))
-    }
-}
-
-/// Watertight ray/triangle intersection (two-sided). Returns `(t, u, v)` with `u`, `v`
-/// the barycentric weights of `p1` and `p2`, for `t_min < t < t_max`.
-#[inline]
-pub fn intersect_triangle(
-    origin: Vec3,
-    shear: &RayShear,
-    p0: Vec3,
-    p1: Vec3,
-    p2: Vec3,
-    t_min: f32,
-    t_max: f32,
-) -> Option<(f32, f32, f32)> {
-    triangle_test(origin, shear, [p0, p1, p2], t_min, t_max).1
-}
-
-/// [`intersect_triangle`], also telling whether the ray's line passed the edge test.
-/// Past it, a GPU's lanes run the determinant and distance code, few lanes at a time
-/// (PDACRT's brute-force kernel counts that path apart).
-#[inline(always)]
-pub(crate) fn triangle_test(
-    origin: Vec3,
-    shear: &RayShear,
-    [p0, p1, p2]: [Vec3; 3],
-    t_min: f32,
-    t_max: f32,
-) -> (bool, Option<(f32, f32, f32)>) {
-    let o = Vec3A::from(origin);
-    let (ax, ay, az) = shear.apply(Vec3A::from(p0) - o);
-    let (bx, by, bz) = shear.apply(Vec3A::from(p1) - o);
-    let (cx, cy, cz) = shear.apply(Vec3A::from(p2) - o);
-
-    // Edge functions; each is the signed area opposite one vertex.
-    let mut e0 = cx * by - cy * bx;
-    let mut e1 = ax * cy - ay * cx;
-    let mut e2 = bx * ay - by * ax;
-    // Non-short-circuit `|`/`&`: one well-predicted branch instead of several random ones.
-    if (e0 == 0.0) | (e1 == 0.0) | (e2 == 0.0) {
-        // Exactly on an edge in single precision: decide in double precision so that
-        // neighbouring triangles agree on which side the ray passes.
-        let (ax, ay, bx, by, cx, cy) = (ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64);
-        e0 = (cx * by - cy * bx) as f32;
-        e1 = (ax * cy - ay * cx) as f32;
-        e2 = (bx * ay - by * ax) as f32;
-    }
-    if ((e0 < 0.0) | (e1 < 0.0) | (e2 < 0.0)) & ((e0 > 0.0) | (e1 > 0.0) | (e2 > 0.0)) {
-        return (false, None);
-    }
-    let det = e0 + e1 + e2;
-    if det == 0.0 || !det.is_finite() {
-        return (true, None);
-    }
-    let t_scaled = e0 * az + e1 * bz + e2 * cz;
-    let inv_det = 1.0 / det;
-    let t = t_scaled * inv_det;
-    if !(t > t_min && t < t_max) {
-        return (true, None);
-    }
-    (true, Some((t, e1 * inv_det, e2 * inv_det)))
 }
 
 /// Geometric normal (not normalised) of a triangle, following its winding.

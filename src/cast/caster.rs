@@ -5,7 +5,7 @@
 
 use crate::geometry::{Hit, Ray, RayShear, intersect_triangle};
 use glam::Vec3;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering::Relaxed};
 use std::time::Instant;
 
 /// What one batch call did.
@@ -82,9 +82,11 @@ pub trait RayCaster: Send + Sync {
     fn in_thread(&self) -> Option<&dyn InThread> {
         None
     }
-    /// Whether the caster suits rays cast one at a time (the LVC megakernel's): true
-    /// for casters with a stored structure, false for the divide-and-conquer casters,
-    /// which build their work from the batch.
+    /// Whether the caster suits rays cast one at a time, or in small batches (the LVC
+    /// megakernel's single rays, the path tracer's tiles of a few thousand): true for
+    /// casters with a stored structure traversed per ray, false for the
+    /// divide-and-conquer casters, which build their work from the batch, for the
+    /// emulated GPU casters and for the GPU casters, whose calls are launches.
     fn casts_single_rays(&self) -> bool {
         true
     }
@@ -143,6 +145,9 @@ pub struct CountingCaster<'a> {
     peak: AtomicUsize,
     shadow: AtomicU64,
     calls: AtomicU64,
+    /// Calls running now, and whether two ever ran at once.
+    in_flight: AtomicUsize,
+    overlapped: AtomicBool,
 }
 
 impl<'a> CountingCaster<'a> {
@@ -156,6 +161,8 @@ impl<'a> CountingCaster<'a> {
             peak: AtomicUsize::new(0),
             shadow: AtomicU64::new(0),
             calls: AtomicU64::new(0),
+            in_flight: AtomicUsize::new(0),
+            overlapped: AtomicBool::new(false),
         }
     }
 
@@ -169,6 +176,23 @@ impl<'a> CountingCaster<'a> {
     /// batch-friendly the caller is.
     pub fn calls(&self) -> u64 {
         self.calls.load(Relaxed)
+    }
+
+    /// Whether two calls ever ran at the same time (a tiled integrator's tiles cast
+    /// in parallel): then the summed seconds count overlapping wall times and are no
+    /// longer a part of the render's wall time.
+    pub fn overlapped(&self) -> bool {
+        self.overlapped.load(Relaxed)
+    }
+
+    /// Runs one call of the inner caster, noting whether another was running.
+    fn call(&self, f: impl FnOnce() -> CastStats) -> CastStats {
+        if self.in_flight.fetch_add(1, Relaxed) > 0 {
+            self.overlapped.store(true, Relaxed);
+        }
+        let s = f();
+        self.in_flight.fetch_sub(1, Relaxed);
+        self.add(s)
     }
 
     /// Everything counted so far.
@@ -196,11 +220,11 @@ impl RayCaster for CountingCaster<'_> {
         self.inner.name()
     }
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
-        self.add(self.inner.closest(rays, hits))
+        self.call(|| self.inner.closest(rays, hits))
     }
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
         self.shadow.fetch_add(rays.len() as u64, Relaxed);
-        self.add(self.inner.occluded(rays, out))
+        self.call(|| self.inner.occluded(rays, out))
     }
     fn memory_bytes(&self) -> usize {
         self.inner.memory_bytes()

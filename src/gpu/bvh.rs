@@ -136,4 +136,9 @@ impl RayCaster for GpuBvh {
     fn memory_bytes(&self) -> usize {
         self.build.bytes as usize
     }
+
+    /// Each call is a round trip to the GPU: batches, not single rays.
+    fn casts_single_rays(&self) -> bool {
+        false
+    }
 }

@@ -179,4 +179,9 @@ impl RayCaster for GpuPdacrt {
     fn memory_bytes(&self) -> usize {
         self.tris.len() * 36
     }
+
+    /// Each call is a round trip to the GPU: batches, not single rays.
+    fn casts_single_rays(&self) -> bool {
+        false
+    }
 }

@@ -212,6 +212,9 @@ pub struct RenderStats {
     pub shadow_rays: u64,
     /// Caster calls: `rays / cast_calls` is the mean batch.
     pub cast_calls: u64,
+    /// Whether caster calls ran at the same time (the path tracer's tiles): then
+    /// `cast_seconds` sums overlapping wall times and is not a part of `seconds`.
+    pub cast_overlapped: bool,
     /// Largest working memory of any caster call, bytes (beyond its structure).
     pub peak_working_bytes: usize,
     /// The emulated device's kernel table when the render ran anything on one

@@ -25,6 +25,8 @@ pub struct Renderer<'a> {
     integrator: Integrator,
     /// (shadow rays, caster calls) of every pass so far.
     counts: (u64, u64),
+    /// Whether caster calls ever ran at the same time.
+    overlapped: bool,
 }
 
 impl<'a> Renderer<'a> {
@@ -84,7 +86,7 @@ impl<'a> Renderer<'a> {
         }
         let lights = Lights::new(scene);
         let integrator = Integrator::new(&Context { scene, lights: &lights, caster, opts });
-        let r = Renderer { scene, caster, opts: opts.clone(), lights, integrator, counts: (0, 0) };
+        let r = Renderer { scene, caster, opts: opts.clone(), lights, integrator, counts: (0, 0), overlapped: false };
         if let Some(p) = &opts.gpu_profile {
             let dev = r.device().ok_or_else(|| {
                 Error::BadSetting(format!(
@@ -149,12 +151,19 @@ impl<'a> Renderer<'a> {
         let counted = counter.stats();
         self.counts.0 += counter.shadow_rays();
         self.counts.1 += counter.calls();
+        self.overlapped |= counter.overlapped();
         CastStats { peak_working_bytes: counted.peak_working_bytes.max(own.peak_working_bytes), ..counted }
     }
 
     /// Shadow rays and caster calls of every pass so far (see [`RenderStats`]).
     pub fn ray_counts(&self) -> (u64, u64) {
         self.counts
+    }
+
+    /// Whether caster calls of any pass so far ran at the same time (the path
+    /// tracer's tiles), so that their summed seconds overlap.
+    pub fn casts_overlapped(&self) -> bool {
+        self.overlapped
     }
 
     /// The CIS-LBDPT integrator, when that is the one running (queue records, device).
@@ -228,6 +237,7 @@ pub fn render(
     }
     stats.seconds = start.elapsed().as_secs_f64();
     (stats.shadow_rays, stats.cast_calls) = renderer.ray_counts();
+    stats.cast_overlapped = renderer.casts_overlapped();
     stats.device = renderer.device().map(|d| (d.kernel_stats(), d.memory().peak));
     Ok((film, stats))
 }

@@ -27,6 +27,10 @@ use std::time::Instant;
 
 /// Stack entries a traversal may need: three pending siblings per level, and the root.
 const STACK: usize = 3 * MAX_DEPTH + 1;
+/// Levels a tree may have for the traversal to keep its stack short (64 entries):
+/// nearly every tree. The stack is zeroed per ray, and a 220-entry stack cost more
+/// than a small scene's whole traversal.
+const SHALLOW_DEPTH: usize = 21;
 
 /// The 4-wide BVH caster.
 pub struct Bvh4 {
@@ -36,6 +40,8 @@ pub struct Bvh4 {
     magnitude: f32,
     /// The root's code; `None` for a scene with no finite triangle.
     root: Option<u32>,
+    /// Levels of inner nodes on the longest path from the root.
+    depth: usize,
     /// Triangles with a coordinate that is not finite, in leaves tested by every ray
     /// (with their triangle counts).
     outliers: Vec<(Leaf, usize)>,
@@ -62,7 +68,8 @@ impl Bvh4 {
             let b = build::build(&tris, &ids);
             (b.nodes, b.leaves, Some(b.root))
         };
-        Bvh4 { nodes, leaves, magnitude, root, outliers, build_seconds: start.elapsed().as_secs_f64() }
+        let depth = root.map_or(0, |r| node::depth(&nodes, r));
+        Bvh4 { nodes, leaves, magnitude, root, depth, outliers, build_seconds: start.elapsed().as_secs_f64() }
     }
 
     /// How far boxes are grown for a ray: a bound on how far from a triangle a hit the
@@ -74,6 +81,17 @@ impl Bvh4 {
 
     /// Closest hit of one (valid) ray and the triangles it tested.
     fn closest_one(&self, ray: &Ray) -> (Hit, u64) {
+        if self.depth <= SHALLOW_DEPTH {
+            self.closest_in::<{ 3 * SHALLOW_DEPTH + 1 }>(ray)
+        } else {
+            self.closest_in::<STACK>(ray)
+        }
+    }
+
+    /// [`closest_one`](Self::closest_one) with a stack of `N` entries (at least three
+    /// per level of the tree, and one).
+    #[inline(always)]
+    fn closest_in<const N: usize>(&self, ray: &Ray) -> (Hit, u64) {
         let shear = RayShear::new(ray.dir);
         let mut best = Hit::MISS;
         let mut tests = 0u64;
@@ -94,7 +112,7 @@ impl Bvh4 {
         let Some(root) = self.root else { return (best, tests) };
         let slab = RaySlab::new(ray);
         let grow = self.grow(ray);
-        let mut stack = [(0u32, 0f32); STACK];
+        let mut stack = [(0u32, 0f32); N];
         stack[0] = (root, f32::NEG_INFINITY);
         let mut top = 1;
         while top > 0 {
@@ -113,7 +131,7 @@ impl Bvh4 {
             }
             let node = &self.nodes[code as usize];
             let (mask, nears) = node.boxes.enters(&slab, cull, grow);
-            let mut mask = mask & ((1 << node.children) - 1);
+            let (mut mask, nears) = (mask & ((1 << node.children) - 1), nears.to_array());
             // Push the entered children farthest first, so the nearest is taken next.
             let first = top;
             while mask != 0 {
@@ -135,6 +153,16 @@ impl Bvh4 {
     /// Whether anything lies on one (valid) ray within its interval, and the
     /// triangles tested.
     fn occluded_one(&self, ray: &Ray) -> (bool, u64) {
+        if self.depth <= SHALLOW_DEPTH {
+            self.occluded_in::<{ 3 * SHALLOW_DEPTH + 1 }>(ray)
+        } else {
+            self.occluded_in::<STACK>(ray)
+        }
+    }
+
+    /// [`occluded_one`](Self::occluded_one) with a stack of `N` entries.
+    #[inline(always)]
+    fn occluded_in<const N: usize>(&self, ray: &Ray) -> (bool, u64) {
         let shear = RayShear::new(ray.dir);
         let mut tests = 0u64;
         let mut leaf = |leaf: &Leaf, len: usize| {
@@ -148,7 +176,7 @@ impl Bvh4 {
         let slab = RaySlab::new(ray);
         let grow = self.grow(ray);
         let cull = cull_distance(ray.t_max);
-        let mut stack = [0u32; STACK];
+        let mut stack = [0u32; N];
         stack[0] = root;
         let mut top = 1;
         while top > 0 {

@@ -55,3 +55,18 @@ pub(super) fn leaf_code(leaf: usize, len: usize) -> u32 {
 pub(super) fn leaf_of(code: u32) -> (usize, usize) {
     (((code & !LEAF) >> 2) as usize, (code & 3) as usize + 1)
 }
+
+/// Levels of inner nodes on the longest path down from `root` (an inner node's code).
+pub(super) fn depth(nodes: &[Node], root: u32) -> usize {
+    let mut deepest = 0;
+    let mut pending = vec![(root, 1usize)];
+    while let Some((code, level)) = pending.pop() {
+        if code & LEAF != 0 {
+            continue;
+        }
+        deepest = deepest.max(level);
+        let node = &nodes[code as usize];
+        pending.extend(node.child[..node.children as usize].iter().map(|&c| (c, level + 1)));
+    }
+    deepest
+}
