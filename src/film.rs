@@ -6,7 +6,7 @@
 //! rounded to 8 bits. EXR: linear f32 RGB (ZIP compression), no tone map.
 
 use crate::error::{Error, Result};
-use crate::filter::{Filter, FilterMode, pixel_offset};
+use crate::filter::{Filter, FilterMode, PreparedFilter, pixel_offset};
 use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
 
@@ -44,6 +44,8 @@ pub struct Film {
     pub mode: FilterMode,
     /// The render's seed (for [`FilterMode::Splat`]).
     pub seed: u64,
+    /// `filter` with its stepped values tabulated (remade when `filter` has changed).
+    prepared: PreparedFilter,
 }
 
 /// Largest image accepted: 16384 pixels a side and 2^26 pixels (64 Mpx) in all.
@@ -85,7 +87,16 @@ impl Film {
             mode: FilterMode::Sample,
             seed: 0,
             weight: Vec::new(),
+            prepared: Filter::Box.prepared(),
         })
+    }
+
+    /// The film's filter, tabulated.
+    fn prepared_filter(&mut self) -> PreparedFilter {
+        if self.prepared.filter() != self.filter {
+            self.prepared = self.filter.prepared();
+        }
+        self.prepared
     }
 
     /// A film whose camera samples follow `filter` in `mode` under `seed`.
@@ -147,7 +158,7 @@ impl Film {
     fn splat_pass(&mut self, pass: u32, estimates: &[Vec3]) {
         use rayon::prelude::*;
         let (w, h) = (self.width as usize, self.height as usize);
-        let (filter, seed) = (self.filter.prepared(), self.seed);
+        let (filter, seed) = (self.prepared_filter(), self.seed);
         let k = self.filter.splat_reach() as usize;
         let n = 2 * k + 1;
         const BAND: usize = 32;
@@ -199,7 +210,7 @@ impl Film {
     /// the film's filter covers. Non-finite or negative values are dropped and counted.
     /// Call once or more per pass, before [`Film::end_pass`].
     pub fn add_splats(&mut self, splats: impl IntoIterator<Item = (Vec2, Vec3)>) {
-        let (w, h, filter) = (self.width, self.height, self.filter);
+        let (w, h, filter) = (self.width, self.height, self.prepared_filter());
         for (p, v) in splats {
             if v.is_finite() && v.min_element() >= 0.0 && p.is_finite() {
                 filter.splat(p, w, h, |i, wt| {

@@ -195,29 +195,43 @@ impl Filter {
 
     /// The pixels a contribution at film position `p` reaches, with their weights,
     /// passed to `add(pixel index, weight)`; nothing outside the `width × height` image.
-    pub fn splat(&self, p: Vec2, width: u32, height: u32, mut add: impl FnMut(u32, f32)) {
-        match *self {
-            Filter::Box => {
-                if p.x >= 0.0 && p.y >= 0.0 && p.x <= width as f32 && p.y <= height as f32 {
-                    let x = (p.x as u32).min(width - 1);
-                    let y = (p.y as u32).min(height - 1);
-                    add(y * width + x, 1.0);
-                }
+    pub fn splat(&self, p: Vec2, width: u32, height: u32, add: impl FnMut(u32, f32)) {
+        splat_with(*self, |x| self.eval_1d(x), p, width, height, add)
+    }
+}
+
+/// [`Filter::splat`] with the 1-D filter evaluated by `eval_1d` (the filter's own or
+/// its table's, [`PreparedFilter`]).
+#[inline]
+fn splat_with(
+    filter: Filter,
+    eval_1d: impl Fn(f32) -> f32,
+    p: Vec2,
+    width: u32,
+    height: u32,
+    mut add: impl FnMut(u32, f32),
+) {
+    match filter {
+        Filter::Box => {
+            if p.x >= 0.0 && p.y >= 0.0 && p.x <= width as f32 && p.y <= height as f32 {
+                let x = (p.x as u32).min(width - 1);
+                let y = (p.y as u32).min(height - 1);
+                add(y * width + x, 1.0);
             }
-            Filter::Gaussian { radius, .. } => {
-                // Pixel centres c = i + 0.5 with |p − c| < r.
-                let lo = |v: f32| (v - radius - 0.5).ceil().max(0.0) as i64;
-                let hi = |v: f32, n: u32| ((v + radius - 0.5).floor() as i64).min(n as i64 - 1);
-                for y in lo(p.y)..=hi(p.y, height) {
-                    let wy = self.eval_1d(p.y - (y as f32 + 0.5));
-                    if wy <= 0.0 {
-                        continue;
-                    }
-                    for x in lo(p.x)..=hi(p.x, width) {
-                        let w = wy * self.eval_1d(p.x - (x as f32 + 0.5));
-                        if w > 0.0 {
-                            add(y as u32 * width + x as u32, w);
-                        }
+        }
+        Filter::Gaussian { radius, .. } => {
+            // Pixel centres c = i + 0.5 with |p − c| < r.
+            let lo = |v: f32| (v - radius - 0.5).ceil().max(0.0) as i64;
+            let hi = |v: f32, n: u32| ((v + radius - 0.5).floor() as i64).min(n as i64 - 1);
+            for y in lo(p.y)..=hi(p.y, height) {
+                let wy = eval_1d(p.y - (y as f32 + 0.5));
+                if wy <= 0.0 {
+                    continue;
+                }
+                for x in lo(p.x)..=hi(p.x, width) {
+                    let w = wy * eval_1d(p.x - (x as f32 + 0.5));
+                    if w > 0.0 {
+                        add(y as u32 * width + x as u32, w);
                     }
                 }
             }
@@ -267,6 +281,17 @@ impl PreparedFilter {
             }
             f => f.eval_1d(x),
         }
+    }
+
+    /// The filter it tabulates.
+    pub(crate) fn filter(&self) -> Filter {
+        self.filter
+    }
+
+    /// [`Filter::splat`], from the table.
+    #[inline]
+    pub(crate) fn splat(&self, p: Vec2, width: u32, height: u32, add: impl FnMut(u32, f32)) {
+        splat_with(self.filter, |x| self.eval_1d(x), p, width, height, add)
     }
 
     /// The weights one camera sample at film position `p` gives the pixels around it,
