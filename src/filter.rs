@@ -33,6 +33,9 @@
 
 use crate::sampling::Rng;
 use glam::Vec2;
+
+mod prepared;
+pub(crate) use prepared::PreparedFilter;
 use std::f32::consts::TAU;
 
 /// A pixel reconstruction filter.
@@ -260,55 +263,6 @@ fn step_value(stddev: f32, radius: f32, integral: f32, bias: f32, steps: u32, i:
     gauss(step_start(radius, steps, i), stddev, bias) / integral
 }
 
-/// A filter with its stepped values tabulated ([`Filter::prepared`]): the same values
-/// as [`Filter`]'s own evaluation, bit for bit.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct PreparedFilter {
-    filter: Filter,
-    table: [f32; MITSUBA_FILTER_STEPS as usize + 1],
-}
-
-impl PreparedFilter {
-    /// The normalised 1-D filter at offset `x`.
-    #[inline]
-    fn eval_1d(&self, x: f32) -> f32 {
-        match self.filter {
-            Filter::Gaussian { radius, steps, .. } if steps > 0 => {
-                if x.abs() >= radius {
-                    return 0.0;
-                }
-                self.table[(step_of(x, radius, steps) as usize).min(steps as usize)]
-            }
-            f => f.eval_1d(x),
-        }
-    }
-
-    /// The filter it tabulates.
-    pub(crate) fn filter(&self) -> Filter {
-        self.filter
-    }
-
-    /// [`Filter::splat`], from the table.
-    #[inline]
-    pub(crate) fn splat(&self, p: Vec2, width: u32, height: u32, add: impl FnMut(u32, f32)) {
-        splat_with(self.filter, |x| self.eval_1d(x), p, width, height, add)
-    }
-
-    /// The weights one camera sample at film position `p` gives the pixels around it,
-    /// per axis: `wx[i]` for pixel column `floor(p.x) − k + i` (and `wy` for rows), where
-    /// `k` is [`Filter::splat_reach`]. Unnormalised by the image edge.
-    #[inline]
-    pub(crate) fn splat_weights(&self, p: Vec2, wx: &mut [f32], wy: &mut [f32]) {
-        let k = self.filter.splat_reach() as i32;
-        let (cx, cy) = (p.x.floor(), p.y.floor());
-        let offset = |i: usize| (i as i32 - k) as f32 + 0.5;
-        for i in 0..wx.len() {
-            wx[i] = self.eval_1d(p.x - (cx + offset(i)));
-            wy[i] = self.eval_1d(p.y - (cy + offset(i)));
-        }
-    }
-}
-
 /// The truncated Gaussian before its normalisation: `exp(−x²/2σ²) − bias`, at least 0.
 #[inline]
 fn gauss(x: f32, stddev: f32, bias: f32) -> f32 {
@@ -366,23 +320,6 @@ impl Filter {
             FilterMode::Sample => self.sample(x, y, u),
             FilterMode::Splat => (Vec2::new(x as f32, y as f32) + u, 1.0),
         }
-    }
-
-    /// The filter ready for many evaluations: a stepped filter's values in a table,
-    /// as Mitsuba's film keeps them, so that splatting a pass's camera samples costs
-    /// no `exp` per weight.
-    pub(crate) fn prepared(&self) -> PreparedFilter {
-        let mut table = [0.0; MITSUBA_FILTER_STEPS as usize + 1];
-        if let Filter::Gaussian { stddev, radius, integral, bias, steps } = *self
-            && steps > 0
-        {
-            // One entry per step, and the value at the radius, which a position just
-            // under it can round to.
-            for (i, v) in table.iter_mut().enumerate().take(steps as usize + 1) {
-                *v = step_value(stddev, radius, integral, bias, steps, i as u32);
-            }
-        }
-        PreparedFilter { filter: *self, table }
     }
 
     /// How many pixels beyond its own a camera sample can reach along each axis.
@@ -494,28 +431,6 @@ mod tests {
         // Every pixel gets most of its samples: at most 1 − 2/π (36 %) have weight 0.
         let zero = (0..4096).filter(|&k| f.sample(0, 0, Vec2::new((k as f32 + 0.5) / 4096.0, 0.37)).1 == 0.0).count();
         assert!(zero < 4096 * 37 / 100, "{f:?}: {zero} of 4096 samples weigh nothing");
-    }
-
-    /// The film's tabulated filter gives the filter's own values, bit for bit, at every
-    /// offset: on a fine grid, at each step's start and just below the radius.
-    #[test]
-    fn the_prepared_filter_answers_as_the_filter() {
-        let filters = [
-            Filter::Box,
-            Filter::gaussian(0.5, 2.0).unwrap(),
-            Filter::mitsuba_gaussian(),
-            Filter::mitsuba(0.3).unwrap(),
-        ];
-        for f in filters {
-            let p = f.prepared();
-            let r = f.radius();
-            let mut xs: Vec<f32> = (0..=8000).map(|i| (i as f32 / 4000.0 - 1.0) * (r + 0.25)).collect();
-            xs.extend((0..=MITSUBA_FILTER_STEPS).map(|i| step_start(r, MITSUBA_FILTER_STEPS, i)));
-            xs.extend([r.next_down(), -r.next_down(), r, (r * 0.5).next_up()]);
-            for x in xs {
-                assert_eq!(p.eval_1d(x).to_bits(), f.eval_1d(x).to_bits(), "{f:?} at {x}");
-            }
-        }
     }
 
     #[test]
