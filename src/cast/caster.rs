@@ -82,9 +82,8 @@ pub trait RayCaster: Send + Sync {
     fn in_thread(&self) -> Option<&dyn InThread> {
         None
     }
-    /// Whether the caster suits rays cast one at a time, or in small batches (the LVC
-    /// megakernel's single rays, the path tracer's tiles of a few thousand): true for
-    /// casters with a stored structure traversed per ray, false for the
+    /// Whether the caster suits rays cast one at a time (the LVC megakernel's): true
+    /// for casters with a stored structure traversed per ray, false for the
     /// divide-and-conquer casters, which build their work from the batch, for the
     /// emulated GPU casters and for the GPU casters, whose calls are launches.
     fn casts_single_rays(&self) -> bool {
@@ -178,9 +177,9 @@ impl<'a> CountingCaster<'a> {
         self.calls.load(Relaxed)
     }
 
-    /// Whether two calls ever ran at the same time (a tiled integrator's tiles cast
-    /// in parallel): then the summed seconds count overlapping wall times and are no
-    /// longer a part of the render's wall time.
+    /// Whether two calls ever ran at the same time (an integrator casting from
+    /// several threads at once): then the summed seconds count overlapping wall times
+    /// and are no longer a part of the render's wall time.
     pub fn overlapped(&self) -> bool {
         self.overlapped.load(Relaxed)
     }

@@ -212,7 +212,7 @@ pub struct RenderStats {
     pub shadow_rays: u64,
     /// Caster calls: `rays / cast_calls` is the mean batch.
     pub cast_calls: u64,
-    /// Whether caster calls ran at the same time (the path tracer's tiles): then
+    /// Whether caster calls ran at the same time (from several threads): then
     /// `cast_seconds` sums overlapping wall times and is not a part of `seconds`.
     pub cast_overlapped: bool,
     /// Largest working memory of any caster call, bytes (beyond its structure).

@@ -160,8 +160,8 @@ impl<'a> Renderer<'a> {
         self.counts
     }
 
-    /// Whether caster calls of any pass so far ran at the same time (the path
-    /// tracer's tiles), so that their summed seconds overlap.
+    /// Whether caster calls of any pass so far ran at the same time (from several
+    /// threads), so that their summed seconds overlap.
     pub fn casts_overlapped(&self) -> bool {
         self.overlapped
     }

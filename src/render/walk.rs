@@ -55,13 +55,12 @@ pub(crate) fn flush_wave(
     film: &mut crate::film::Film,
     span: Passes,
     wave: Range<u32>,
-    resolved: Resolved,
+    resolved: Vec<Resolved>,
     mut estimates: Option<&mut Vec<Vec3>>,
     mut before_close: impl FnMut(&mut crate::film::Film, u32),
 ) {
-    for (i, k) in wave.enumerate() {
-        let (estimate, splats) = resolved.sample(i);
-        film.add_splats(splats.iter().copied());
+    for (k, (estimate, splats)) in wave.zip(resolved) {
+        film.add_splats(splats);
         if let Some(e) = estimates.as_deref_mut() {
             e.push(estimate);
         }
@@ -317,88 +316,40 @@ pub(crate) fn step(
     Some(vertex)
 }
 
-/// Every sample's pending contributions in a wave, side by side: sample `i`'s are
-/// `items[ends[i - 1]..ends[i]]`. Filled in parallel in fixed chunks of samples, so
-/// nothing is allocated per sample and the lists are the same at any thread count.
-pub(crate) struct PendingLists {
-    items: Vec<Pending>,
-    ends: Vec<usize>,
-}
-
-/// Samples per chunk when pending lists are filled.
-const PENDING_CHUNK: usize = 256;
-
-impl PendingLists {
-    /// The lists of samples `0..n`: `one(i, out, scratch)` appends sample `i`'s
-    /// contributions to `out` (`scratch` is a per-chunk buffer it may reuse).
-    pub(crate) fn fill<S: Default>(n: usize, one: impl Fn(usize, &mut Vec<Pending>, &mut S) + Sync + Send) -> Self {
-        let chunks: Vec<(Vec<Pending>, Vec<usize>)> = (0..n.div_ceil(PENDING_CHUNK))
-            .into_par_iter()
-            .map_init(S::default, |scratch, c| {
-                let (mut items, mut ends) = (Vec::new(), Vec::with_capacity(PENDING_CHUNK));
-                for i in c * PENDING_CHUNK..((c + 1) * PENDING_CHUNK).min(n) {
-                    one(i, &mut items, scratch);
-                    ends.push(items.len());
-                }
-                (items, ends)
-            })
-            .collect();
-        let total = chunks.iter().map(|c| c.0.len()).sum();
-        let mut lists = PendingLists { items: Vec::with_capacity(total), ends: Vec::with_capacity(n) };
-        for (items, ends) in chunks {
-            let base = lists.items.len();
-            lists.ends.extend(ends.iter().map(|e| e + base));
-            lists.items.extend(items);
-        }
-        lists
-    }
-
-    /// Sample `i`'s contributions.
-    fn get(&self, i: usize) -> &[Pending] {
-        &self.items[if i == 0 { 0 } else { self.ends[i - 1] }..self.ends[i]]
-    }
-}
-
-/// What the samples of a wave add to the image once their shadow rays are answered:
-/// each sample's pixel estimate and its splats (in the order they were made).
-pub(crate) struct Resolved {
-    estimates: Vec<Vec3>,
-    splats: Vec<(Vec2, Vec3)>,
-    splat_ends: Vec<usize>,
-}
-
-impl Resolved {
-    /// Sample `i`'s estimate and splats.
-    pub(crate) fn sample(&self, i: usize) -> (Vec3, &[(Vec2, Vec3)]) {
-        let start = if i == 0 { 0 } else { self.splat_ends[i - 1] };
-        (self.estimates[i], &self.splats[start..self.splat_ends[i]])
-    }
-}
+/// What one sample of a wave adds to the image once its shadow rays are answered: its
+/// pixel estimate and its splats (in the order they were made).
+pub(crate) type Resolved = (Vec3, Vec<(Vec2, Vec3)>);
 
 /// Casts the shadow rays of every sample's pending contributions as one batch and sums
 /// each sample's visible ones, in sample order.
-pub(crate) fn resolve_wave(ctx: &Context, pending: &PendingLists) -> (Resolved, CastStats) {
-    let shadow: Vec<Ray> = pending.items.iter().filter_map(|p| p.0).collect();
+pub(crate) fn resolve_wave(ctx: &Context, pending: &[Vec<Pending>]) -> (Vec<Resolved>, CastStats) {
+    let mut offsets = Vec::with_capacity(pending.len() + 1);
+    let mut shadow = Vec::new();
+    for list in pending {
+        offsets.push(shadow.len());
+        shadow.extend(list.iter().filter_map(|p| p.0));
+    }
+    offsets.push(shadow.len());
     let mut blocked = vec![false; shadow.len()];
     let stats = if shadow.is_empty() { CastStats::default() } else { ctx.caster.occluded(&shadow, &mut blocked) };
-    let n = pending.ends.len();
-    let mut resolved =
-        Resolved { estimates: Vec::with_capacity(n), splats: Vec::new(), splat_ends: Vec::with_capacity(n) };
-    let mut blocked = blocked.iter();
-    for i in 0..n {
-        let mut estimate = Vec3::ZERO;
-        for &(ray, l, target) in pending.get(i) {
-            if ray.is_some() && *blocked.next().unwrap_or(&true) {
-                continue;
+    let resolved = pending
+        .par_iter()
+        .enumerate()
+        .map(|(i, list)| {
+            let mut blocked = blocked[offsets[i]..offsets[i + 1]].iter();
+            let (mut estimate, mut splats) = (Vec3::ZERO, Vec::new());
+            for &(ray, l, target) in list {
+                if ray.is_some() && *blocked.next().unwrap_or(&true) {
+                    continue;
+                }
+                match target {
+                    None => estimate += l,
+                    Some(px) => splats.push((px, l)),
+                }
             }
-            match target {
-                None => estimate += l,
-                Some(px) => resolved.splats.push((px, l)),
-            }
-        }
-        resolved.estimates.push(estimate);
-        resolved.splat_ends.push(resolved.splats.len());
-    }
+            (estimate, splats)
+        })
+        .collect();
     (resolved, stats)
 }
 

@@ -30,12 +30,13 @@ struct PathState {
     shadow: Option<(Ray, Vec3)>,
 }
 
-/// One tile's wavefront buffers.
-#[derive(Default)]
-struct Wavefront {
+/// The path tracer's reusable buffers.
+pub struct PathTracer {
     paths: Vec<PathState>,
     /// The live paths of the next bounce, compacted out of `paths`.
     spare: Vec<PathState>,
+    /// Per path that ended this bounce: its pixel and estimate.
+    finished: Vec<(u32, Vec3)>,
     rays: Vec<Ray>,
     hits: Vec<Hit>,
     shadow_rays: Vec<Ray>,
@@ -43,24 +44,25 @@ struct Wavefront {
     blocked: Vec<bool>,
     /// Per live path: its shadow ray was cast and not blocked.
     visible: Vec<bool>,
-}
-
-/// The path tracer's reusable buffers.
-pub struct PathTracer {
     estimates: Vec<Vec3>,
 }
-
-/// Pixels a tile holds at most when the caster traces batches of any size: the
-/// wavefront of a tile (about 200 bytes a path with its rays and hits) stays in a
-/// core's L2 cache, where one wavefront over the whole image streamed through memory
-/// at every stage of every bounce.
-const TILE: usize = 4096;
 
 impl PathTracer {
     /// A path tracer with buffers for the render's image size.
     pub(crate) fn new(ctx: &Context) -> Self {
         let n = (ctx.opts.width * ctx.opts.height) as usize;
-        PathTracer { estimates: vec![Vec3::ZERO; n] }
+        PathTracer {
+            paths: Vec::with_capacity(n),
+            spare: Vec::with_capacity(n),
+            finished: Vec::new(),
+            rays: Vec::new(),
+            hits: Vec::new(),
+            shadow_rays: Vec::new(),
+            shadow_owner: Vec::new(),
+            blocked: Vec::new(),
+            visible: Vec::new(),
+            estimates: vec![Vec3::ZERO; n],
+        }
     }
 
     /// Adds the passes of `span` to `film`, one at a time.
@@ -69,35 +71,11 @@ impl PathTracer {
     }
 
     /// One sample per pixel, added to `film`. Returns the caster statistics of the pass.
-    ///
-    /// The image is cut into tiles, each traced as its own wavefront, tiles in
-    /// parallel, when the caster takes batches of any size (`casts_single_rays`); the
-    /// divide-and-conquer casters, which build their work from the batch, get the
-    /// whole image as one wavefront. Every path draws from its pixel's and pass's
-    /// stream, so the image does not depend on the tiling.
     fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
-        let n = self.estimates.len();
-        let tile = if ctx.caster.casts_single_rays() { TILE } else { n.max(1) };
-        let stats = self
-            .estimates
-            .par_chunks_mut(tile)
-            .enumerate()
-            .map_init(Wavefront::default, |wave, (k, estimates)| wave.trace(ctx, pass, (k * tile) as u32, estimates))
-            .reduce(CastStats::default, CastStats::merge);
-        film.add_pass(pass, &self.estimates);
-        stats
-    }
-}
-
-impl Wavefront {
-    /// Traces one sample of every pixel of the tile starting at pixel `first`, writing
-    /// each pixel's estimate to `estimates` (one per pixel of the tile).
-    fn trace(&mut self, ctx: &Context, pass: u32, first: u32, estimates: &mut [Vec3]) -> CastStats {
-        let w = ctx.opts.width;
-        let h = ctx.opts.height;
+        let (w, h) = (ctx.opts.width, ctx.opts.height);
         let cam = &ctx.scene.camera;
         let seed = ctx.opts.seed;
-        (first..first + estimates.len() as u32)
+        (0..w * h)
             .into_par_iter()
             .map(|pixel| {
                 let mut rng = Rng::for_sample(seed, pixel as u64, pass as u64);
@@ -117,6 +95,7 @@ impl Wavefront {
                 }
             })
             .collect_into_vec(&mut self.paths);
+        self.estimates.fill(Vec3::ZERO);
         let mut stats = CastStats::default();
 
         for depth in 0..=ctx.opts.max_depth {
@@ -151,15 +130,17 @@ impl Wavefront {
             });
 
             // Finished paths leave their estimate; the live ones are compacted.
-            for p in self.paths.iter().filter(|p| !p.alive) {
-                estimates[(p.pixel - first) as usize] = p.radiance;
+            compact_into(&self.paths, &mut self.finished, |p| !p.alive, |_, p| (p.pixel, p.radiance));
+            for &(pixel, radiance) in &self.finished {
+                self.estimates[pixel as usize] = radiance;
             }
             compact_into(&self.paths, &mut self.spare, |p| p.alive, |_, p| *p);
             std::mem::swap(&mut self.paths, &mut self.spare);
         }
         for p in &self.paths {
-            estimates[(p.pixel - first) as usize] = p.radiance;
+            self.estimates[p.pixel as usize] = p.radiance;
         }
+        film.add_pass(pass, &self.estimates);
         stats
     }
 }
