@@ -55,12 +55,13 @@ pub(crate) fn flush_wave(
     film: &mut crate::film::Film,
     span: Passes,
     wave: Range<u32>,
-    resolved: Vec<Resolved>,
+    resolved: Resolved,
     mut estimates: Option<&mut Vec<Vec3>>,
     mut before_close: impl FnMut(&mut crate::film::Film, u32),
 ) {
-    for (k, (estimate, splats)) in wave.zip(resolved) {
-        film.add_splats(splats);
+    for (i, k) in wave.enumerate() {
+        let (estimate, splats) = resolved.sample(i);
+        film.add_splats(splats.iter().copied());
         if let Some(e) = estimates.as_deref_mut() {
             e.push(estimate);
         }
@@ -316,41 +317,107 @@ pub(crate) fn step(
     Some(vertex)
 }
 
-/// What one sample of a wave adds to the image once its shadow rays are answered: its
-/// pixel estimate and its splats (in the order they were made).
-pub(crate) type Resolved = (Vec3, Vec<(Vec2, Vec3)>);
+/// Every sample's pending contributions in a wave, in chunks of [`PENDING_CHUNK`]
+/// samples: in a chunk, sample `i`'s are `items[ends[i - 1]..ends[i]]`. Chunks are
+/// filled and resolved in parallel, so nothing is allocated per sample, and they are
+/// fixed, so the lists are the same at any thread count.
+pub(crate) struct PendingLists {
+    chunks: Vec<Chunk<Pending>>,
+}
+
+/// Samples per chunk of pending lists.
+const PENDING_CHUNK: usize = 256;
+
+/// One chunk's lists, side by side (`ends[i]` closes sample `i`'s).
+struct Chunk<T> {
+    items: Vec<T>,
+    ends: Vec<usize>,
+}
+
+impl<T> Chunk<T> {
+    fn new() -> Self {
+        Chunk { items: Vec::new(), ends: Vec::with_capacity(PENDING_CHUNK) }
+    }
+
+    /// Closes the list of the next sample.
+    fn close(&mut self) {
+        self.ends.push(self.items.len());
+    }
+
+    /// Sample `i`'s list (`i` within the chunk).
+    fn get(&self, i: usize) -> &[T] {
+        &self.items[if i == 0 { 0 } else { self.ends[i - 1] }..self.ends[i]]
+    }
+}
+
+impl PendingLists {
+    /// The lists of samples `0..n`: `one(i, out, scratch)` appends sample `i`'s
+    /// contributions to `out` (`scratch` is a per-chunk buffer it may reuse).
+    pub(crate) fn fill<S: Default>(n: usize, one: impl Fn(usize, &mut Vec<Pending>, &mut S) + Sync + Send) -> Self {
+        let chunks = (0..n.div_ceil(PENDING_CHUNK))
+            .into_par_iter()
+            .map_init(S::default, |scratch, c| {
+                let mut chunk = Chunk::new();
+                for i in c * PENDING_CHUNK..((c + 1) * PENDING_CHUNK).min(n) {
+                    one(i, &mut chunk.items, scratch);
+                    chunk.close();
+                }
+                chunk
+            })
+            .collect();
+        PendingLists { chunks }
+    }
+}
+
+/// What the samples of a wave add to the image once their shadow rays are answered:
+/// each sample's pixel estimate and its splats (in the order they were made), in the
+/// pending lists' chunks.
+pub(crate) struct Resolved {
+    chunks: Vec<(Vec<Vec3>, Chunk<(Vec2, Vec3)>)>,
+}
+
+impl Resolved {
+    /// Sample `i`'s estimate and splats.
+    pub(crate) fn sample(&self, i: usize) -> (Vec3, &[(Vec2, Vec3)]) {
+        let (estimates, splats) = &self.chunks[i / PENDING_CHUNK];
+        (estimates[i % PENDING_CHUNK], splats.get(i % PENDING_CHUNK))
+    }
+}
 
 /// Casts the shadow rays of every sample's pending contributions as one batch and sums
 /// each sample's visible ones, in sample order.
-pub(crate) fn resolve_wave(ctx: &Context, pending: &[Vec<Pending>]) -> (Vec<Resolved>, CastStats) {
-    let mut offsets = Vec::with_capacity(pending.len() + 1);
-    let mut shadow = Vec::new();
-    for list in pending {
-        offsets.push(shadow.len());
-        shadow.extend(list.iter().filter_map(|p| p.0));
-    }
-    offsets.push(shadow.len());
+pub(crate) fn resolve_wave(ctx: &Context, pending: &PendingLists) -> (Resolved, CastStats) {
+    let chunks = &pending.chunks;
+    let shadow: Vec<Ray> = chunks.par_iter().flat_map_iter(|c| c.items.iter().filter_map(|p| p.0)).collect();
     let mut blocked = vec![false; shadow.len()];
     let stats = if shadow.is_empty() { CastStats::default() } else { ctx.caster.occluded(&shadow, &mut blocked) };
-    let resolved = pending
+    // Where each chunk's answers start.
+    let counts: Vec<usize> = chunks.par_iter().map(|c| c.items.iter().filter(|p| p.0.is_some()).count()).collect();
+    let starts: Vec<usize> = counts.iter().scan(0, |at, &n| Some(std::mem::replace(at, *at + n))).collect();
+    let resolved = chunks
         .par_iter()
-        .enumerate()
-        .map(|(i, list)| {
-            let mut blocked = blocked[offsets[i]..offsets[i + 1]].iter();
-            let (mut estimate, mut splats) = (Vec3::ZERO, Vec::new());
-            for &(ray, l, target) in list {
-                if ray.is_some() && *blocked.next().unwrap_or(&true) {
-                    continue;
+        .zip(starts)
+        .map(|(c, start)| {
+            let mut blocked = blocked[start..].iter();
+            let (mut estimates, mut splats) = (Vec::with_capacity(c.ends.len()), Chunk::new());
+            for i in 0..c.ends.len() {
+                let mut estimate = Vec3::ZERO;
+                for &(ray, l, target) in c.get(i) {
+                    if ray.is_some() && *blocked.next().unwrap_or(&true) {
+                        continue;
+                    }
+                    match target {
+                        None => estimate += l,
+                        Some(px) => splats.items.push((px, l)),
+                    }
                 }
-                match target {
-                    None => estimate += l,
-                    Some(px) => splats.push((px, l)),
-                }
+                estimates.push(estimate);
+                splats.close();
             }
-            (estimate, splats)
+            (estimates, splats)
         })
         .collect();
-    (resolved, stats)
+    (Resolved { chunks: resolved }, stats)
 }
 
 /// Buffers of one wave, kept across waves and passes, and the wave size.

@@ -12,10 +12,9 @@ use crate::render::bidir::{
 };
 use crate::render::context::{Context, Passes};
 use crate::render::mis::mis_weight_counts;
-use crate::render::walk::{Subpaths, extend_together, resolve_wave, start_light_wave};
+use crate::render::walk::{PendingLists, Subpaths, extend_together, resolve_wave, start_light_wave};
 use crate::sampling::Rng;
 use glam::{Vec2, Vec3};
-use rayon::prelude::*;
 
 /// The part of the code this module's declared arithmetic counts as ([`crate::cost::Part`]).
 const COST_PART: crate::cost::Part = crate::cost::Part::Bidirectional;
@@ -129,23 +128,17 @@ pub(crate) fn build_caches(ctx: &Context, span: Passes, n_c: u32, wave_size: u32
     // wave at a time.
     let mut splats = vec![Vec::new(); span.count as usize];
     for wave in span.waves(wave_size) {
-        let pending: Vec<Vec<Pending>> = paths[wave.start as usize..wave.end as usize]
-            .par_iter()
-            .zip(wave.clone())
-            .map_init(VertexList::default, |path, (&(start, len), k)| {
-                let q = iteration(k);
-                let verts = &caches[q].vertices[start as usize..(start + len) as usize];
-                let mut pending = Vec::new();
-                light_splats(ctx, verts, counts[q], n_light, path, &mut |ray, l, px| {
-                    pending.push((Some(ray), l, Some(px)))
-                });
-                pending
-            })
-            .collect();
+        let first = wave.start as usize;
+        let pending = PendingLists::fill(wave.len(), |i, out, path: &mut VertexList| {
+            let (start, len) = paths[first + i];
+            let q = iteration(wave.start + i as u32);
+            let verts = &caches[q].vertices[start as usize..(start + len) as usize];
+            light_splats(ctx, verts, counts[q], n_light, path, &mut |ray, l, px| out.push((Some(ray), l, Some(px))));
+        });
         let (resolved, shadow) = resolve_wave(ctx, &pending);
         stats = stats.merge(shadow);
-        for (k, (_, s)) in wave.zip(resolved) {
-            splats[iteration(k)].extend(s);
+        for (i, k) in wave.enumerate() {
+            splats[iteration(k)].extend_from_slice(resolved.sample(i).1);
         }
     }
     let passes = caches.into_iter().zip(counts).zip(splats);
@@ -355,18 +348,17 @@ pub(crate) fn camera_strategies(
     connections: Connections,
     rng: &mut Rng,
     path: &mut VertexList,
-) -> Vec<Pending> {
+    pending: &mut Vec<Pending>,
+) {
     let subpath = |e: usize, list: &mut VertexList, tail: bool| {
         let (light, s) = cache.subpath(e);
         list.clear();
         list.extend(if tail { &light[s.saturating_sub(2)..] } else { light });
         s
     };
-    let mut pending = Vec::new();
     for t in 2..=cam.len() {
         vertex_strategies(ctx, cam, t, cache.entries.len(), &subpath, counts, connections, rng, path, &mut |p| {
             pending.push(p)
         });
     }
-    pending
 }

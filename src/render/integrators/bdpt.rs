@@ -25,10 +25,9 @@ use crate::render::bidir::{
 use crate::render::context::{Context, Passes};
 use crate::render::mis::mis_weight;
 use crate::render::walk::{
-    Walker, WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave, start_light_wave,
+    PendingLists, Walker, WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave, start_light_wave,
 };
 use crate::sampling::Rng;
-use rayon::prelude::*;
 
 /// Bidirectional path tracing, one camera and one light subpath per pixel sample.
 #[derive(Default)]
@@ -55,13 +54,10 @@ impl Bdpt {
             stats = stats.merge(extend_together(ctx, &mut [camera, light]));
             let walkers = &b.camera_walkers;
             let (camera, light) = (&b.camera, &b.light);
-            let pending: Vec<Vec<Pending>> = (0..camera.len())
-                .into_par_iter()
-                .map_init(VertexList::default, |path, i| {
-                    let mut rng = walkers[i].rng;
-                    connect(ctx, camera.get(i), light.get(i), &mut rng, path)
-                })
-                .collect();
+            let pending = PendingLists::fill(camera.len(), |i, out, path: &mut VertexList| {
+                let mut rng = walkers[i].rng;
+                connect(ctx, camera.get(i), light.get(i), &mut rng, path, out)
+            });
             let (resolved, shadow) = resolve_wave(ctx, &pending);
             stats = stats.merge(shadow);
             flush_wave(film, span, wave, resolved, Some(&mut estimates), |_, _| {});
@@ -71,12 +67,18 @@ impl Bdpt {
 }
 
 /// Every strategy of one sample's camera and light subpaths, weighted, waiting for
-/// their shadow rays. `rng` is the sample's stream after its camera subpath (light
-/// samples for s = 1 draw from it).
-fn connect(ctx: &Context, cam: &[Vertex], light: &[Vertex], rng: &mut Rng, path: &mut VertexList) -> Vec<Pending> {
+/// their shadow rays, appended to `pending`. `rng` is the sample's stream after its
+/// camera subpath (light samples for s = 1 draw from it).
+fn connect(
+    ctx: &Context,
+    cam: &[Vertex],
+    light: &[Vertex],
+    rng: &mut Rng,
+    path: &mut VertexList,
+    pending: &mut Vec<Pending>,
+) {
     let max_depth = ctx.opts.max_depth as usize;
     let cam_v = camera_vertex(&ctx.scene.camera);
-    let mut pending: Vec<Pending> = Vec::new();
     // A strategy image keeps one (s, t), with or without its MIS weight.
     let weight = |path: &[Vertex], s: usize, t: usize| ctx.opts.strategy_weight(s, t, || mis_weight(ctx, path, s));
     for t in 1..=cam.len() {
@@ -113,7 +115,6 @@ fn connect(ctx: &Context, cam: &[Vertex], light: &[Vertex], rng: &mut Rng, path:
             }
         }
     }
-    pending
 }
 
 #[cfg(test)]

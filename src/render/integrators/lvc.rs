@@ -14,12 +14,11 @@
 
 use crate::cast::CastStats;
 use crate::film::Film;
-use crate::render::bidir::{Pending, VertexList};
+use crate::render::bidir::VertexList;
 use crate::render::cache::host::{Connections, LightVertexCache, build_caches, camera_strategies};
 use crate::render::context::{Context, Passes};
 use crate::render::options::LvcParams;
-use crate::render::walk::{WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave};
-use rayon::prelude::*;
+use crate::render::walk::{PendingLists, WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave};
 
 /// LVC-BDPT: every pixel sample's camera subpath connects to a shared light vertex
 /// cache. The megakernel baseline: all strategies of a sample are evaluated together.
@@ -53,15 +52,12 @@ impl LvcBdpt {
             stats = stats.merge(extend_together(ctx, &mut [camera]));
             let (camera, walkers) = (&b.camera, &b.camera_walkers);
             let caches = &light;
-            let pending: Vec<Vec<Pending>> = (0..camera.len())
-                .into_par_iter()
-                .map_init(VertexList::default, |path, i| {
-                    let mut rng = walkers[i].rng;
-                    let it = &caches[(span.at(wave.start + i as u32).1 - span.first) as usize];
-                    let connections = Connections::Uniform { n: n_c };
-                    camera_strategies(ctx, camera.get(i), &it.cache, it.counts, connections, &mut rng, path)
-                })
-                .collect();
+            let pending = PendingLists::fill(camera.len(), |i, out, path: &mut VertexList| {
+                let mut rng = walkers[i].rng;
+                let it = &caches[(span.at(wave.start + i as u32).1 - span.first) as usize];
+                let connections = Connections::Uniform { n: n_c };
+                camera_strategies(ctx, camera.get(i), &it.cache, it.counts, connections, &mut rng, path, out)
+            });
             let (resolved, shadow) = resolve_wave(ctx, &pending);
             stats = stats.merge(shadow);
             // A pass's light splats reach the film just before its camera estimates.
