@@ -6,7 +6,8 @@
 //! rounded to 8 bits. EXR: linear f32 RGB (ZIP compression), no tone map.
 
 use crate::error::{Error, Result};
-use crate::filter::{Filter, FilterMode, PreparedFilter, pixel_offset};
+use crate::filter::prepared::PreparedFilter;
+use crate::filter::{Filter, FilterMode, pixel_offset};
 use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
 

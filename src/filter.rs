@@ -33,10 +33,9 @@
 
 use crate::sampling::Rng;
 use glam::Vec2;
-
-mod prepared;
-pub(crate) use prepared::PreparedFilter;
 use std::f32::consts::TAU;
+
+pub(crate) mod prepared;
 
 /// A pixel reconstruction filter.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
