@@ -225,3 +225,57 @@ impl RayCaster for Bvh4 {
         self.build_seconds
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cast::BruteForce;
+    use crate::sampling::Rng;
+
+    /// Levels of inner nodes below `code`, by recursion (the builder's own count is
+    /// `node::depth`, a loop).
+    fn levels(bvh: &Bvh4, code: u32) -> usize {
+        if code & LEAF != 0 {
+            return 0;
+        }
+        let n = &bvh.nodes[code as usize];
+        1 + n.child[..n.children as usize].iter().map(|&c| levels(bvh, c)).max().unwrap_or(0)
+    }
+
+    /// The traversal's stack size is chosen from the tree's depth: the depth must be
+    /// the tree's, and both stack sizes must give brute force's answers (the full-size
+    /// one serves trees deeper than 21 levels, which only a very skewed scene builds).
+    #[test]
+    fn both_stack_sizes_answer_as_brute_force_and_the_depth_is_the_trees() {
+        let tri = |x: f32| [Vec3::new(x, -1.0, -1.0), Vec3::new(x, 1.0, -1.0), Vec3::new(x, 0.0, 1.0)];
+        let skewed: Triangles = (0..120).map(|i| tri(1.5f32.powi(i))).collect();
+        let even: Triangles = (0..3000).map(|i| tri(i as f32 * 0.01)).collect();
+        let mut r = Rng::for_sample(17, 0, 0);
+        for tris in [skewed, even] {
+            let bvh = Bvh4::from_triangles(tris.clone());
+            assert_eq!(bvh.depth, levels(&bvh, bvh.root.unwrap()));
+            assert!(bvh.depth > 3 && bvh.depth <= SHALLOW_DEPTH, "depth {}", bvh.depth);
+            let brute = BruteForce::from_triangles(tris.clone());
+            let far = tris.last().unwrap()[0].x * 1.1;
+            let rays: Vec<Ray> = (0..2000)
+                .map(|k| {
+                    let o = Vec3::new(-1.0, r.uniform() * 1.6 - 0.8, r.uniform() * 1.6 - 0.8);
+                    let d = Vec3::new(1.0, (r.uniform() - 0.5) * 1e-3, (r.uniform() - 0.5) * 1e-3);
+                    if k % 2 == 0 { Ray::new(o, d) } else { Ray::segment(o, d, far * r.uniform()) }
+                })
+                .collect();
+            let (mut want, mut blocked) = (vec![Hit::MISS; rays.len()], vec![false; rays.len()]);
+            brute.closest(&rays, &mut want);
+            brute.occluded(&rays, &mut blocked);
+            assert!(want.iter().filter(|h| h.is_hit()).count() > 500, "too few hits to compare");
+            let key = |h: &Hit| (h.prim, h.t.to_bits());
+            for (ray, (w, &b)) in rays.iter().zip(want.iter().zip(&blocked)) {
+                let short = (bvh.closest_in::<{ 3 * SHALLOW_DEPTH + 1 }>(ray).0, bvh.occluded_in::<64>(ray).0);
+                let full = (bvh.closest_in::<STACK>(ray).0, bvh.occluded_in::<STACK>(ray).0);
+                for (h, o) in [short, full] {
+                    assert_eq!((key(&h), o), (key(w), b), "{ray:?}");
+                }
+            }
+        }
+    }
+}
