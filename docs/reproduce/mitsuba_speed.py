@@ -18,7 +18,8 @@ numpy; the LLVM variant needs a libLLVM it can load, e.g. `apt-get install libll
   python3 docs/reproduce/mitsuba_speed.py [ROUNDS] > docs/measured/speed-cbox-vs-mitsuba-llvm-2core.json
 
 Environment: WARPRAY (binary, default target/release/warpray), SPP (warpray's spp per
-render, default 64), INTEGRATORS (comma list, default path,light,bdpt,lvc,lvc-mk,cis),
+render, default 64), INTEGRATORS (comma list, default path,light,bdpt,lvc,lvc-mk,cis;
+an entry `bdpt@path/to/warpray` runs that integrator of another build in the same rounds),
 REF (a cached reference EXR; rendered and written there if absent).
 """
 import json
@@ -64,11 +65,13 @@ def mitsuba_render(scene, spp, seed):
     return arr, time.perf_counter() - wall, time.process_time() - cpu
 
 
-def warpray_render(integrator, seed, tmp):
-    out = os.path.join(tmp, f"{integrator}-{seed}.exr")
+def warpray_render(name, seed, tmp):
+    # `integrator@binary` runs another build, interleaved with the others.
+    integrator, _, binary = name.partition("@")
+    out = os.path.join(tmp, f"{abs(hash(binary))}-{integrator}-{seed}.exr")
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     wall = time.perf_counter()
-    subprocess.run([WARPRAY, SCENE, "--integrator", integrator, "--spp", str(SPP), "--seed", str(seed),
+    subprocess.run([binary or WARPRAY, SCENE, "--integrator", integrator, "--spp", str(SPP), "--seed", str(seed),
                     "--output", out, "--quiet"], check=True, capture_output=True)
     wall = time.perf_counter() - wall
     after = resource.getrusage(resource.RUSAGE_CHILDREN)

@@ -81,18 +81,91 @@ fn light_origin_pdf(ctx: &Context, v: &Vertex) -> f32 {
     }
 }
 
+/// The area densities of one subpath's vertices that do not depend on the strategy
+/// that joins it to another: per vertex, in the subpath's own order (its first vertex
+/// at the light or the camera), the density with which the vertex was generated from
+/// the one before it (`fwd`, from its two predecessors; unknown for the first vertex)
+/// and the density with which it would be generated from the one after it (`rev`,
+/// from its two successors; unknown for the last two). Every strategy that joins the
+/// subpath at or beyond a vertex's neighbours reads these instead of evaluating them
+/// again: a BDPT sample joins its two subpaths in up to `(max_depth + 2)²` ways, and
+/// each full path's weight needs the densities of all its vertices.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Densities {
+    pub fwd: f32,
+    pub rev: f32,
+}
+
+/// The [`Densities`] of the vertices of `verts`, one subpath, into `out` (as long).
+pub(crate) fn subpath_densities(ctx: &Context, verts: &[Vertex], out: &mut [Densities]) {
+    for (i, d) in out.iter_mut().enumerate().take(verts.len()) {
+        let prev = |j: usize| if j >= 1 { Some(&verts[j - 1]) } else { None };
+        d.fwd = if i >= 1 { pdf_area(ctx, prev(i - 1), &verts[i - 1], &verts[i]) } else { f32::NAN };
+        d.rev =
+            if i + 2 < verts.len() { pdf_area(ctx, Some(&verts[i + 2]), &verts[i + 1], &verts[i]) } else { f32::NAN };
+    }
+}
+
+/// What is known of a full path's densities before its weight is computed: the
+/// [`Densities`] of the light subpath whose first `s` vertices begin the path and of
+/// the camera subpath whose first `t` vertices end it. Empty when not known, as in
+/// `Known::default()`: a kernel evaluates every density where it needs it, as its CUDA
+/// twin does.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Known<'a> {
+    pub light: &'a [Densities],
+    pub camera: &'a [Densities],
+}
+
+impl Known<'_> {
+    /// The light-end density of full-path vertex `i` (sampled at `i - 1`, reached from
+    /// `i - 2`), when strategy `s` took those vertices from one subpath and `i - 1` is
+    /// not one of the connection's two: the full path clears their delta flags, and for
+    /// s = 1 the light vertex may be a fresh sample. (Vertex 0's density, a light's
+    /// choice and area density, is always evaluated.)
+    fn light_end(&self, k: usize, s: usize, i: usize) -> Option<f32> {
+        if (1..s).contains(&i) {
+            self.light.get(i).map(|d| d.fwd)
+        } else if i >= s + 2 {
+            self.camera.get(k - i).map(|d| d.rev)
+        } else {
+            None
+        }
+    }
+
+    /// The camera-end density of full-path vertex `i` (sampled at `i + 1`, reached from
+    /// `i + 2`), under the same condition. For s = 0 the hit emitter, vertex 0, is
+    /// relabelled a light; a density toward it reads only its normal, as for a surface.
+    fn camera_end(&self, k: usize, s: usize, i: usize) -> Option<f32> {
+        if i + 3 <= s {
+            self.light.get(i).map(|d| d.rev)
+        } else if i >= s && i < k {
+            self.camera.get(k - i).map(|d| d.fwd)
+        } else {
+            None
+        }
+    }
+}
+
 /// Balance-heuristic weight of strategy `s` for the full path `path` (light end first,
 /// camera last), one sample per strategy (BDPT). See [`mis_weight_counts`].
-pub(crate) fn mis_weight(ctx: &Context, path: &[Vertex], s: usize) -> f32 {
-    mis_weight_counts(ctx, path, s, |_, _| 1.0)
+pub(crate) fn mis_weight(ctx: &Context, path: &[Vertex], s: usize, known: Known) -> f32 {
+    mis_weight_counts(ctx, path, s, known, |_, _| 1.0)
 }
 
 /// Balance-heuristic weight of strategy `s` for the full path `path`, where strategy
 /// (s', t') takes `count(s', t')` samples per camera sample (a light vertex cache makes
 /// connections more numerous than one per light path). Strategies whose connection
 /// would touch a delta vertex, and those that would need a path to hit the camera
-/// (t = 0) or a point light by chance (s = 0), are excluded.
-pub(crate) fn mis_weight_counts(ctx: &Context, path: &[Vertex], s: usize, count: impl Fn(usize, usize) -> f64) -> f32 {
+/// (t = 0) or a point light by chance (s = 0), are excluded. Densities in `known` are
+/// read, the others evaluated: the weight is the same bit for bit either way.
+pub(crate) fn mis_weight_counts(
+    ctx: &Context,
+    path: &[Vertex],
+    s: usize,
+    known: Known,
+    count: impl Fn(usize, usize) -> f64,
+) -> f32 {
     let k = path.len() - 1;
     // Each trip of the two density loops: its test, index arithmetic and conversion.
     // Fixed arrays: kernels call this, and kernels do not allocate (a full path holds
@@ -100,14 +173,19 @@ pub(crate) fn mis_weight_counts(ctx: &Context, path: &[Vertex], s: usize, count:
     let (mut pl, mut pc) = ([0f64; MAX_PATH], [0f64; MAX_PATH]);
     for i in 0..=k {
         declare!(6);
-        pl[i] = match i {
-            0 => light_origin_pdf(ctx, &path[0]) as f64,
+        pl[i] = match (i, known.light_end(k, s, i)) {
+            (0, _) => light_origin_pdf(ctx, &path[0]) as f64,
+            (_, Some(d)) => d as f64,
             _ => pdf_area(ctx, if i >= 2 { Some(&path[i - 2]) } else { None }, &path[i - 1], &path[i]) as f64,
         };
     }
     for i in 0..=k {
         declare!(6);
-        pc[i] = if i == k { 1.0 } else { pdf_area(ctx, path.get(i + 2), &path[i + 1], &path[i]) as f64 };
+        pc[i] = match known.camera_end(k, s, i) {
+            _ if i == k => 1.0,
+            Some(d) => d as f64,
+            None => pdf_area(ctx, path.get(i + 2), &path[i + 1], &path[i]) as f64,
+        };
     }
     // The sum over strategies: for each of the k + 1, its validity tests (8), its count
     // (4) and the two products over all k + 1 densities (a multiply and the loop's
@@ -144,7 +222,7 @@ mod tests {
     use crate::lights::Lights;
     use crate::render::RenderOptions;
     use crate::render::bidir::Vertex;
-    use crate::scene::{Scene, cornell_box};
+    use crate::scene::{Material, Scene, cornell_box};
 
     /// A concrete path through the Cornell box: light, floor, back wall, camera.
     fn sample_path(scene: &Scene, mirror_in_middle: bool) -> Vec<Vertex> {
@@ -179,16 +257,110 @@ mod tests {
         let opts = RenderOptions { width: 64, height: 64, ..Default::default() };
         let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts };
         let path = sample_path(&scene, false);
-        let weights: Vec<f32> = (0..path.len()).map(|s| mis_weight(&ctx, &path, s)).collect();
+        let weights: Vec<f32> = (0..path.len()).map(|s| mis_weight(&ctx, &path, s, Known::default())).collect();
         let sum: f32 = weights.iter().sum();
         assert!((sum - 1.0).abs() < 1e-4, "weights {weights:?} sum to {sum}");
         assert!(weights.iter().all(|&w| w > 0.0 && w < 1.0), "every strategy can make this path: {weights:?}");
         // A delta vertex in the middle: the strategies connecting at it are impossible and
         // get weight 0; the others still sum to 1.
         let path = sample_path(&scene, true);
-        let weights: Vec<f32> = (0..path.len()).map(|s| mis_weight(&ctx, &path, s)).collect();
+        let weights: Vec<f32> = (0..path.len()).map(|s| mis_weight(&ctx, &path, s, Known::default())).collect();
         assert_eq!((weights[1], weights[2]), (0.0, 0.0), "{weights:?}");
         let sum: f32 = weights.iter().sum();
         assert!((sum - 1.0).abs() < 1e-4, "weights {weights:?} sum to {sum}");
+    }
+
+    /// A subpath of `len` vertices: its first at `first`, the others at random points of
+    /// random non-emitting triangles (visibility plays no part in the weights).
+    fn random_subpath(scene: &Scene, first: Vertex, len: usize, rng: &mut crate::sampling::Rng) -> Vec<Vertex> {
+        let surfaces: Vec<u32> =
+            (0..scene.triangle_count() as u32).filter(|&t| scene.emission_of(t).max_element() == 0.0).collect();
+        let mut verts = vec![first];
+        while verts.len() < len {
+            let tri = surfaces[((rng.uniform() * surfaces.len() as f32) as usize).min(surfaces.len() - 1)];
+            let [a, b, c] = scene.vertices(tri);
+            let (u, v) = (rng.uniform(), rng.uniform());
+            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+            let p = a + u * (b - a) + v * (c - a);
+            let delta = scene.material(tri).is_delta();
+            verts.push(Vertex::new(VertexKind::Surface, p, scene.normal(tri), tri, Vec3::ONE, delta, Vec3::ZERO));
+        }
+        verts
+    }
+
+    /// Every strategy's weight read with the subpaths' densities known is the weight
+    /// evaluated from scratch, bit for bit: over random light and camera subpaths of 1
+    /// to 6 vertices through a box with diffuse, glossy and mirror (delta) surfaces, for
+    /// the general connections, the camera connections (t = 1), paths that hit the light
+    /// (s = 0, the camera vertex relabelled) and fresh light samples (s = 1, which must
+    /// not read the light subpath's densities, though BDPT passes them).
+    #[test]
+    fn known_densities_give_the_weights_evaluated_from_scratch() {
+        let mut scene = cornell_box();
+        let glossy = scene.add_material(
+            "glossy",
+            Material::Glossy { diffuse: Vec3::splat(0.3), specular: Vec3::splat(0.5), roughness: 0.2 },
+            Vec3::ZERO,
+        );
+        let mirror = scene.add_material("mirror", Material::Mirror { reflectance: Vec3::splat(0.9) }, Vec3::ZERO);
+        let n = scene.triangle_count();
+        for tri in 0..n {
+            match tri % 5 {
+                1 => scene.material_of[tri] = glossy,
+                3 if tri > 6 => scene.material_of[tri] = mirror,
+                _ => {}
+            }
+        }
+        let lights = Lights::new(&scene);
+        let caster = BvhCaster::new(&scene);
+        let opts = RenderOptions { width: 64, height: 64, ..Default::default() };
+        let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts };
+        let light_tri = (0..n as u32).find(|&t| scene.emission_of(t).max_element() > 0.0).unwrap();
+        let [a, b, c] = scene.vertices(light_tri);
+        let light_at = |u: f32| {
+            let p = a + u * 0.5 * (b - a) + 0.25 * (c - a);
+            Vertex::new(VertexKind::Light, p, scene.normal(light_tri), light_tri, Vec3::ONE, false, Vec3::ONE)
+        };
+        let cam_v = crate::render::bidir::camera_vertex(&scene.camera);
+        let mut rng = crate::sampling::Rng::for_sample(7, 0, 0);
+        let (mut path, mut compared, mut nonzero) = (crate::render::bidir::VertexList::default(), 0, 0);
+        for trial in 0..200 {
+            let light = random_subpath(&scene, light_at(rng.uniform()), 1 + trial % 6, &mut rng);
+            let cam = random_subpath(&scene, cam_v, 1 + (trial / 6) % 6, &mut rng);
+            let (mut ld, mut cd) = ([Densities::default(); MAX_PATH], [Densities::default(); MAX_PATH]);
+            subpath_densities(&ctx, &light, &mut ld);
+            subpath_densities(&ctx, &cam, &mut cd);
+            let known = Known { light: &ld[..light.len()], camera: &cd[..cam.len()] };
+            for t in 1..=cam.len() {
+                for s in 0..=light.len() {
+                    match (s, t) {
+                        (0, 1) => continue,
+                        (0, _) => {
+                            crate::render::bidir::full_path(&light, &cam, 0, t, &mut path);
+                            path[0].kind = VertexKind::Light;
+                        }
+                        (1, 2..) => {
+                            path.clear();
+                            path.push(light_at(rng.uniform()));
+                            path.extend(cam[..t].iter().rev());
+                            path[1].delta = false;
+                        }
+                        _ => crate::render::bidir::full_path(&light, &cam, s, t, &mut path),
+                    }
+                    let (from_scratch, read) =
+                        (mis_weight(&ctx, &path, s, Known::default()), mis_weight(&ctx, &path, s, known));
+                    assert_eq!(
+                        read.to_bits(),
+                        from_scratch.to_bits(),
+                        "(s, t) = ({s}, {t}): {read} against {from_scratch}"
+                    );
+                    compared += 1;
+                    nonzero += (from_scratch > 0.0 && from_scratch < 1.0) as u32;
+                }
+            }
+        }
+        // The comparison means something only if many weights are neither 0 nor 1 (in
+        // the others a connection touches a mirror or the camera sees nothing).
+        assert!(nonzero * 3 > compared, "{nonzero} of {compared} weights strictly between 0 and 1");
     }
 }

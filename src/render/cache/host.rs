@@ -11,7 +11,7 @@ use crate::render::bidir::{
     full_path, strategy_connect, strategy_emitter, strategy_light_sample,
 };
 use crate::render::context::{Context, Passes};
-use crate::render::mis::mis_weight_counts;
+use crate::render::mis::{Densities, Known, mis_weight_counts, subpath_densities};
 use crate::render::walk::{PendingLists, Subpaths, extend_together, resolve_wave, start_light_wave};
 use crate::sampling::Rng;
 use glam::{Vec2, Vec3};
@@ -30,6 +30,9 @@ pub struct LightVertexCache {
     pub entries: Vec<(u32, u32)>,
     /// Light subpaths traced into the cache.
     pub light_paths: u32,
+    /// Per vertex (as `vertices`), its densities along its subpath, for the host's MIS
+    /// weights (empty where kernels evaluate them).
+    pub(crate) densities: Vec<Densities>,
 }
 
 impl LightVertexCache {
@@ -37,6 +40,28 @@ impl LightVertexCache {
     pub fn subpath(&self, e: usize) -> (&[Vertex], usize) {
         let (start, s) = self.entries[e];
         (&self.vertices[start as usize..start as usize + s as usize], s as usize)
+    }
+
+    /// The densities of entry `e`'s subpath up to the cached vertex (empty when the
+    /// cache holds none).
+    pub(crate) fn subpath_densities(&self, e: usize) -> &[Densities] {
+        let (start, s) = self.entries[e];
+        self.densities.get(start as usize..start as usize + s as usize).unwrap_or(&[])
+    }
+
+    /// Fills `densities` from `paths`, each subpath's first vertex and length, in
+    /// vertex order (the subpaths in parallel).
+    fn fill_densities(&mut self, ctx: &Context, paths: &[(u32, u32)]) {
+        use rayon::prelude::*;
+        let vertices = &self.vertices;
+        self.densities = paths
+            .par_iter()
+            .flat_map_iter(|&(start, len)| {
+                let mut d = [Densities::default(); crate::render::bidir::MAX_PATH];
+                subpath_densities(ctx, &vertices[start as usize..(start + len) as usize], &mut d);
+                d.into_iter().take(len as usize)
+            })
+            .collect();
     }
 
     /// Samples drawn per connection strategy: `n_c · N_L / |cache|`.
@@ -122,6 +147,9 @@ pub(crate) fn build_caches(ctx: &Context, span: Passes, n_c: u32, wave_size: u32
             cache.vertices.extend_from_slice(verts);
         }
     }
+    for (q, cache) in caches.iter_mut().enumerate() {
+        cache.fill_densities(ctx, &paths[q * n_light as usize..(q + 1) * n_light as usize]);
+    }
     let counts: Vec<StrategyCounts> =
         caches.iter().map(|c| StrategyCounts::new(ctx, n_light, c.entries.len(), n_c)).collect();
     // Splats (t = 1) of every light vertex, in path order, their shadow rays cast one
@@ -132,8 +160,10 @@ pub(crate) fn build_caches(ctx: &Context, span: Passes, n_c: u32, wave_size: u32
         let pending = PendingLists::fill(wave.len(), |i, out, path: &mut VertexList| {
             let (start, len) = paths[first + i];
             let q = iteration(wave.start + i as u32);
-            let verts = &caches[q].vertices[start as usize..(start + len) as usize];
-            light_splats(ctx, verts, counts[q], n_light, path, &mut |ray, l, px| out.push((Some(ray), l, Some(px))));
+            let range = start as usize..(start + len) as usize;
+            let (verts, known) = (&caches[q].vertices[range.clone()], &caches[q].densities[range]);
+            let sink = &mut |ray, l, px| out.push((Some(ray), l, Some(px)));
+            light_splats(ctx, verts, known, counts[q], n_light, path, sink);
         });
         let (resolved, shadow) = resolve_wave(ctx, &pending);
         stats = stats.merge(shadow);
@@ -153,10 +183,12 @@ pub(crate) fn light_path_rng(ctx: &Context, path: u32, pass: u32) -> Rng {
 
 /// The camera splats (t = 1) of one light subpath of an iteration with `n_light`
 /// subpaths, in vertex order, each given to `sink` as (shadow ray, weighted value,
-/// film position). Allocation-free: kernels call it.
+/// film position). `known`: the subpath's densities, or empty (kernels evaluate them).
+/// Allocation-free: kernels call it.
 pub(crate) fn light_splats(
     ctx: &Context,
     verts: &[Vertex],
+    known: &[Densities],
     counts: StrategyCounts,
     n_light: u32,
     path: &mut VertexList,
@@ -170,8 +202,9 @@ pub(crate) fn light_splats(
         }
         let Some((l, px, ray)) = connect_to_camera(ctx, verts, s, &cam_v) else { continue };
         full_path(verts, std::slice::from_ref(&cam_v), s, 1, path);
-        let Some(w) = ctx.opts.strategy_weight(s, 1, || mis_weight_counts(ctx, path, s, |s, t| counts.count(s, t)))
-        else {
+        let Some(w) = ctx.opts.strategy_weight(s, 1, || {
+            mis_weight_counts(ctx, path, s, Known { light: known, camera: &[] }, |s, t| counts.count(s, t))
+        }) else {
             continue;
         };
         sink(ray, l * w * scale, px);
@@ -220,19 +253,25 @@ impl Connections {
     }
 }
 
+/// How [`vertex_strategies`] loads cache entry `e`'s light subpath: `(e, list, tail)`
+/// to `(s, the subpath's densities)`.
+pub(crate) type SubpathLoader<'a, 'd> = &'a dyn Fn(usize, &mut VertexList, bool) -> (usize, &'d [Densities]);
+
 /// Every strategy at camera vertex `t - 1` except the camera splats: the emitter it hit
 /// (s = 0), a light sample (s = 1), and connections to cache vertices, each pushed to
 /// `sink` with its MIS weight applied. `subpath(e, list, tail)` puts cache entry `e`'s
-/// light subpath up to the cached vertex into `list` and returns its length `s`; with
-/// `tail` only its last two vertices (one when `s` is 1), which is all a resampling
-/// candidate's weight reads. Allocation-free: kernels call it.
+/// light subpath up to the cached vertex into `list` and returns its length `s` and
+/// the subpath's densities (or none: kernels evaluate them); with `tail` only its last
+/// two vertices (one when `s` is 1), which is all a resampling candidate's weight
+/// reads. `cam_known`: the camera subpath's densities, or empty. Allocation-free:
+/// kernels call it.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn vertex_strategies(
+pub(crate) fn vertex_strategies<'d>(
     ctx: &Context,
-    cam: &[Vertex],
+    (cam, cam_known): (&[Vertex], &[Densities]),
     t: usize,
     cache_len: usize,
-    subpath: &dyn Fn(usize, &mut VertexList, bool) -> usize,
+    subpath: SubpathLoader<'_, 'd>,
     counts: StrategyCounts,
     connections: Connections,
     rng: &mut Rng,
@@ -243,14 +282,16 @@ pub(crate) fn vertex_strategies(
     let count = |s: usize, t: usize| counts.count(s, t);
     // Strategy images drop strategies here, at the sink, after every random number a
     // full render would draw has been drawn.
-    let weight =
-        |path: &VertexList, s: usize| ctx.opts.strategy_weight(s, t, || mis_weight_counts(ctx, path, s, count));
+    let weight = |path: &VertexList, s: usize, light: &[Densities]| {
+        let known = Known { light, camera: cam_known };
+        ctx.opts.strategy_weight(s, t, || mis_weight_counts(ctx, path, s, known, count))
+    };
     // (Each strategy is a scope for `simt`'s model: nvcc inlines `weight` at each.)
     {
         let _strategy = crate::cost::scope();
         if t - 2 <= max_depth
             && let Some(l) = strategy_emitter(cam, t, &[], path)
-            && let Some(w) = weight(path, 0)
+            && let Some(w) = weight(path, 0, &[])
         {
             sink((None, l * w, None));
         }
@@ -259,7 +300,7 @@ pub(crate) fn vertex_strategies(
         let _strategy = crate::cost::scope();
         if t - 1 <= max_depth
             && let Some((l, ray)) = strategy_light_sample(ctx, cam, t, rng, path)
-            && let Some(w) = weight(path, 1)
+            && let Some(w) = weight(path, 1, &[])
         {
             sink((Some(ray), l * w, None));
         }
@@ -270,13 +311,13 @@ pub(crate) fn vertex_strategies(
     // One light-subpath buffer for every candidate and connection (filled in place).
     let mut light = VertexList::default();
     let mut connect = |e: usize, extra: f32, path: &mut VertexList, sink: &mut dyn FnMut(Pending)| {
-        let s = subpath(e, &mut light, false);
+        let (s, light_known) = subpath(e, &mut light, false);
         crate::cost::declare!(BRANCH);
         if s + t - 2 > max_depth {
             return;
         }
         if let Some((l, ray)) = strategy_connect(ctx, &light, s, cam, t, path)
-            && let Some(w) = weight(path, s)
+            && let Some(w) = weight(path, s, light_known)
         {
             crate::cost::declare!(2 + DIV + V3);
             sink((Some(ray), l * (w * extra / counts.connection as f32), None));
@@ -298,7 +339,7 @@ pub(crate) fn vertex_strategies(
             for k in 0..n {
                 let _trip = crate::cost::scope();
                 entry[k] = uniform_entry(cache_len, rng);
-                let s = subpath(entry[k], &mut tail, true);
+                let (s, _) = subpath(entry[k], &mut tail, true);
                 crate::cost::declare!(3 * BRANCH);
                 let (lv, prev) = match &tail[..] {
                     [prev, lv] => (Some(lv), Some(prev)),
@@ -354,11 +395,25 @@ pub(crate) fn camera_strategies(
         let (light, s) = cache.subpath(e);
         list.clear();
         list.extend(if tail { &light[s.saturating_sub(2)..] } else { light });
-        s
+        (s, cache.subpath_densities(e))
     };
+    // The camera subpath's densities, evaluated once for all its vertices' strategies.
+    let mut cam_known = [Densities::default(); crate::render::bidir::MAX_PATH];
+    subpath_densities(ctx, cam, &mut cam_known);
+    let cam_known = &cam_known[..cam.len()];
     for t in 2..=cam.len() {
-        vertex_strategies(ctx, cam, t, cache.entries.len(), &subpath, counts, connections, rng, path, &mut |p| {
-            pending.push(p)
-        });
+        let sink = &mut |p| pending.push(p);
+        vertex_strategies(
+            ctx,
+            (cam, cam_known),
+            t,
+            cache.entries.len(),
+            &subpath,
+            counts,
+            connections,
+            rng,
+            path,
+            sink,
+        );
     }
 }

@@ -115,7 +115,7 @@ pub fn splat_entries(
         verts.push(t.load(vertices, start as usize + k));
     }
     let (mut path, mut next) = (VertexList::default(), 0);
-    light_splats(ctx, &verts, counts, n_light, &mut path, &mut |ray, value, film| {
+    light_splats(ctx, &verts, &[], counts, n_light, &mut path, &mut |ray, value, film| {
         let state = state_of(ray);
         if state != 0 {
             t.store(splats, p * stride + next, SplatData { ray, value, film, state });
@@ -167,9 +167,9 @@ impl CacheRead<'_> {
         path: &mut VertexList,
         sink: &mut dyn FnMut(Pending),
     ) {
-        let subpath = |e: usize, light: &mut VertexList, tail: bool| self.subpath(t, e, light, tail);
+        let subpath = |e: usize, light: &mut VertexList, tail: bool| (self.subpath(t, e, light, tail), &[][..]);
         let n = self.entries.len();
-        vertex_strategies(ctx, cam, t_len, n, &subpath, self.counts, self.connections, rng, path, sink);
+        vertex_strategies(ctx, (cam, &[]), t_len, n, &subpath, self.counts, self.connections, rng, path, sink);
     }
 }
 
