@@ -320,9 +320,17 @@ pub(crate) fn step(
 /// Every sample's pending contributions in a wave, in chunks of [`PENDING_CHUNK`]
 /// samples: in a chunk, sample `i`'s are `items[ends[i - 1]..ends[i]]`. Chunks are
 /// filled and resolved in parallel, so nothing is allocated per sample, and they are
-/// fixed, so the lists are the same at any thread count.
+/// fixed, so the lists are the same at any thread count. Kept from wave to wave with
+/// the shadow-ray batch they resolve through: a wave's lists and rays run to tens of
+/// megabytes, which fresh allocations would page-fault in again every wave.
+#[derive(Default)]
 pub(crate) struct PendingLists {
     chunks: Vec<Chunk<Pending>>,
+    /// Chunks the current wave uses (the ones past it keep their storage).
+    used: usize,
+    /// The wave's shadow rays, in list order, and whether each is blocked.
+    rays: Vec<Ray>,
+    blocked: Vec<bool>,
 }
 
 /// Samples per chunk of pending lists.
@@ -339,6 +347,11 @@ impl<T> Chunk<T> {
         Chunk { items: Vec::new(), ends: Vec::with_capacity(PENDING_CHUNK) }
     }
 
+    fn clear(&mut self) {
+        self.items.clear();
+        self.ends.clear();
+    }
+
     /// Closes the list of the next sample.
     fn close(&mut self) {
         self.ends.push(self.items.len());
@@ -351,21 +364,20 @@ impl<T> Chunk<T> {
 }
 
 impl PendingLists {
-    /// The lists of samples `0..n`: `one(i, out, scratch)` appends sample `i`'s
-    /// contributions to `out` (`scratch` is a per-chunk buffer it may reuse).
-    pub(crate) fn fill<S: Default>(n: usize, one: impl Fn(usize, &mut Vec<Pending>, &mut S) + Sync + Send) -> Self {
-        let chunks = (0..n.div_ceil(PENDING_CHUNK))
-            .into_par_iter()
-            .map_init(S::default, |scratch, c| {
-                let mut chunk = Chunk::new();
-                for i in c * PENDING_CHUNK..((c + 1) * PENDING_CHUNK).min(n) {
-                    one(i, &mut chunk.items, scratch);
-                    chunk.close();
-                }
-                chunk
-            })
-            .collect();
-        PendingLists { chunks }
+    /// Makes the lists those of samples `0..n`: `one(i, out, scratch)` appends sample
+    /// `i`'s contributions to `out` (`scratch` is a per-thread buffer it may reuse).
+    pub(crate) fn fill<S: Default>(&mut self, n: usize, one: impl Fn(usize, &mut Vec<Pending>, &mut S) + Sync + Send) {
+        self.used = n.div_ceil(PENDING_CHUNK);
+        if self.chunks.len() < self.used {
+            self.chunks.resize_with(self.used, Chunk::new);
+        }
+        self.chunks[..self.used].par_iter_mut().enumerate().for_each_init(S::default, |scratch, (c, chunk)| {
+            chunk.clear();
+            for i in c * PENDING_CHUNK..((c + 1) * PENDING_CHUNK).min(n) {
+                one(i, &mut chunk.items, scratch);
+                chunk.close();
+            }
+        });
     }
 }
 
@@ -386,14 +398,30 @@ impl Resolved {
 
 /// Casts the shadow rays of every sample's pending contributions as one batch and sums
 /// each sample's visible ones, in sample order.
-pub(crate) fn resolve_wave(ctx: &Context, pending: &PendingLists) -> (Resolved, CastStats) {
-    let chunks = &pending.chunks;
-    let shadow: Vec<Ray> = chunks.par_iter().flat_map_iter(|c| c.items.iter().filter_map(|p| p.0)).collect();
-    let mut blocked = vec![false; shadow.len()];
-    let stats = if shadow.is_empty() { CastStats::default() } else { ctx.caster.occluded(&shadow, &mut blocked) };
-    // Where each chunk's answers start.
+pub(crate) fn resolve_wave(ctx: &Context, pending: &mut PendingLists) -> (Resolved, CastStats) {
+    let PendingLists { chunks, used, rays, blocked } = pending;
+    let chunks = &chunks[..*used];
+    // Where each chunk's rays and answers start; the rays gathered into them in parallel.
     let counts: Vec<usize> = chunks.par_iter().map(|c| c.items.iter().filter(|p| p.0.is_some()).count()).collect();
     let starts: Vec<usize> = counts.iter().scan(0, |at, &n| Some(std::mem::replace(at, *at + n))).collect();
+    let total = counts.iter().sum();
+    rays.clear();
+    rays.resize(total, Ray::new(Vec3::ZERO, Vec3::Z));
+    let mut slices = Vec::with_capacity(chunks.len());
+    let mut rest = &mut rays[..];
+    for &n in &counts {
+        let (slice, tail) = rest.split_at_mut(n);
+        slices.push(slice);
+        rest = tail;
+    }
+    chunks.par_iter().zip(slices).for_each(|(c, out)| {
+        for (o, ray) in out.iter_mut().zip(c.items.iter().filter_map(|p| p.0)) {
+            *o = ray;
+        }
+    });
+    blocked.clear();
+    blocked.resize(total, false);
+    let stats = if rays.is_empty() { CastStats::default() } else { ctx.caster.occluded(rays, blocked) };
     let resolved = chunks
         .par_iter()
         .zip(starts)
@@ -426,6 +454,8 @@ pub(crate) struct WaveBuffers {
     pub light: Subpaths,
     pub camera_walkers: Vec<Walker>,
     pub light_walkers: Vec<Walker>,
+    /// The wave's pending contributions and their shadow rays.
+    pub pending: PendingLists,
     /// Samples per wave (the image does not depend on it).
     pub wave: u32,
 }
@@ -437,6 +467,7 @@ impl Default for WaveBuffers {
             light: Subpaths::default(),
             camera_walkers: Vec::new(),
             light_walkers: Vec::new(),
+            pending: PendingLists::default(),
             wave: WAVE,
         }
     }

@@ -155,9 +155,10 @@ pub(crate) fn build_caches(ctx: &Context, span: Passes, n_c: u32, wave_size: u32
     // Splats (t = 1) of every light vertex, in path order, their shadow rays cast one
     // wave at a time.
     let mut splats = vec![Vec::new(); span.count as usize];
+    let mut pending = PendingLists::default();
     for wave in span.waves(wave_size) {
         let first = wave.start as usize;
-        let pending = PendingLists::fill(wave.len(), |i, out, path: &mut VertexList| {
+        pending.fill(wave.len(), |i, out, path: &mut VertexList| {
             let (start, len) = paths[first + i];
             let q = iteration(wave.start + i as u32);
             let range = start as usize..(start + len) as usize;
@@ -165,7 +166,7 @@ pub(crate) fn build_caches(ctx: &Context, span: Passes, n_c: u32, wave_size: u32
             let sink = &mut |ray, l, px| out.push((Some(ray), l, Some(px)));
             light_splats(ctx, verts, known, counts[q], n_light, path, sink);
         });
-        let (resolved, shadow) = resolve_wave(ctx, &pending);
+        let (resolved, shadow) = resolve_wave(ctx, &mut pending);
         stats = stats.merge(shadow);
         for (i, k) in wave.enumerate() {
             splats[iteration(k)].extend_from_slice(resolved.sample(i).1);

@@ -25,7 +25,7 @@ use crate::render::bidir::{
 use crate::render::context::{Context, Passes};
 use crate::render::mis::{Densities, Known, mis_weight, subpath_densities};
 use crate::render::walk::{
-    PendingLists, Walker, WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave, start_light_wave,
+    Walker, WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave, start_light_wave,
 };
 use crate::sampling::Rng;
 
@@ -54,11 +54,11 @@ impl Bdpt {
             stats = stats.merge(extend_together(ctx, &mut [camera, light]));
             let walkers = &b.camera_walkers;
             let (camera, light) = (&b.camera, &b.light);
-            let pending = PendingLists::fill(camera.len(), |i, out, path: &mut VertexList| {
+            b.pending.fill(camera.len(), |i, out, path: &mut VertexList| {
                 let mut rng = walkers[i].rng;
                 connect(ctx, camera.get(i), light.get(i), &mut rng, path, out)
             });
-            let (resolved, shadow) = resolve_wave(ctx, &pending);
+            let (resolved, shadow) = resolve_wave(ctx, &mut b.pending);
             stats = stats.merge(shadow);
             flush_wave(film, span, wave, resolved, Some(&mut estimates), |_, _| {});
         }

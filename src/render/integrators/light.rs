@@ -7,7 +7,7 @@ use crate::cast::CastStats;
 use crate::film::Film;
 use crate::render::bidir::{camera_vertex, connect_to_camera};
 use crate::render::context::{Context, Passes};
-use crate::render::walk::{PendingLists, WaveBuffers, extend_together, flush_wave, resolve_wave, start_light_wave};
+use crate::render::walk::{WaveBuffers, extend_together, flush_wave, resolve_wave, start_light_wave};
 use crate::sampling::Rng;
 
 /// Light tracing: light subpaths splatted onto the film through the camera.
@@ -32,12 +32,12 @@ impl LightTracer {
             let light = start_light_wave(ctx, wave.len(), rng_of, max_vertices, &mut b.light, &mut b.light_walkers);
             stats = stats.merge(extend_together(ctx, &mut [light]));
             let light = &b.light;
-            let pending = PendingLists::fill(light.len(), |i, out, _: &mut ()| {
+            b.pending.fill(light.len(), |i, out, _: &mut ()| {
                 let verts = light.get(i);
                 let splats = (1..=verts.len()).filter_map(|s| connect_to_camera(ctx, verts, s, &cam_v));
                 out.extend(splats.map(|(l, px, ray)| (Some(ray), l, Some(px))));
             });
-            let (resolved, shadow) = resolve_wave(ctx, &pending);
+            let (resolved, shadow) = resolve_wave(ctx, &mut b.pending);
             stats = stats.merge(shadow);
             flush_wave(film, span, wave, resolved, None, |_, _| {});
         }

@@ -18,7 +18,7 @@ use crate::render::bidir::VertexList;
 use crate::render::cache::host::{Connections, LightVertexCache, build_caches, camera_strategies};
 use crate::render::context::{Context, Passes};
 use crate::render::options::LvcParams;
-use crate::render::walk::{PendingLists, WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave};
+use crate::render::walk::{WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave};
 
 /// LVC-BDPT: every pixel sample's camera subpath connects to a shared light vertex
 /// cache. The megakernel baseline: all strategies of a sample are evaluated together.
@@ -52,13 +52,13 @@ impl LvcBdpt {
             stats = stats.merge(extend_together(ctx, &mut [camera]));
             let (camera, walkers) = (&b.camera, &b.camera_walkers);
             let caches = &light;
-            let pending = PendingLists::fill(camera.len(), |i, out, path: &mut VertexList| {
+            b.pending.fill(camera.len(), |i, out, path: &mut VertexList| {
                 let mut rng = walkers[i].rng;
                 let it = &caches[(span.at(wave.start + i as u32).1 - span.first) as usize];
                 let connections = Connections::Uniform { n: n_c };
                 camera_strategies(ctx, camera.get(i), &it.cache, it.counts, connections, &mut rng, path, out)
             });
-            let (resolved, shadow) = resolve_wave(ctx, &pending);
+            let (resolved, shadow) = resolve_wave(ctx, &mut b.pending);
             stats = stats.merge(shadow);
             // A pass's light splats reach the film just before its camera estimates.
             flush_wave(film, span, wave, resolved, Some(&mut estimates), |film, pass| {
