@@ -7,8 +7,8 @@ use crate::cast::CastStats;
 use crate::cost::{BRANCH, DIV, LUMINANCE, V3};
 use crate::film::luminance;
 use crate::render::bidir::{
-    Pending, Vertex, VertexKind, VertexList, camera_vertex, connect_contribution, connect_to_camera, connectible,
-    full_path, strategy_connect, strategy_emitter, strategy_light_sample,
+    MAX_PATH, Pending, Vertex, VertexKind, VertexList, camera_vertex, connect_contribution, connect_to_camera,
+    connectible, full_path, strategy_connect, strategy_emitter, strategy_light_sample,
 };
 use crate::render::context::{Context, Passes};
 use crate::render::mis::{Densities, Known, mis_weight_counts, subpath_densities};
@@ -30,9 +30,6 @@ pub struct LightVertexCache {
     pub entries: Vec<(u32, u32)>,
     /// Light subpaths traced into the cache.
     pub light_paths: u32,
-    /// Per vertex (as `vertices`), its densities along its subpath, for the host's MIS
-    /// weights (empty where kernels evaluate them).
-    pub(crate) densities: Vec<Densities>,
 }
 
 impl LightVertexCache {
@@ -40,28 +37,6 @@ impl LightVertexCache {
     pub fn subpath(&self, e: usize) -> (&[Vertex], usize) {
         let (start, s) = self.entries[e];
         (&self.vertices[start as usize..start as usize + s as usize], s as usize)
-    }
-
-    /// The densities of entry `e`'s subpath up to the cached vertex (empty when the
-    /// cache holds none).
-    pub(crate) fn subpath_densities(&self, e: usize) -> &[Densities] {
-        let (start, s) = self.entries[e];
-        self.densities.get(start as usize..start as usize + s as usize).unwrap_or(&[])
-    }
-
-    /// Fills `densities` from `paths`, each subpath's first vertex and length, in
-    /// vertex order (the subpaths in parallel).
-    fn fill_densities(&mut self, ctx: &Context, paths: &[(u32, u32)]) {
-        use rayon::prelude::*;
-        let vertices = &self.vertices;
-        self.densities = paths
-            .par_iter()
-            .flat_map_iter(|&(start, len)| {
-                let mut d = [Densities::default(); crate::render::bidir::MAX_PATH];
-                subpath_densities(ctx, &vertices[start as usize..(start + len) as usize], &mut d);
-                d.into_iter().take(len as usize)
-            })
-            .collect();
     }
 
     /// Samples drawn per connection strategy: `n_c · N_L / |cache|`.
@@ -147,9 +122,6 @@ pub(crate) fn build_caches(ctx: &Context, span: Passes, n_c: u32, wave_size: u32
             cache.vertices.extend_from_slice(verts);
         }
     }
-    for (q, cache) in caches.iter_mut().enumerate() {
-        cache.fill_densities(ctx, &paths[q * n_light as usize..(q + 1) * n_light as usize]);
-    }
     let counts: Vec<StrategyCounts> =
         caches.iter().map(|c| StrategyCounts::new(ctx, n_light, c.entries.len(), n_c)).collect();
     // Splats (t = 1) of every light vertex, in path order, their shadow rays cast one
@@ -161,10 +133,11 @@ pub(crate) fn build_caches(ctx: &Context, span: Passes, n_c: u32, wave_size: u32
         pending.fill(wave.len(), |i, out, path: &mut VertexList| {
             let (start, len) = paths[first + i];
             let q = iteration(wave.start + i as u32);
-            let range = start as usize..(start + len) as usize;
-            let (verts, known) = (&caches[q].vertices[range.clone()], &caches[q].densities[range]);
+            let verts = &caches[q].vertices[start as usize..(start + len) as usize];
+            let mut known = [Densities::default(); MAX_PATH];
+            subpath_densities(ctx, verts, &mut known);
             let sink = &mut |ray, l, px| out.push((Some(ray), l, Some(px)));
-            light_splats(ctx, verts, known, counts[q], n_light, path, sink);
+            light_splats(ctx, verts, &known[..verts.len()], counts[q], n_light, path, sink);
         });
         let (resolved, shadow) = resolve_wave(ctx, &mut pending);
         stats = stats.merge(shadow);
@@ -254,25 +227,22 @@ impl Connections {
     }
 }
 
-/// How [`vertex_strategies`] loads cache entry `e`'s light subpath: `(e, list, tail)`
-/// to `(s, the subpath's densities)`.
-pub(crate) type SubpathLoader<'a, 'd> = &'a dyn Fn(usize, &mut VertexList, bool) -> (usize, &'d [Densities]);
-
 /// Every strategy at camera vertex `t - 1` except the camera splats: the emitter it hit
 /// (s = 0), a light sample (s = 1), and connections to cache vertices, each pushed to
 /// `sink` with its MIS weight applied. `subpath(e, list, tail)` puts cache entry `e`'s
-/// light subpath up to the cached vertex into `list` and returns its length `s` and
-/// the subpath's densities (or none: kernels evaluate them); with `tail` only its last
-/// two vertices (one when `s` is 1), which is all a resampling candidate's weight
-/// reads. `cam_known`: the camera subpath's densities, or empty. Allocation-free:
-/// kernels call it.
+/// light subpath up to the cached vertex into `list` and returns its length `s`; with
+/// `tail` only its last two vertices (one when `s` is 1), which is all a resampling
+/// candidate's weight reads. `cam_known`: the camera subpath's densities, or empty
+/// (kernels evaluate them). The light subpaths' densities are evaluated per connection:
+/// reading them from the cache costs a second random access into it, for no measured
+/// gain. Allocation-free: kernels call it.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn vertex_strategies<'d>(
+pub(crate) fn vertex_strategies(
     ctx: &Context,
     (cam, cam_known): (&[Vertex], &[Densities]),
     t: usize,
     cache_len: usize,
-    subpath: SubpathLoader<'_, 'd>,
+    subpath: &dyn Fn(usize, &mut VertexList, bool) -> usize,
     counts: StrategyCounts,
     connections: Connections,
     rng: &mut Rng,
@@ -283,8 +253,8 @@ pub(crate) fn vertex_strategies<'d>(
     let count = |s: usize, t: usize| counts.count(s, t);
     // Strategy images drop strategies here, at the sink, after every random number a
     // full render would draw has been drawn.
-    let weight = |path: &VertexList, s: usize, light: &[Densities]| {
-        let known = Known { light, camera: cam_known };
+    let weight = |path: &VertexList, s: usize| {
+        let known = Known { light: &[], camera: cam_known };
         ctx.opts.strategy_weight(s, t, || mis_weight_counts(ctx, path, s, known, count))
     };
     // (Each strategy is a scope for `simt`'s model: nvcc inlines `weight` at each.)
@@ -292,7 +262,7 @@ pub(crate) fn vertex_strategies<'d>(
         let _strategy = crate::cost::scope();
         if t - 2 <= max_depth
             && let Some(l) = strategy_emitter(cam, t, &[], path)
-            && let Some(w) = weight(path, 0, &[])
+            && let Some(w) = weight(path, 0)
         {
             sink((None, l * w, None));
         }
@@ -301,7 +271,7 @@ pub(crate) fn vertex_strategies<'d>(
         let _strategy = crate::cost::scope();
         if t - 1 <= max_depth
             && let Some((l, ray)) = strategy_light_sample(ctx, cam, t, rng, path)
-            && let Some(w) = weight(path, 1, &[])
+            && let Some(w) = weight(path, 1)
         {
             sink((Some(ray), l * w, None));
         }
@@ -312,13 +282,13 @@ pub(crate) fn vertex_strategies<'d>(
     // One light-subpath buffer for every candidate and connection (filled in place).
     let mut light = VertexList::default();
     let mut connect = |e: usize, extra: f32, path: &mut VertexList, sink: &mut dyn FnMut(Pending)| {
-        let (s, light_known) = subpath(e, &mut light, false);
+        let s = subpath(e, &mut light, false);
         crate::cost::declare!(BRANCH);
         if s + t - 2 > max_depth {
             return;
         }
         if let Some((l, ray)) = strategy_connect(ctx, &light, s, cam, t, path)
-            && let Some(w) = weight(path, s, light_known)
+            && let Some(w) = weight(path, s)
         {
             crate::cost::declare!(2 + DIV + V3);
             sink((Some(ray), l * (w * extra / counts.connection as f32), None));
@@ -340,7 +310,7 @@ pub(crate) fn vertex_strategies<'d>(
             for k in 0..n {
                 let _trip = crate::cost::scope();
                 entry[k] = uniform_entry(cache_len, rng);
-                let (s, _) = subpath(entry[k], &mut tail, true);
+                let s = subpath(entry[k], &mut tail, true);
                 crate::cost::declare!(3 * BRANCH);
                 let (lv, prev) = match &tail[..] {
                     [prev, lv] => (Some(lv), Some(prev)),
@@ -396,10 +366,10 @@ pub(crate) fn camera_strategies(
         let (light, s) = cache.subpath(e);
         list.clear();
         list.extend(if tail { &light[s.saturating_sub(2)..] } else { light });
-        (s, cache.subpath_densities(e))
+        s
     };
     // The camera subpath's densities, evaluated once for all its vertices' strategies.
-    let mut cam_known = [Densities::default(); crate::render::bidir::MAX_PATH];
+    let mut cam_known = [Densities::default(); MAX_PATH];
     subpath_densities(ctx, cam, &mut cam_known);
     let cam_known = &cam_known[..cam.len()];
     for t in 2..=cam.len() {

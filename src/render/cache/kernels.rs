@@ -167,7 +167,7 @@ impl CacheRead<'_> {
         path: &mut VertexList,
         sink: &mut dyn FnMut(Pending),
     ) {
-        let subpath = |e: usize, light: &mut VertexList, tail: bool| (self.subpath(t, e, light, tail), &[][..]);
+        let subpath = |e: usize, light: &mut VertexList, tail: bool| self.subpath(t, e, light, tail);
         let n = self.entries.len();
         vertex_strategies(ctx, (cam, &[]), t_len, n, &subpath, self.counts, self.connections, rng, path, sink);
     }
