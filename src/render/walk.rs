@@ -405,20 +405,26 @@ pub(crate) fn resolve_wave(ctx: &Context, pending: &mut PendingLists) -> (Resolv
     let counts: Vec<usize> = chunks.par_iter().map(|c| c.items.iter().filter(|p| p.0.is_some()).count()).collect();
     let starts: Vec<usize> = counts.iter().scan(0, |at, &n| Some(std::mem::replace(at, *at + n))).collect();
     let total = counts.iter().sum();
+    // Written in place in parallel (a serial fill of the buffer first would be a serial
+    // pass over tens of megabytes at every thread count).
     rays.clear();
-    rays.resize(total, Ray::new(Vec3::ZERO, Vec3::Z));
+    rays.reserve(total);
     let mut slices = Vec::with_capacity(chunks.len());
-    let mut rest = &mut rays[..];
+    let mut rest = &mut rays.spare_capacity_mut()[..total];
     for &n in &counts {
         let (slice, tail) = rest.split_at_mut(n);
         slices.push(slice);
         rest = tail;
     }
-    chunks.par_iter().zip(slices).for_each(|(c, out)| {
-        for (o, ray) in out.iter_mut().zip(c.items.iter().filter_map(|p| p.0)) {
-            *o = ray;
-        }
-    });
+    let written: usize = chunks
+        .par_iter()
+        .zip(slices)
+        .map(|(c, out)| out.iter_mut().zip(c.items.iter().filter_map(|p| p.0)).map(|(o, ray)| o.write(ray)).count())
+        .sum();
+    assert_eq!(written, total, "every counted shadow ray is written");
+    // SAFETY: the first `total` slots of the spare capacity were written just above
+    // (each chunk's slice holds exactly its counted rays, and the writes were counted).
+    unsafe { rays.set_len(total) };
     blocked.clear();
     blocked.resize(total, false);
     let stats = if rays.is_empty() { CastStats::default() } else { ctx.caster.occluded(rays, blocked) };
