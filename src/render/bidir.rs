@@ -92,50 +92,56 @@ impl Default for Vertex {
 /// integrators handle: `max_depth + 2` vertices.
 pub const MAX_PATH: usize = crate::limits::MAX_PATH_VERTICES;
 
-/// A full path on the stack, so kernels can build one without allocating. Slots past
-/// `len` are never read, so a new list costs nothing (no 64-vertex fill).
+/// A full path on the stack, so kernels can build one without allocating.
+pub type VertexList = StackList<Vertex, MAX_PATH>;
+
+/// Up to `N` values on the stack. Slots past `len` are never read, so a new list costs
+/// nothing (no fill of its `N` slots).
 #[derive(Clone, Copy)]
-pub struct VertexList {
-    buf: [std::mem::MaybeUninit<Vertex>; MAX_PATH],
+pub struct StackList<T: Copy, const N: usize> {
+    buf: [std::mem::MaybeUninit<T>; N],
     len: usize,
 }
 
-impl Default for VertexList {
+impl<T: Copy, const N: usize> Default for StackList<T, N> {
     fn default() -> Self {
-        VertexList { buf: [std::mem::MaybeUninit::uninit(); MAX_PATH], len: 0 }
+        StackList { buf: [std::mem::MaybeUninit::uninit(); N], len: 0 }
     }
 }
 
-impl VertexList {
+impl<T: Copy, const N: usize> StackList<T, N> {
     /// Empties the list.
     pub fn clear(&mut self) {
         self.len = 0;
     }
-    /// Appends a vertex (the list holds `MAX_PATH`).
-    pub fn push(&mut self, v: Vertex) {
+    /// Appends a value (the list holds `N`).
+    pub fn push(&mut self, v: T) {
         self.buf[self.len] = std::mem::MaybeUninit::new(v);
         self.len += 1;
     }
-    /// Appends vertices.
-    pub fn extend<'a>(&mut self, vs: impl IntoIterator<Item = &'a Vertex>) {
+    /// Appends values.
+    pub fn extend<'a>(&mut self, vs: impl IntoIterator<Item = &'a T>)
+    where
+        T: 'a,
+    {
         for v in vs {
             self.push(*v);
         }
     }
 }
 
-impl std::ops::Deref for VertexList {
-    type Target = [Vertex];
-    fn deref(&self) -> &[Vertex] {
+impl<T: Copy, const N: usize> std::ops::Deref for StackList<T, N> {
+    type Target = [T];
+    fn deref(&self) -> &[T] {
         // SAFETY: the first `len` slots were written by `push`.
-        unsafe { std::slice::from_raw_parts(self.buf.as_ptr() as *const Vertex, self.len) }
+        unsafe { std::slice::from_raw_parts(self.buf.as_ptr() as *const T, self.len) }
     }
 }
 
-impl std::ops::DerefMut for VertexList {
-    fn deref_mut(&mut self) -> &mut [Vertex] {
+impl<T: Copy, const N: usize> std::ops::DerefMut for StackList<T, N> {
+    fn deref_mut(&mut self) -> &mut [T] {
         // SAFETY: as for `deref`.
-        unsafe { std::slice::from_raw_parts_mut(self.buf.as_mut_ptr() as *mut Vertex, self.len) }
+        unsafe { std::slice::from_raw_parts_mut(self.buf.as_mut_ptr() as *mut T, self.len) }
     }
 }
 

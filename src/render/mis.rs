@@ -3,7 +3,7 @@
 //! path, and the weight of one strategy among all that could have made the path. Shared
 //! by BDPT, LVC-BDPT and CIS-LBDPT; the vertices and strategies are in `bidir.rs`.
 
-use super::bidir::{MAX_PATH, Vertex, VertexKind, camera_importance, cos_at};
+use super::bidir::{MAX_PATH, StackList, Vertex, VertexKind, camera_importance, cos_at};
 use super::context::Context;
 use crate::cost::{BRANCH, DIV, DOT, NORMALIZE, SQRT, V3, V3_DIV, declare};
 use crate::sampling::Frame;
@@ -96,14 +96,21 @@ pub(crate) struct Densities {
     pub rev: f32,
 }
 
-/// The [`Densities`] of the vertices of `verts`, one subpath, into `out` (as long).
-pub(crate) fn subpath_densities(ctx: &Context, verts: &[Vertex], out: &mut [Densities]) {
-    for (i, d) in out.iter_mut().enumerate().take(verts.len()) {
+/// The [`Densities`] of the vertices of `verts`, one subpath.
+pub(crate) fn subpath_densities(ctx: &Context, verts: &[Vertex]) -> StackList<Densities, MAX_PATH> {
+    let mut out = StackList::default();
+    for i in 0..verts.len() {
         let prev = |j: usize| if j >= 1 { Some(&verts[j - 1]) } else { None };
-        d.fwd = if i >= 1 { pdf_area(ctx, prev(i - 1), &verts[i - 1], &verts[i]) } else { f32::NAN };
-        d.rev =
-            if i + 2 < verts.len() { pdf_area(ctx, Some(&verts[i + 2]), &verts[i + 1], &verts[i]) } else { f32::NAN };
+        out.push(Densities {
+            fwd: if i >= 1 { pdf_area(ctx, prev(i - 1), &verts[i - 1], &verts[i]) } else { f32::NAN },
+            rev: if i + 2 < verts.len() {
+                pdf_area(ctx, Some(&verts[i + 2]), &verts[i + 1], &verts[i])
+            } else {
+                f32::NAN
+            },
+        });
     }
+    out
 }
 
 /// What is known of a full path's densities before its weight is computed: the
@@ -170,22 +177,22 @@ pub(crate) fn mis_weight_counts(
     // Each trip of the two density loops: its test, index arithmetic and conversion.
     // Fixed arrays: kernels call this, and kernels do not allocate (a full path holds
     // at most `MAX_PATH` vertices, a `VertexList`'s capacity).
-    let (mut pl, mut pc) = ([0f64; MAX_PATH], [0f64; MAX_PATH]);
+    let (mut pl, mut pc) = (StackList::<f64, MAX_PATH>::default(), StackList::<f64, MAX_PATH>::default());
     for i in 0..=k {
         declare!(6);
-        pl[i] = match (i, known.light_end(k, s, i)) {
+        pl.push(match (i, known.light_end(k, s, i)) {
             (0, _) => light_origin_pdf(ctx, &path[0]) as f64,
             (_, Some(d)) => d as f64,
             _ => pdf_area(ctx, if i >= 2 { Some(&path[i - 2]) } else { None }, &path[i - 1], &path[i]) as f64,
-        };
+        });
     }
     for i in 0..=k {
         declare!(6);
-        pc[i] = match known.camera_end(k, s, i) {
+        pc.push(match known.camera_end(k, s, i) {
             _ if i == k => 1.0,
             Some(d) => d as f64,
             None => pdf_area(ctx, path.get(i + 2), &path[i + 1], &path[i]) as f64,
-        };
+        });
     }
     // The sum over strategies: for each of the k + 1, its validity tests (8), its count
     // (4) and the two products over all k + 1 densities (a multiply and the loop's
@@ -327,10 +334,8 @@ mod tests {
         for trial in 0..200 {
             let light = random_subpath(&scene, light_at(rng.uniform()), 1 + trial % 6, &mut rng);
             let cam = random_subpath(&scene, cam_v, 1 + (trial / 6) % 6, &mut rng);
-            let (mut ld, mut cd) = ([Densities::default(); MAX_PATH], [Densities::default(); MAX_PATH]);
-            subpath_densities(&ctx, &light, &mut ld);
-            subpath_densities(&ctx, &cam, &mut cd);
-            let known = Known { light: &ld[..light.len()], camera: &cd[..cam.len()] };
+            let (ld, cd) = (subpath_densities(&ctx, &light), subpath_densities(&ctx, &cam));
+            let known = Known { light: &ld, camera: &cd };
             for t in 1..=cam.len() {
                 for s in 0..=light.len() {
                     match (s, t) {

@@ -7,8 +7,8 @@ use crate::cast::CastStats;
 use crate::cost::{BRANCH, DIV, LUMINANCE, V3};
 use crate::film::luminance;
 use crate::render::bidir::{
-    MAX_PATH, Pending, Vertex, VertexKind, VertexList, camera_vertex, connect_contribution, connect_to_camera,
-    connectible, full_path, strategy_connect, strategy_emitter, strategy_light_sample,
+    Pending, Vertex, VertexKind, VertexList, camera_vertex, connect_contribution, connect_to_camera, connectible,
+    full_path, strategy_connect, strategy_emitter, strategy_light_sample,
 };
 use crate::render::context::{Context, Passes};
 use crate::render::mis::{Densities, Known, mis_weight_counts, subpath_densities};
@@ -134,10 +134,9 @@ pub(crate) fn build_caches(ctx: &Context, span: Passes, n_c: u32, wave_size: u32
             let (start, len) = paths[first + i];
             let q = iteration(wave.start + i as u32);
             let verts = &caches[q].vertices[start as usize..(start + len) as usize];
-            let mut known = [Densities::default(); MAX_PATH];
-            subpath_densities(ctx, verts, &mut known);
+            let known = subpath_densities(ctx, verts);
             let sink = &mut |ray, l, px| out.push((Some(ray), l, Some(px)));
-            light_splats(ctx, verts, &known[..verts.len()], counts[q], n_light, path, sink);
+            light_splats(ctx, verts, &known, counts[q], n_light, path, sink);
         });
         let (resolved, shadow) = resolve_wave(ctx, &mut pending);
         stats = stats.merge(shadow);
@@ -369,9 +368,7 @@ pub(crate) fn camera_strategies(
         s
     };
     // The camera subpath's densities, evaluated once for all its vertices' strategies.
-    let mut cam_known = [Densities::default(); MAX_PATH];
-    subpath_densities(ctx, cam, &mut cam_known);
-    let cam_known = &cam_known[..cam.len()];
+    let cam_known = &subpath_densities(ctx, cam);
     for t in 2..=cam.len() {
         let sink = &mut |p| pending.push(p);
         vertex_strategies(

@@ -19,11 +19,11 @@
 use crate::cast::CastStats;
 use crate::film::Film;
 use crate::render::bidir::{
-    MAX_PATH, Pending, Vertex, VertexList, camera_vertex, connect_to_camera, full_path, strategy_connect,
-    strategy_emitter, strategy_light_sample,
+    Pending, Vertex, VertexList, camera_vertex, connect_to_camera, full_path, strategy_connect, strategy_emitter,
+    strategy_light_sample,
 };
 use crate::render::context::{Context, Passes};
-use crate::render::mis::{Densities, Known, mis_weight, subpath_densities};
+use crate::render::mis::{Known, mis_weight, subpath_densities};
 use crate::render::walk::{
     Walker, WaveBuffers, extend_together, flush_wave, resolve_wave, start_camera_wave, start_light_wave,
 };
@@ -80,11 +80,8 @@ fn connect(
     let max_depth = ctx.opts.max_depth as usize;
     let cam_v = camera_vertex(&ctx.scene.camera);
     // The subpaths' own densities, evaluated once for all the strategies that join them.
-    let mut densities = [[Densities::default(); MAX_PATH]; 2];
-    let [light_d, cam_d] = &mut densities;
-    subpath_densities(ctx, light, light_d);
-    subpath_densities(ctx, cam, cam_d);
-    let known = Known { light: &light_d[..light.len()], camera: &cam_d[..cam.len()] };
+    let (light_d, cam_d) = (subpath_densities(ctx, light), subpath_densities(ctx, cam));
+    let known = Known { light: &light_d, camera: &cam_d };
     // A strategy image keeps one (s, t), with or without its MIS weight.
     let weight =
         |path: &[Vertex], s: usize, t: usize| ctx.opts.strategy_weight(s, t, || mis_weight(ctx, path, s, known));
