@@ -39,6 +39,25 @@ impl LightVertexCache {
         (&self.vertices[start as usize..start as usize + s as usize], s as usize)
     }
 
+    /// Asks the CPU to start loading entry `e`'s subpath (a hint: nothing is read).
+    #[inline]
+    pub(crate) fn prefetch(&self, e: usize) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+            let (start, s) = self.entries[e];
+            let first = self.vertices.as_ptr().wrapping_add(start as usize) as *const i8;
+            let bytes = s as usize * std::mem::size_of::<Vertex>();
+            for offset in (0..bytes).step_by(64) {
+                // SAFETY: SSE is part of x86-64's baseline, and a prefetch reads nothing
+                // (the address need not even be valid).
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(first.wrapping_add(offset)) };
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = e;
+    }
+
     /// Samples drawn per connection strategy: `n_c · N_L / |cache|`.
     pub fn connection_count(&self, n_c: u32) -> f64 {
         StrategyCounts::connections(n_c, self.light_paths, self.entries.len())
@@ -226,6 +245,10 @@ impl Connections {
     }
 }
 
+/// How [`vertex_strategies`] reads the cache: `subpath(e, list, tail)` (below), and on
+/// the host a prefetch hint for entry `e` (kernels have none).
+pub(crate) type CacheAccess<'a> = (&'a dyn Fn(usize, &mut VertexList, bool) -> usize, Option<&'a dyn Fn(usize)>);
+
 /// Every strategy at camera vertex `t - 1` except the camera splats: the emitter it hit
 /// (s = 0), a light sample (s = 1), and connections to cache vertices, each pushed to
 /// `sink` with its MIS weight applied. `subpath(e, list, tail)` puts cache entry `e`'s
@@ -241,7 +264,7 @@ pub(crate) fn vertex_strategies(
     (cam, cam_known): (&[Vertex], &[Densities]),
     t: usize,
     cache_len: usize,
-    subpath: &dyn Fn(usize, &mut VertexList, bool) -> usize,
+    (subpath, prefetch): CacheAccess,
     counts: StrategyCounts,
     connections: Connections,
     rng: &mut Rng,
@@ -295,6 +318,15 @@ pub(crate) fn vertex_strategies(
     };
     match connections {
         Connections::Uniform { n } => {
+            // The host starts loading every drawn entry's subpath before the first
+            // connection needs one, so that the cache misses overlap: connections draw
+            // no random numbers, so a copy of the stream draws the same entries.
+            if let Some(prefetch) = prefetch {
+                let mut ahead = *rng;
+                for _ in 0..n {
+                    prefetch(uniform_entry(cache_len, &mut ahead));
+                }
+            }
             for _ in 0..n {
                 let _trip = crate::cost::scope();
                 let e = uniform_entry(cache_len, rng);
@@ -369,19 +401,10 @@ pub(crate) fn camera_strategies(
     };
     // The camera subpath's densities, evaluated once for all its vertices' strategies.
     let cam_known = &subpath_densities(ctx, cam);
+    let prefetch = |e: usize| cache.prefetch(e);
+    let access: CacheAccess = (&subpath, Some(&prefetch));
     for t in 2..=cam.len() {
         let sink = &mut |p| pending.push(p);
-        vertex_strategies(
-            ctx,
-            (cam, cam_known),
-            t,
-            cache.entries.len(),
-            &subpath,
-            counts,
-            connections,
-            rng,
-            path,
-            sink,
-        );
+        vertex_strategies(ctx, (cam, cam_known), t, cache.entries.len(), access, counts, connections, rng, path, sink);
     }
 }

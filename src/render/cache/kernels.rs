@@ -169,7 +169,7 @@ impl CacheRead<'_> {
     ) {
         let subpath = |e: usize, light: &mut VertexList, tail: bool| self.subpath(t, e, light, tail);
         let n = self.entries.len();
-        vertex_strategies(ctx, (cam, &[]), t_len, n, &subpath, self.counts, self.connections, rng, path, sink);
+        vertex_strategies(ctx, (cam, &[]), t_len, n, (&subpath, None), self.counts, self.connections, rng, path, sink);
     }
 }
 
