@@ -39,7 +39,8 @@ impl LightVertexCache {
         (&self.vertices[start as usize..start as usize + s as usize], s as usize)
     }
 
-    /// Asks the CPU to start loading entry `e`'s subpath (a hint: nothing is read).
+    /// Asks the CPU to start loading entry `e`'s subpath: a hint, which reads the entry
+    /// but not the subpath.
     #[inline]
     pub(crate) fn prefetch(&self, e: usize) {
         #[cfg(target_arch = "x86_64")]
