@@ -13,7 +13,8 @@
 //!     [--dacrt-packet RAYS]
 //! ```
 //!
-//! `embree` is Embree's default build (medium quality) traced one ray at a time;
+//! `bvh4` traces in 8-ray packets where the CPU has AVX2, `bvh4-single` the same tree
+//! one ray at a time. `embree` is Embree's default build (medium quality) traced one ray at a time;
 //! `embree-fast` its fastest rebuild (low quality, dynamic scene) traced in 16-ray
 //! packets; both need the cargo feature `embree`. With `--rounds R` every caster is
 //! measured once per round, the casters interleaved within each round, and each cell
@@ -173,6 +174,7 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
             Box::new(BvhCaster::with_build(s.triangle_vertices(), b).with_traversal(Traversal::Fast))
         }
         "bvh4" => Box::new(Bvh4::new(s)),
+        "bvh4-single" => Box::new(Bvh4::new(s).single_rays()),
         "dacrt" => {
             let mut d = Dacrt::new(s);
             let t = TUNABLES.get().copied().unwrap_or_default();
@@ -201,10 +203,20 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
 
 /// The casters this build can measure.
 #[cfg(feature = "embree")]
-const KNOWN: &[&str] =
-    &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "bvh4", "dacrt", "pdacrt", "embree", "embree-fast"];
+const KNOWN: &[&str] = &[
+    "bvh",
+    "bvh-fast",
+    "bvh-very-fast",
+    "bvh-fastest",
+    "bvh4",
+    "bvh4-single",
+    "dacrt",
+    "pdacrt",
+    "embree",
+    "embree-fast",
+];
 #[cfg(not(feature = "embree"))]
-const KNOWN: &[&str] = &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "bvh4", "dacrt", "pdacrt"];
+const KNOWN: &[&str] = &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "bvh4", "bvh4-single", "dacrt", "pdacrt"];
 
 /// One row per cell from the rounds' rows: build, trace and total each the median of
 /// its own values; the stages of the round whose trace was nearest the median.

@@ -16,6 +16,7 @@ use glam::Vec3;
 pub(crate) mod hit_key;
 mod slack;
 pub(crate) use slack::{batch_slack, hit_slack, magnitude};
+pub(crate) mod lane_ops;
 pub mod lanes;
 mod watertight;
 pub(crate) use watertight::triangle_test;

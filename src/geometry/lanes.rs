@@ -10,6 +10,7 @@
 //! the scalar [`triangle_test`]'s. A lane whose edge function is exactly zero takes
 //! the scalar test itself (its double-precision tie-break).
 
+use super::lane_ops::{slab, watertight};
 use super::{Aabb, Ray, RayShear, SLAB_WIDEN, inv_dir, triangle_test};
 use glam::{Vec3, Vec3A, Vec4};
 
@@ -100,19 +101,8 @@ impl Boxes4 {
         if !Vec3A::from_vec4(inv).is_finite() {
             return self.enters_by_position(ray, t_far, grow);
         }
-        let o = ray.origin_t_min;
-        let g = Vec4::splat(grow);
-        let slab = |a: usize| {
-            let (o, i) = (Vec4::splat(o[a]), Vec4::splat(inv[a]));
-            let (t0, t1) = ((self.min[a] - g - o) * i, (self.max[a] + g - o) * i);
-            (t0.min(t1), t0.max(t1))
-        };
-        let ((n0, f0), (n1, f1), (n2, f2)) = (slab(0), slab(1), slab(2));
-        // Widening each axis' exit and then taking the minimum gives the same value as
-        // `intersect`'s per-axis widening: rounding a product is monotone.
-        let near = n0.max(n1).max(n2).max(Vec4::splat(o.w));
-        let far = (f0.min(f1).min(f2) * SLAB_WIDEN).min(Vec4::splat(t_far));
-        (near.cmple(far).bitmask(), near)
+        let (o, s) = (ray.origin_t_min, Vec4::splat);
+        slab(self.min, self.max, [s(o.x), s(o.y), s(o.z)], [s(inv.x), s(inv.y), s(inv.z)], s(grow), s(o.w), s(t_far))
     }
 
     #[cold]
@@ -131,36 +121,29 @@ impl Boxes4 {
     }
 }
 
-/// Four triangles in structure-of-arrays form: `p[3 * corner + axis]` holds that
+/// Four triangles in structure-of-arrays form: `p[corner][axis]` holds that
 /// coordinate of the four triangles' corner. Unused lanes repeat lane 0.
 #[derive(Clone, Copy, Debug)]
 pub struct Triangles4 {
-    p: [Vec4; 9],
+    p: [[Vec4; 3]; 3],
 }
 
 impl Triangles4 {
     /// A block of four triangles with all corners at the origin (hit by nothing).
-    pub const EMPTY: Triangles4 = Triangles4 { p: [Vec4::ZERO; 9] };
+    pub const EMPTY: Triangles4 = Triangles4 { p: [[Vec4::ZERO; 3]; 3] };
 
     /// The block of up to four triangles (at least one).
     #[inline]
     pub fn new(tris: &[[Vec3; 3]]) -> Triangles4 {
         debug_assert!(!tris.is_empty() && tris.len() <= 4);
-        let mut p = [[0.0f32; 4]; 9];
-        for k in 0..4 {
-            let t = &tris[if k < tris.len() { k } else { 0 }];
-            for (c, corner) in t.iter().enumerate() {
-                p[3 * c][k] = corner.x;
-                p[3 * c + 1][k] = corner.y;
-                p[3 * c + 2][k] = corner.z;
-            }
-        }
-        Triangles4 { p: p.map(Vec4::from_array) }
+        let t = |k: usize| &tris[if k < tris.len() { k } else { 0 }];
+        Triangles4 { p: [0, 1, 2].map(|c| [0, 1, 2].map(|a| Vec4::from_array([0, 1, 2, 3].map(|k| t(k)[c][a])))) }
     }
 
     /// Triangle `k`'s corners.
-    fn triangle(&self, k: usize) -> [Vec3; 3] {
-        let c = |i: usize| Vec3::new(self.p[3 * i][k], self.p[3 * i + 1][k], self.p[3 * i + 2][k]);
+    #[inline(always)]
+    pub(crate) fn triangle(&self, k: usize) -> [Vec3; 3] {
+        let c = |i: usize| Vec3::new(self.p[i][0][k], self.p[i][1][k], self.p[i][2][k]);
         [c(0), c(1), c(2)]
     }
 
@@ -168,39 +151,12 @@ impl Triangles4 {
     /// hit with `t_min < t < t_max`, at `(t[k], u[k], v[k])`.
     #[inline]
     pub fn test(&self, origin: Vec3, shear: &RayShear, t_min: f32, t_max: f32) -> Hits4 {
-        let o = Vec3A::from(origin);
-        let p = &self.p;
-        let (ox, oy, oz) = (Vec4::splat(o.x), Vec4::splat(o.y), Vec4::splat(o.z));
-        let row = |r: Vec3A| (Vec4::splat(r.x), Vec4::splat(r.y), Vec4::splat(r.z));
-        let (rx, ry, rz) = (row(shear.rx), row(shear.ry), row(shear.rz));
-        // A corner relative to the origin, sheared: `RayShear::apply`, lane-wise.
-        let corner = |c: usize| {
-            let (x, y, z) = (p[3 * c] - ox, p[3 * c + 1] - oy, p[3 * c + 2] - oz);
-            let dot = |r: (Vec4, Vec4, Vec4)| (r.0 * x + r.1 * y) + r.2 * z;
-            (dot(rx), dot(ry), dot(rz))
-        };
-        let (ax, ay, az) = corner(0);
-        let (bx, by, bz) = corner(1);
-        let (cx, cy, cz) = corner(2);
-        let e0 = cx * by - cy * bx;
-        let e1 = ax * cy - ay * cx;
-        let e2 = bx * ay - by * ax;
-        let det = e0 + e1 + e2;
-        let t_scaled = e0 * az + e1 * bz + e2 * cz;
-        let inv_det = Vec4::ONE / det;
-        let t = t_scaled * inv_det;
-        let zero = Vec4::ZERO;
-        let on_edge = (e0.cmpeq(zero) | e1.cmpeq(zero) | e2.cmpeq(zero)).bitmask();
-        let outside =
-            (e0.cmplt(zero) | e1.cmplt(zero) | e2.cmplt(zero)) & (e0.cmpgt(zero) | e1.cmpgt(zero) | e2.cmpgt(zero));
-        let valid = det.cmpne(zero) & det.abs().cmplt(Vec4::INFINITY);
-        let within = t.cmpgt(Vec4::splat(t_min)) & t.cmplt(Vec4::splat(t_max));
-        let mut hits = Hits4 {
-            mask: (valid & within).bitmask() & !outside.bitmask() & !on_edge,
-            t: t.to_array(),
-            u: (e1 * inv_det).to_array(),
-            v: (e2 * inv_det).to_array(),
-        };
+        let s = Vec4::splat;
+        let row = |r: Vec3A| [s(r.x), s(r.y), s(r.z)];
+        let rows = [row(shear.rx), row(shear.ry), row(shear.rz)];
+        let h = watertight(&self.p, [s(origin.x), s(origin.y), s(origin.z)], &rows, s(t_min), s(t_max));
+        let on_edge = h.on_edge;
+        let mut hits = Hits4 { mask: h.mask, t: h.t.to_array(), u: h.u.to_array(), v: h.v.to_array() };
         if on_edge != 0 {
             self.on_edge(&mut hits, on_edge, origin, shear, t_min, t_max);
         }

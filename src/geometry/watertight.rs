@@ -45,6 +45,12 @@ impl RayShear {
         }
     }
 
+    /// The rows `rx`, `ry`, `rz`.
+    #[inline(always)]
+    pub(crate) fn rows(&self) -> [Vec3A; 3] {
+        [self.rx, self.ry, self.rz]
+    }
+
     /// A vertex relative to the ray origin in ray-aligned axes: sheared `(x, y)` and
     /// the scaled `z`.
     #[inline(always)]

@@ -15,8 +15,10 @@
 
 mod build;
 mod node;
+#[cfg(target_arch = "x86_64")]
+mod packet;
 
-use super::caster::{CastStats, RayCaster, Triangles, per_ray};
+use super::caster::{CastStats, RayCaster, Triangles, per_packet, per_ray};
 use crate::geometry::lanes::RaySlab;
 use crate::geometry::{Hit, Ray, RayShear, cull_distance, hit_slack, magnitude};
 use crate::scene::Scene;
@@ -47,6 +49,8 @@ pub struct Bvh4 {
     /// Triangles with a coordinate that is not finite, in leaves tested by every ray
     /// (with their triangle counts).
     outliers: Vec<(Leaf, usize)>,
+    /// Whether batches are traced one ray at a time even where packets could run.
+    single_rays: bool,
     build_seconds: f64,
 }
 
@@ -71,7 +75,14 @@ impl Bvh4 {
             (b.nodes, b.leaves, Some(b.root))
         };
         let depth = root.map_or(0, |r| node::depth(&nodes, r));
-        Bvh4 { nodes, leaves, magnitude, root, depth, outliers, build_seconds: start.elapsed().as_secs_f64() }
+        let build_seconds = start.elapsed().as_secs_f64();
+        Bvh4 { nodes, leaves, magnitude, root, depth, outliers, single_rays: false, build_seconds }
+    }
+
+    /// The same tree, traced one ray at a time (no packets): the traversal packets are
+    /// measured against. Same answers, bit for bit.
+    pub fn single_rays(self) -> Self {
+        Bvh4 { single_rays: true, ..self }
     }
 
     /// How far boxes are grown for a ray: a bound on how far from a triangle a hit the
@@ -79,6 +90,14 @@ impl Bvh4 {
     #[inline]
     fn grow(&self, ray: &Ray) -> f32 {
         hit_slack(self.magnitude, ray.origin.abs().max_element())
+    }
+
+    /// Whether batches go through in packets ([`packet`]): on a CPU with AVX2, for a
+    /// tree without outliers (which every ray must test one at a time), unless
+    /// [`single_rays`](Self::single_rays) asked for none.
+    #[cfg(target_arch = "x86_64")]
+    fn packets(&self) -> bool {
+        !self.single_rays && self.outliers.is_empty() && packet::available()
     }
 
     /// Closest hit of one (valid) ray and the triangles it tested.
@@ -197,14 +216,24 @@ impl Bvh4 {
 
 impl RayCaster for Bvh4 {
     fn name(&self) -> &'static str {
-        "bvh4"
+        if self.single_rays { "bvh4-single" } else { "bvh4" }
     }
 
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
+        #[cfg(target_arch = "x86_64")]
+        if self.packets() {
+            // SAFETY: `packets` checked that this CPU has AVX2.
+            return per_packet(rays, hits, |r, h| unsafe { packet::closest_avx2(self, r, h) });
+        }
         per_ray(rays, hits, |ray| if ray.is_valid() { self.closest_one(ray) } else { (Hit::MISS, 0) })
     }
 
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
+        #[cfg(target_arch = "x86_64")]
+        if self.packets() {
+            // SAFETY: `packets` checked that this CPU has AVX2.
+            return per_packet(rays, out, |r, o| unsafe { packet::occluded_avx2(self, r, o) });
+        }
         per_ray(rays, out, |ray| if ray.is_valid() { self.occluded_one(ray) } else { (false, 0) })
     }
 
