@@ -13,8 +13,9 @@
 //!     [--dacrt-packet RAYS]
 //! ```
 //!
-//! `bvh4` traces in 8-ray packets where the CPU has AVX2, `bvh4-single` the same tree
-//! one ray at a time. `embree` is Embree's default build (medium quality) traced one ray at a time;
+//! `bvh4` traces in packets of 16 rays where the CPU has AVX-512 (8 with AVX2),
+//! `bvh4-8` in packets of 8 rays, `bvh4-single` the same tree one ray at a time.
+//! `embree` is Embree's default build (medium quality) traced one ray at a time;
 //! `embree-fast` its fastest rebuild (low quality, dynamic scene) traced in 16-ray
 //! packets; both need the cargo feature `embree`. With `--rounds R` every caster is
 //! measured once per round, the casters interleaved within each round, and each cell
@@ -174,6 +175,7 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
             Box::new(BvhCaster::with_build(s.triangle_vertices(), b).with_traversal(Traversal::Fast))
         }
         "bvh4" => Box::new(Bvh4::new(s)),
+        "bvh4-8" => Box::new(Bvh4::new(s).max_packet(8)),
         "bvh4-single" => Box::new(Bvh4::new(s).single_rays()),
         "dacrt" => {
             let mut d = Dacrt::new(s);
@@ -209,6 +211,7 @@ const KNOWN: &[&str] = &[
     "bvh-very-fast",
     "bvh-fastest",
     "bvh4",
+    "bvh4-8",
     "bvh4-single",
     "dacrt",
     "pdacrt",
@@ -216,7 +219,8 @@ const KNOWN: &[&str] = &[
     "embree-fast",
 ];
 #[cfg(not(feature = "embree"))]
-const KNOWN: &[&str] = &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "bvh4", "bvh4-single", "dacrt", "pdacrt"];
+const KNOWN: &[&str] =
+    &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "bvh4", "bvh4-8", "bvh4-single", "dacrt", "pdacrt"];
 
 /// One row per cell from the rounds' rows: build, trace and total each the median of
 /// its own values; the stages of the round whose trace was nearest the median.

@@ -18,6 +18,8 @@ mod slack;
 pub(crate) use slack::{batch_slack, hit_slack, magnitude};
 pub(crate) mod lane_ops;
 pub mod lanes;
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod packet_lanes;
 mod watertight;
 pub(crate) use watertight::triangle_test;
 pub use watertight::{RayShear, intersect_triangle};

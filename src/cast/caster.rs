@@ -133,19 +133,19 @@ pub(crate) fn per_ray<T: Send>(rays: &[Ray], out: &mut [T], one: impl Fn(&Ray) -
     })
 }
 
-/// Answers every ray of a batch in parallel, [`PACKET`](crate::geometry::lane_ops::PACKET)
-/// rays at a time, with `packet` (which writes the answers of its rays and returns the
-/// tests it made), timed: the loop of the casters that trace packets.
+/// Answers every ray of a batch in parallel, `width` rays at a time, with `packet`
+/// (which writes the answers of its rays and returns the tests it made), timed: the
+/// loop of the casters that trace packets.
 pub(crate) fn per_packet<T: Send>(
     rays: &[Ray],
     out: &mut [T],
+    width: usize,
     packet: impl Fn(&[Ray], &mut [T]) -> u64 + Sync + Send,
 ) -> CastStats {
-    use crate::geometry::lane_ops::PACKET;
     assert_eq!(rays.len(), out.len(), "one result slot per ray");
     timed(rays.len(), 0, || {
         use rayon::prelude::*;
-        rays.par_chunks(PACKET).zip(out.par_chunks_mut(PACKET)).with_min_len(8).map(|(r, o)| packet(r, o)).sum()
+        rays.par_chunks(width).zip(out.par_chunks_mut(width)).with_min_len(64 / width).map(|(r, o)| packet(r, o)).sum()
     })
 }
 

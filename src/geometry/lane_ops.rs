@@ -1,7 +1,8 @@
 //! The box and triangle tests written once over SIMD lanes ([`Lanes`]), whatever the
 //! lanes hold: four boxes or triangles against one ray (`Vec4`, [`super::lanes`]'s
 //! [`Boxes4`](super::lanes::Boxes4) and [`Triangles4`](super::lanes::Triangles4)), or
-//! one box or triangle against eight rays (`F8`, the BVH4's ray packets on x86-64). A value
+//! one box or triangle against 8 or 16 rays (`super::packet_lanes`, the BVH4's ray
+//! packets on x86-64). A value
 //! the same for every lane is a splat.
 //!
 //! Each lane runs the scalar test's operations in the scalar test's order (the shear
@@ -74,130 +75,6 @@ impl Lanes for glam::Vec4 {
     #[inline(always)]
     fn bits(m: Self::Mask) -> u32 {
         m.bitmask()
-    }
-}
-
-/// Lanes of a packet of rays.
-pub(crate) const PACKET: usize = 8;
-
-/// Eight `f32` lanes: one AVX register. Its operations are AVX instructions, so they
-/// may run only in code compiled for AVX2 on a CPU that has it (the BVH4's packets
-/// check once, `cast::bvh4::packet::available`).
-#[cfg(target_arch = "x86_64")]
-#[derive(Clone, Copy, Debug)]
-#[repr(transparent)]
-pub(crate) struct F8(std::arch::x86_64::__m256);
-
-/// The mask of [`F8`]: all ones or all zeros per lane.
-#[cfg(target_arch = "x86_64")]
-#[derive(Clone, Copy, Debug)]
-#[repr(transparent)]
-pub(crate) struct M8(std::arch::x86_64::__m256);
-
-#[cfg(target_arch = "x86_64")]
-mod avx {
-    // SAFETY (every `unsafe` below): AVX intrinsics, reached only from code compiled
-    // for AVX2 after a run-time check that the CPU has it (see `F8`).
-    use super::{F8, Lanes, M8, PACKET};
-    use std::arch::x86_64::*;
-    use std::ops::{Add, BitAnd, BitOr, Div, Mul, Sub};
-
-    macro_rules! lanewise {
-        ($tr:ident, $f:ident, $op:ident, $t:ident) => {
-            impl $tr for $t {
-                type Output = $t;
-                #[inline(always)]
-                fn $f(self, o: $t) -> $t {
-                    $t(unsafe { $op(self.0, o.0) })
-                }
-            }
-        };
-    }
-    lanewise!(Add, add, _mm256_add_ps, F8);
-    lanewise!(Sub, sub, _mm256_sub_ps, F8);
-    lanewise!(Mul, mul, _mm256_mul_ps, F8);
-    lanewise!(Div, div, _mm256_div_ps, F8);
-    lanewise!(BitAnd, bitand, _mm256_and_ps, M8);
-    lanewise!(BitOr, bitor, _mm256_or_ps, M8);
-
-    impl F8 {
-        /// The lanes.
-        #[inline(always)]
-        pub(crate) fn from_array(v: [f32; PACKET]) -> F8 {
-            F8(unsafe { _mm256_loadu_ps(v.as_ptr()) })
-        }
-
-        /// The lanes as an array.
-        #[inline(always)]
-        pub(crate) fn to_array(self) -> [f32; PACKET] {
-            let mut v = [0.0; PACKET];
-            unsafe { _mm256_storeu_ps(v.as_mut_ptr(), self.0) };
-            v
-        }
-
-        /// The smallest lane where `mask` is set (∞ where none is).
-        #[inline(always)]
-        pub(crate) fn min_where(self, mask: M8) -> f32 {
-            let v = unsafe { _mm256_blendv_ps(_mm256_set1_ps(f32::INFINITY), self.0, mask.0) };
-            let m = unsafe { _mm_min_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps::<1>(v)) };
-            let m = unsafe { _mm_min_ps(m, _mm_movehl_ps(m, m)) };
-            let m = unsafe { _mm_min_ss(m, _mm_shuffle_ps::<1>(m, m)) };
-            unsafe { _mm_cvtss_f32(m) }
-        }
-    }
-
-    impl M8 {
-        /// The mask of the set bits of `bits` (bit `k` for lane `k`).
-        #[inline(always)]
-        pub(crate) fn from_bits(bits: u32) -> M8 {
-            let lane = unsafe { _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128) };
-            let set = unsafe { _mm256_and_si256(_mm256_set1_epi32(bits as i32), lane) };
-            M8(unsafe { _mm256_castsi256_ps(_mm256_cmpeq_epi32(set, lane)) })
-        }
-    }
-
-    impl Lanes for F8 {
-        type Mask = M8;
-        #[inline(always)]
-        fn splat(v: f32) -> Self {
-            F8(unsafe { _mm256_set1_ps(v) })
-        }
-        #[inline(always)]
-        fn min(self, o: Self) -> Self {
-            F8(unsafe { _mm256_min_ps(self.0, o.0) })
-        }
-        #[inline(always)]
-        fn max(self, o: Self) -> Self {
-            F8(unsafe { _mm256_max_ps(self.0, o.0) })
-        }
-        #[inline(always)]
-        fn abs(self) -> Self {
-            F8(unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0) })
-        }
-        #[inline(always)]
-        fn lt(self, o: Self) -> M8 {
-            M8(unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(self.0, o.0) })
-        }
-        #[inline(always)]
-        fn le(self, o: Self) -> M8 {
-            M8(unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(self.0, o.0) })
-        }
-        #[inline(always)]
-        fn gt(self, o: Self) -> M8 {
-            M8(unsafe { _mm256_cmp_ps::<_CMP_GT_OQ>(self.0, o.0) })
-        }
-        #[inline(always)]
-        fn eq(self, o: Self) -> M8 {
-            M8(unsafe { _mm256_cmp_ps::<_CMP_EQ_OQ>(self.0, o.0) })
-        }
-        #[inline(always)]
-        fn ne(self, o: Self) -> M8 {
-            M8(unsafe { _mm256_cmp_ps::<_CMP_NEQ_UQ>(self.0, o.0) })
-        }
-        #[inline(always)]
-        fn bits(m: M8) -> u32 {
-            unsafe { _mm256_movemask_ps(m.0) as u32 }
-        }
     }
 }
 

@@ -9,13 +9,20 @@ use warpray::geometry::{Hit, Ray};
 use warpray::glam::Vec3;
 use warpray::scene::cornell_box;
 
-/// Both BVH casters over a triangle list.
-fn bvhs(tris: &[[Vec3; 3]]) -> [Box<dyn RayCaster>; 2] {
-    [Box::new(BvhCaster::from_triangles(tris.to_vec())), Box::new(Bvh4::from_triangles(tris.to_vec()))]
+/// Both BVH casters over a triangle list, the BVH4 with each of its traversals (the
+/// widest packets this CPU runs, packets of 8, one ray at a time).
+fn bvhs(tris: &[[Vec3; 3]]) -> [Box<dyn RayCaster>; 4] {
+    let bvh4 = || Bvh4::from_triangles(tris.to_vec());
+    [
+        Box::new(BvhCaster::from_triangles(tris.to_vec())),
+        Box::new(bvh4()),
+        Box::new(bvh4().max_packet(8)),
+        Box::new(bvh4().single_rays()),
+    ]
 }
 
 /// Same hit or miss as brute force, the same distance, and the same occlusion, for
-/// both BVH casters.
+/// every BVH caster of [`bvhs`].
 fn agree(tris: &[[Vec3; 3]], rays: &[Ray], what: &str) {
     let brute = BruteForce::from_triangles(tris.to_vec());
     for bvh in bvhs(tris) {

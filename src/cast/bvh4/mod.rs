@@ -49,8 +49,8 @@ pub struct Bvh4 {
     /// Triangles with a coordinate that is not finite, in leaves tested by every ray
     /// (with their triangle counts).
     outliers: Vec<(Leaf, usize)>,
-    /// Whether batches are traced one ray at a time even where packets could run.
-    single_rays: bool,
+    /// The most rays a packet may hold (1: one ray at a time).
+    max_packet: usize,
     build_seconds: f64,
 }
 
@@ -76,13 +76,19 @@ impl Bvh4 {
         };
         let depth = root.map_or(0, |r| node::depth(&nodes, r));
         let build_seconds = start.elapsed().as_secs_f64();
-        Bvh4 { nodes, leaves, magnitude, root, depth, outliers, single_rays: false, build_seconds }
+        Bvh4 { nodes, leaves, magnitude, root, depth, outliers, max_packet: usize::MAX, build_seconds }
     }
 
     /// The same tree, traced one ray at a time (no packets): the traversal packets are
     /// measured against. Same answers, bit for bit.
     pub fn single_rays(self) -> Self {
-        Bvh4 { single_rays: true, ..self }
+        Bvh4 { max_packet: 1, ..self }
+    }
+
+    /// The same tree, traced in packets of at most `rays` rays (8: AVX2's even on a CPU
+    /// with AVX-512; 1: one ray at a time). Same answers, bit for bit.
+    pub fn max_packet(self, rays: usize) -> Self {
+        Bvh4 { max_packet: rays, ..self }
     }
 
     /// How far boxes are grown for a ray: a bound on how far from a triangle a hit the
@@ -92,12 +98,15 @@ impl Bvh4 {
         hit_slack(self.magnitude, ray.origin.abs().max_element())
     }
 
-    /// Whether batches go through in packets ([`packet`]): on a CPU with AVX2, for a
-    /// tree without outliers (which every ray must test one at a time), unless
-    /// [`single_rays`](Self::single_rays) asked for none.
+    /// The packets batches go through ([`packet`]): the widest this CPU runs (AVX-512 or
+    /// AVX2) within [`max_packet`](Self::max_packet), for a tree without outliers (which
+    /// every ray must test one at a time); `None` for one ray at a time.
     #[cfg(target_arch = "x86_64")]
-    fn packets(&self) -> bool {
-        !self.single_rays && self.outliers.is_empty() && packet::available()
+    fn packets(&self) -> Option<packet::Width> {
+        let widths = [packet::Width::Avx512, packet::Width::Avx2];
+        let widest = packet::widest()?;
+        let fits = |w: &packet::Width| w.rays() <= self.max_packet && w.rays() <= widest.rays();
+        widths.into_iter().find(fits).filter(|_| self.outliers.is_empty())
     }
 
     /// Closest hit of one (valid) ray and the triangles it tested.
@@ -216,23 +225,37 @@ impl Bvh4 {
 
 impl RayCaster for Bvh4 {
     fn name(&self) -> &'static str {
-        if self.single_rays { "bvh4-single" } else { "bvh4" }
+        match self.max_packet {
+            1 => "bvh4-single",
+            2..16 => "bvh4-8",
+            _ => "bvh4",
+        }
     }
 
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
         #[cfg(target_arch = "x86_64")]
-        if self.packets() {
-            // SAFETY: `packets` checked that this CPU has AVX2.
-            return per_packet(rays, hits, |r, h| unsafe { packet::closest_avx2(self, r, h) });
+        if let Some(width) = self.packets() {
+            // SAFETY: `packets` gives only a width whose extension this CPU has.
+            return match width {
+                packet::Width::Avx512 => {
+                    per_packet(rays, hits, 16, |r, h| unsafe { packet::closest_avx512(self, r, h) })
+                }
+                packet::Width::Avx2 => per_packet(rays, hits, 8, |r, h| unsafe { packet::closest_avx2(self, r, h) }),
+            };
         }
         per_ray(rays, hits, |ray| if ray.is_valid() { self.closest_one(ray) } else { (Hit::MISS, 0) })
     }
 
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
         #[cfg(target_arch = "x86_64")]
-        if self.packets() {
-            // SAFETY: `packets` checked that this CPU has AVX2.
-            return per_packet(rays, out, |r, o| unsafe { packet::occluded_avx2(self, r, o) });
+        if let Some(width) = self.packets() {
+            // SAFETY: `packets` gives only a width whose extension this CPU has.
+            return match width {
+                packet::Width::Avx512 => {
+                    per_packet(rays, out, 16, |r, o| unsafe { packet::occluded_avx512(self, r, o) })
+                }
+                packet::Width::Avx2 => per_packet(rays, out, 8, |r, o| unsafe { packet::occluded_avx2(self, r, o) }),
+            };
         }
         per_ray(rays, out, |ray| if ray.is_valid() { self.occluded_one(ray) } else { (false, 0) })
     }
