@@ -100,7 +100,8 @@ impl Bvh4 {
 
     /// The packets batches go through ([`packet`]): the widest this CPU runs (AVX-512 or
     /// AVX2) within [`max_packet`](Self::max_packet), for a tree without outliers (which
-    /// every ray must test one at a time); `None` for one ray at a time.
+    /// every ray must test one at a time); `None` for one ray at a time. A batch smaller
+    /// than one packet (a megakernel thread's single ray) goes one ray at a time too.
     #[cfg(target_arch = "x86_64")]
     fn packets(&self) -> Option<packet::Width> {
         let widths = [packet::Width::Avx512, packet::Width::Avx2];
@@ -234,7 +235,7 @@ impl RayCaster for Bvh4 {
 
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
         #[cfg(target_arch = "x86_64")]
-        if let Some(width) = self.packets() {
+        if let Some(width) = self.packets().filter(|w| rays.len() >= w.rays()) {
             // SAFETY: `packets` gives only a width whose extension this CPU has.
             return match width {
                 packet::Width::Avx512 => {
@@ -248,7 +249,7 @@ impl RayCaster for Bvh4 {
 
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
         #[cfg(target_arch = "x86_64")]
-        if let Some(width) = self.packets() {
+        if let Some(width) = self.packets().filter(|w| rays.len() >= w.rays()) {
             // SAFETY: `packets` gives only a width whose extension this CPU has.
             return match width {
                 packet::Width::Avx512 => {
