@@ -384,8 +384,10 @@ fn dacrt_pdacrt_and_both_bvhs_keep_the_smallest_key_where_triangles_tie() {
         BruteForce::new(&scene).closest(&rays, &mut want);
         let tiny = PdacrtParams { leaf_rays: 4, leaf_triangles: 2, ..PdacrtParams::default() };
         let tiny_dacrt = DacrtParams { leaf_rays: 1, leaf_triangles: 1, ..DacrtParams::default() };
-        let casters: [(&str, Box<dyn RayCaster>); 6] = [
+        let casters: [(&str, Box<dyn RayCaster>); 8] = [
             ("bvh4", Box::new(Bvh4::from_triangles(tris.clone()))),
+            ("bvh4, packets of 8", Box::new(Bvh4::from_triangles(tris.clone()).max_packet(8))),
+            ("bvh4, one ray at a time", Box::new(Bvh4::from_triangles(tris.clone()).single_rays())),
             ("lbvh", Box::new(Lbvh::on_device(&tris, simt::Device::default()))),
             ("pdacrt", Box::new(Pdacrt::from_triangles(&tris, PdacrtParams::default()))),
             ("pdacrt, tiny leaves", Box::new(Pdacrt::from_triangles(&tris, tiny))),
