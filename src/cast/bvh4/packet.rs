@@ -1,18 +1,19 @@
 //! Packets of rays through the 4-wide BVH: each node's child boxes and each leaf's
 //! triangles are tested against the packet's rays on SIMD lanes, one per ray (sixteen
-//! on AVX-512, [`F16`]; eight on AVX2, [`F8`]), with the box and triangle tests of [`lane_ops`](crate::geometry::lane_ops)
-//! that the single-ray traversal runs over four children or triangles. A packet visits
-//! a node when any of its rays enters the node's box; each ray keeps its own best hit,
-//! cull distance and mask of live lanes, so every lane's answer is the single-ray
-//! traversal's (and brute force's) bit for bit, whatever order the packet takes: the
-//! boxes are tested as the single ray tests them, and the closest hit, ties to the
-//! smaller id, does not depend on the order triangles are met in.
+//! on AVX-512, [`F16`]; eight on AVX2, [`F8`]), with the box and triangle tests of
+//! [`lane_ops`](crate::geometry::lane_ops) that the single-ray traversal runs over four
+//! children or triangles. A packet visits a node when any of its rays enters the
+//! node's box; each ray keeps its own best hit, cull distance and mask of live lanes,
+//! so every lane's answer is the single-ray traversal's (and brute force's) bit for
+//! bit, whatever order the packet takes: the boxes are tested as the single ray tests
+//! them, and the closest hit, ties to the smaller id, does not depend on the order
+//! triangles are met in.
 //!
 //! What it saves over one ray at a time is per ray what a node costs once per packet
 //! (its loads, the stack, the branches that decide where to go), and the lanes: eight
-//! or sixteen rays on one register against four boxes on one SSE register. Rays that a packet
-//! cannot take (a direction component zero, which the slab test decides by position)
-//! go one at a time.
+//! or sixteen rays on one register against four boxes on one SSE register. Rays that
+//! a packet cannot take (a direction component zero, which the slab test decides by
+//! position) go one at a time.
 
 use super::node::{LEAF, Leaf, leaf_of};
 use super::{Bvh4, SHALLOW_DEPTH, SHORT_STACK, STACK};
