@@ -18,7 +18,7 @@ mod node;
 #[cfg(target_arch = "x86_64")]
 mod packet;
 
-use super::caster::{CastStats, RayCaster, Triangles, per_packet, per_ray};
+use super::caster::{CastStats, RayCaster, Triangles, per_ray};
 use crate::geometry::lanes::RaySlab;
 use crate::geometry::{Hit, Ray, RayShear, cull_distance, hit_slack, magnitude};
 use crate::scene::Scene;
@@ -98,16 +98,14 @@ impl Bvh4 {
         hit_slack(self.magnitude, ray.origin.abs().max_element())
     }
 
-    /// The packets batches go through ([`packet`]): the widest this CPU runs (AVX-512 or
-    /// AVX2) within [`max_packet`](Self::max_packet), for a tree without outliers (which
-    /// every ray must test one at a time); `None` for one ray at a time. A batch smaller
-    /// than one packet (a megakernel thread's single ray) goes one ray at a time too.
+    /// The packets a batch of `rays` rays goes through ([`packet`]): the widest this CPU
+    /// runs (AVX-512 or AVX2) within [`max_packet`](Self::max_packet), for a tree
+    /// without outliers (which every ray must test one at a time); `None` for one ray at
+    /// a time, as also for a batch smaller than one packet (a megakernel thread's ray).
     #[cfg(target_arch = "x86_64")]
-    fn packets(&self) -> Option<packet::Width> {
-        let widths = [packet::Width::Avx512, packet::Width::Avx2];
-        let widest = packet::widest()?;
-        let fits = |w: &packet::Width| w.rays() <= self.max_packet && w.rays() <= widest.rays();
-        widths.into_iter().find(fits).filter(|_| self.outliers.is_empty())
+    fn packets(&self, rays: usize) -> Option<packet::Width> {
+        let fits = |w: &packet::Width| w.rays() <= self.max_packet.min(rays) && w.supported();
+        packet::Width::ALL.into_iter().find(fits).filter(|_| self.outliers.is_empty())
     }
 
     /// Closest hit of one (valid) ray and the triangles it tested.
@@ -226,37 +224,26 @@ impl Bvh4 {
 
 impl RayCaster for Bvh4 {
     fn name(&self) -> &'static str {
+        // The traversal the width limit allows (narrower than 8: one ray at a time).
         match self.max_packet {
-            1 => "bvh4-single",
-            2..16 => "bvh4-8",
+            0..8 => "bvh4-single",
+            8..16 => "bvh4-8",
             _ => "bvh4",
         }
     }
 
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
         #[cfg(target_arch = "x86_64")]
-        if let Some(width) = self.packets().filter(|w| rays.len() >= w.rays()) {
-            // SAFETY: `packets` gives only a width whose extension this CPU has.
-            return match width {
-                packet::Width::Avx512 => {
-                    per_packet(rays, hits, 16, |r, h| unsafe { packet::closest_avx512(self, r, h) })
-                }
-                packet::Width::Avx2 => per_packet(rays, hits, 8, |r, h| unsafe { packet::closest_avx2(self, r, h) }),
-            };
+        if let Some(width) = self.packets(rays.len()) {
+            return width.closest(self, rays, hits);
         }
         per_ray(rays, hits, |ray| if ray.is_valid() { self.closest_one(ray) } else { (Hit::MISS, 0) })
     }
 
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
         #[cfg(target_arch = "x86_64")]
-        if let Some(width) = self.packets().filter(|w| rays.len() >= w.rays()) {
-            // SAFETY: `packets` gives only a width whose extension this CPU has.
-            return match width {
-                packet::Width::Avx512 => {
-                    per_packet(rays, out, 16, |r, o| unsafe { packet::occluded_avx512(self, r, o) })
-                }
-                packet::Width::Avx2 => per_packet(rays, out, 8, |r, o| unsafe { packet::occluded_avx2(self, r, o) }),
-            };
+        if let Some(width) = self.packets(rays.len()) {
+            return width.occluded(self, rays, out);
         }
         per_ray(rays, out, |ray| if ray.is_valid() { self.occluded_one(ray) } else { (false, 0) })
     }

@@ -17,6 +17,7 @@
 
 use super::node::{LEAF, Leaf, leaf_of};
 use super::{Bvh4, SHALLOW_DEPTH, SHORT_STACK, STACK};
+use crate::cast::caster::{CastStats, per_packet};
 use crate::geometry::lane_ops::{LaneHits, Lanes, slab, watertight};
 use crate::geometry::packet_lanes::{F8, F16, Packed};
 use crate::geometry::{Hit, Ray, RayShear, closer, cull_distance, inv_dir, triangle_test};
@@ -168,6 +169,8 @@ fn closest_in<L: Packed, const N: usize>(bvh: &Bvh4, rays: &[Ray], hits: &mut [H
         if code & LEAF != 0 {
             let (l, len) = leaf_of(code);
             let leaf: &Leaf = &bvh.leaves[l];
+            // The far end stays the one from before the leaf for all its triangles, as in
+            // the single-ray traversal; a closer hit updates it (and the cull) after.
             let mut closer_found = false;
             for j in 0..len {
                 let h = p.test(rays, leaf.tris.triangle(j), active, far);
@@ -187,9 +190,9 @@ fn closest_in<L: Packed, const N: usize>(bvh: &Bvh4, rays: &[Ray], hits: &mut [H
                         closer_found = true;
                     }
                 }
-                if closer_found {
-                    (far, cull) = (L::from_array(far_lanes), L::from_array(cull_lanes));
-                }
+            }
+            if closer_found {
+                (far, cull) = (L::from_array(far_lanes), L::from_array(cull_lanes));
             }
             continue;
         }
@@ -278,7 +281,7 @@ fn occluded_in<L: Packed, const N: usize>(bvh: &Bvh4, rays: &[Ray], out: &mut [b
     tests
 }
 
-/// The vector extension packets run on: the widest this CPU has (checked once).
+/// A vector extension packets run on, and so the rays a packet holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Width {
     /// Sixteen rays on AVX-512F.
@@ -287,7 +290,13 @@ pub(super) enum Width {
     Avx2,
 }
 
+/// A packet traversal compiled for one extension: unsafe to call where the CPU lacks it.
+type Traversal<T> = unsafe fn(&Bvh4, &[Ray], &mut [T]) -> u64;
+
 impl Width {
+    /// Every width, widest first.
+    pub(super) const ALL: [Width; 2] = [Width::Avx512, Width::Avx2];
+
     /// Rays a packet holds.
     pub(super) fn rays(self) -> usize {
         match self {
@@ -295,43 +304,60 @@ impl Width {
             Width::Avx2 => F8::WIDTH,
         }
     }
-}
 
-/// The widest packets this CPU runs, or `None` (no AVX2): checked once.
-pub(super) fn widest() -> Option<Width> {
-    static WIDEST: std::sync::OnceLock<Option<Width>> = std::sync::OnceLock::new();
-    *WIDEST.get_or_init(|| {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            Some(Width::Avx512)
-        } else if std::arch::is_x86_feature_detected!("avx2") {
-            Some(Width::Avx2)
-        } else {
-            None
+    /// Whether this CPU has the extension (checked once per width).
+    pub(super) fn supported(self) -> bool {
+        use std::sync::OnceLock;
+        static AVX512: OnceLock<bool> = OnceLock::new();
+        static AVX2: OnceLock<bool> = OnceLock::new();
+        match self {
+            Width::Avx512 => *AVX512.get_or_init(|| std::arch::is_x86_feature_detected!("avx512f")),
+            Width::Avx2 => *AVX2.get_or_init(|| std::arch::is_x86_feature_detected!("avx2")),
         }
-    })
+    }
+
+    /// The closest hits of a batch, in packets of this width.
+    pub(super) fn closest(self, bvh: &Bvh4, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
+        self.trace(bvh, rays, hits, [closest_avx512, closest_avx2])
+    }
+
+    /// The occlusion of a batch, in packets of this width.
+    pub(super) fn occluded(self, bvh: &Bvh4, rays: &[Ray], out: &mut [bool]) -> CastStats {
+        self.trace(bvh, rays, out, [occluded_avx512, occluded_avx2])
+    }
+
+    /// Every packet of the batch through the traversal compiled for this width
+    /// (`traversals` in the order of [`Width::ALL`]).
+    fn trace<T: Send>(self, bvh: &Bvh4, rays: &[Ray], out: &mut [T], traversals: [Traversal<T>; 2]) -> CastStats {
+        assert!(self.supported(), "packets of {} rays on a CPU without their extension", self.rays());
+        let traversal = traversals[Width::ALL.iter().position(|&w| w == self).unwrap_or(0)];
+        // SAFETY: the traversal is compiled for this width's extension, which the CPU
+        // has (asserted above).
+        per_packet(rays, out, self.rays(), |r, o| unsafe { traversal(bvh, r, o) })
+    }
 }
 
 /// [`closest`] on AVX2 lanes. Call only on a CPU with AVX2.
 #[target_feature(enable = "avx2")]
-pub(super) fn closest_avx2(bvh: &Bvh4, rays: &[Ray], hits: &mut [Hit]) -> u64 {
+fn closest_avx2(bvh: &Bvh4, rays: &[Ray], hits: &mut [Hit]) -> u64 {
     closest::<F8>(bvh, rays, hits)
 }
 
 /// [`occluded`] on AVX2 lanes. Call only on a CPU with AVX2.
 #[target_feature(enable = "avx2")]
-pub(super) fn occluded_avx2(bvh: &Bvh4, rays: &[Ray], out: &mut [bool]) -> u64 {
+fn occluded_avx2(bvh: &Bvh4, rays: &[Ray], out: &mut [bool]) -> u64 {
     occluded::<F8>(bvh, rays, out)
 }
 
 /// [`closest`] on AVX-512 lanes. Call only on a CPU with AVX-512F.
 #[target_feature(enable = "avx512f")]
-pub(super) fn closest_avx512(bvh: &Bvh4, rays: &[Ray], hits: &mut [Hit]) -> u64 {
+fn closest_avx512(bvh: &Bvh4, rays: &[Ray], hits: &mut [Hit]) -> u64 {
     closest::<F16>(bvh, rays, hits)
 }
 
 /// [`occluded`] on AVX-512 lanes. Call only on a CPU with AVX-512F.
 #[target_feature(enable = "avx512f")]
-pub(super) fn occluded_avx512(bvh: &Bvh4, rays: &[Ray], out: &mut [bool]) -> u64 {
+fn occluded_avx512(bvh: &Bvh4, rays: &[Ray], out: &mut [bool]) -> u64 {
     occluded::<F16>(bvh, rays, out)
 }
 
@@ -345,10 +371,12 @@ mod tests {
 
     /// Every packet width this CPU runs; fails loudly where it runs none.
     fn widths() -> Vec<usize> {
-        let Some(widest) = widest() else {
-            panic!("this CPU has no AVX2, so the BVH4's packets cannot run here: the test has nothing to check")
-        };
-        [16, 8].into_iter().filter(|&w| w <= widest.rays()).collect()
+        let widths: Vec<usize> = Width::ALL.into_iter().filter(|w| w.supported()).map(Width::rays).collect();
+        assert!(
+            !widths.is_empty(),
+            "this CPU has no AVX2, so the BVH4's packets cannot run here: the test has nothing to check"
+        );
+        widths
     }
 
     /// Traces `rays` through packets of every width and checks each answer against the
@@ -363,7 +391,7 @@ mod tests {
         let (mut hits, mut blocked) = (0, 0);
         for width in widths() {
             let bvh = Bvh4::from_triangles(tris.to_vec()).max_packet(width);
-            assert_eq!(bvh.packets().map(Width::rays), Some(width), "packets of {width} rays");
+            assert_eq!(bvh.packets(rays.len()).map(Width::rays), Some(width), "packets of {width} rays");
             // The answers' slots start stale: every one must be written.
             let stale = Hit { t: 1.0, prim: 7, u: 0.5, v: 0.5 };
             let (mut got, mut got_o) = (vec![stale; n], vec![true; n]);
