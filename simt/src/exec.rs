@@ -546,6 +546,14 @@ impl Thread<'_> {
         self.meter
     }
 
+    /// Whether the launch is measured: code that does host-only work for the emulator's
+    /// speed (drawing ahead to prefetch, say) skips it then, so that what it runs is
+    /// never counted.
+    #[inline(always)]
+    pub fn is_measured(&self) -> bool {
+        self.meter.is_some()
+    }
+
     /// `threadIdx.x`.
     #[inline(always)]
     pub fn thread_idx(&self) -> u32 {

@@ -296,6 +296,26 @@ impl<T: DeviceCopy + std::fmt::Debug> std::fmt::Debug for DeviceBuffer<T> {
     }
 }
 
+/// Asks the host CPU to start loading the `n` elements from `p` into its caches: a
+/// hint for the emulator's own speed where a lane's next loads are known before it
+/// needs them (a GPU overlaps a warp's independent loads by itself). It reads nothing,
+/// so `p` need not be valid, and no launch measures it. Does nothing off x86-64.
+#[inline(always)]
+pub fn prefetch_host<T>(p: *const T, n: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let first = p as *const i8;
+        for offset in (0..n * std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: SSE is part of x86-64's baseline, and a prefetch reads nothing (the
+            // address need not be valid).
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(first.wrapping_add(offset)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (p, n);
+}
+
 /// A read-only kernel view of a buffer (like a `const T*` kernel argument).
 #[derive(Clone, Copy)]
 pub struct Global<'a, T: DeviceCopy> {
@@ -349,6 +369,23 @@ pub trait Readable<T: DeviceCopy>: Copy + Send + Sync {
     unsafe fn plain_slice(&self, start: usize, len: usize) -> Option<&[T]> {
         let _ = (start, len);
         None
+    }
+}
+
+impl<T: DeviceCopy> Global<'_, T> {
+    /// [`prefetch_host`] for elements `start..start + n` (clipped to the view): counts
+    /// no load, in a measured launch or not.
+    #[inline(always)]
+    pub fn prefetch(&self, start: usize, n: usize) {
+        prefetch_host(self.ptr.wrapping_add(start), n.min(self.len.saturating_sub(start)));
+    }
+}
+
+impl<T: DeviceCopy> GlobalMut<'_, T> {
+    /// [`Global::prefetch`] on a read-write view.
+    #[inline(always)]
+    pub fn prefetch(&self, start: usize, n: usize) {
+        prefetch_host(self.ptr.wrapping_add(start), n.min(self.len.saturating_sub(start)));
     }
 }
 

@@ -39,24 +39,18 @@ impl LightVertexCache {
         (&self.vertices[start as usize..start as usize + s as usize], s as usize)
     }
 
-    /// Asks the CPU to start loading entry `e`'s subpath: a hint, which reads the entry
-    /// but not the subpath.
+    /// Asks the CPU to start loading the subpaths of `drawn` entries: every entry's
+    /// record first, then each subpath it names, so that the misses of each pass
+    /// overlap (a hint: it reads the records, not the subpaths).
     #[inline]
-    pub(crate) fn prefetch(&self, e: usize) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-            let (start, s) = self.entries[e];
-            let first = self.vertices.as_ptr().wrapping_add(start as usize) as *const i8;
-            let bytes = s as usize * std::mem::size_of::<Vertex>();
-            for offset in (0..bytes).step_by(64) {
-                // SAFETY: SSE is part of x86-64's baseline, and a prefetch reads nothing
-                // (the address need not even be valid).
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(first.wrapping_add(offset)) };
-            }
+    pub(crate) fn prefetch(&self, drawn: &[usize]) {
+        for &e in drawn {
+            simt::prefetch_host(self.entries.as_ptr().wrapping_add(e), 1);
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = e;
+        for &e in drawn {
+            let (start, s) = self.entries[e];
+            simt::prefetch_host(self.vertices.as_ptr().wrapping_add(start as usize), s as usize);
+        }
     }
 
     /// Samples drawn per connection strategy: `n_c · N_L / |cache|`.
@@ -209,7 +203,25 @@ pub(crate) fn light_splats(
 fn uniform_entry(cache_len: usize, rng: &mut Rng) -> usize {
     let _inlined = crate::cost::scope();
     crate::cost::declare!(5);
-    ((rng.uniform() * cache_len as f32) as usize).min(cache_len - 1)
+    entry_at(cache_len, rng.uniform())
+}
+
+/// The cache entry a uniform number `u` in [0, 1) picks.
+#[inline]
+fn entry_at(cache_len: usize, u: f32) -> usize {
+    ((u * cache_len as f32) as usize).min(cache_len - 1)
+}
+
+/// Hands `prefetch` the first `n` (at most [`MAX_CANDIDATES`]) entries that
+/// [`uniform_entry`] will draw from `rng`, drawn from a copy of it: the draws that pick
+/// entries follow one another with nothing else on the stream between them.
+fn prefetch_ahead(prefetch: Prefetch, cache_len: usize, rng: &Rng, n: usize) {
+    if let Some(prefetch) = prefetch {
+        let (mut ahead, mut drawn) = (*rng, [0usize; MAX_CANDIDATES]);
+        let n = n.min(MAX_CANDIDATES);
+        drawn[..n].iter_mut().for_each(|e| *e = entry_at(cache_len, ahead.uniform()));
+        prefetch(&drawn[..n]);
+    }
 }
 
 /// Most candidates a resampled connection considers.
@@ -246,9 +258,13 @@ impl Connections {
     }
 }
 
-/// How [`vertex_strategies`] reads the cache: `subpath(e, list, tail)` (below), and on
-/// the host a prefetch hint for entry `e` (kernels have none).
-pub(crate) type CacheAccess<'a> = (&'a dyn Fn(usize, &mut VertexList, bool) -> usize, Option<&'a dyn Fn(usize)>);
+/// How [`vertex_strategies`] reads the cache: `subpath(e, list, tail)` (below), and a
+/// prefetch hint for a set of entries (none in a measured launch: drawing them ahead
+/// would be counted).
+pub(crate) type CacheAccess<'a> = (&'a dyn Fn(usize, &mut VertexList, bool) -> usize, Prefetch<'a>);
+
+/// A prefetch hint for the subpaths of a set of cache entries, if any.
+pub(crate) type Prefetch<'a> = Option<&'a dyn Fn(&[usize])>;
 
 /// Every strategy at camera vertex `t - 1` except the camera splats: the emitter it hit
 /// (s = 0), a light sample (s = 1), and connections to cache vertices, each pushed to
@@ -319,15 +335,10 @@ pub(crate) fn vertex_strategies(
     };
     match connections {
         Connections::Uniform { n } => {
-            // The host starts loading every drawn entry's subpath before the first
-            // connection needs one, so that the cache misses overlap: connections draw
-            // no random numbers, so a copy of the stream draws the same entries.
-            if let Some(prefetch) = prefetch {
-                let mut ahead = *rng;
-                for _ in 0..n {
-                    prefetch(uniform_entry(cache_len, &mut ahead));
-                }
-            }
+            // Every drawn entry's subpath starts loading before the first connection
+            // needs one, so that the cache misses overlap (connections draw no random
+            // numbers).
+            prefetch_ahead(prefetch, cache_len, rng, n as usize);
             for _ in 0..n {
                 let _trip = crate::cost::scope();
                 let e = uniform_entry(cache_len, rng);
@@ -339,6 +350,7 @@ pub(crate) fn vertex_strategies(
             let (mut entry, mut target) = ([0usize; MAX_CANDIDATES], [0f32; MAX_CANDIDATES]);
             let mut total = 0.0f32;
             let mut tail = VertexList::default();
+            prefetch_ahead(prefetch, cache_len, rng, n);
             for k in 0..n {
                 let _trip = crate::cost::scope();
                 entry[k] = uniform_entry(cache_len, rng);
@@ -402,7 +414,7 @@ pub(crate) fn camera_strategies(
     };
     // The camera subpath's densities, evaluated once for all its vertices' strategies.
     let cam_known = &subpath_densities(ctx, cam);
-    let prefetch = |e: usize| cache.prefetch(e);
+    let prefetch = |drawn: &[usize]| cache.prefetch(drawn);
     let access: CacheAccess = (&subpath, Some(&prefetch));
     for t in 2..=cam.len() {
         let sink = &mut |p| pending.push(p);

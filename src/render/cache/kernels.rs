@@ -1,7 +1,7 @@
 //! The light vertex cache's kernels: storing ended subpaths, their camera splats, and
 //! the camera side's reads ([`CacheRead`]). Plain `Copy` arguments; no allocation.
 
-use super::host::{Connections, StrategyCounts, light_splats, vertex_strategies};
+use super::host::{Connections, Prefetch, StrategyCounts, light_splats, vertex_strategies};
 use crate::geometry::Ray;
 use crate::render::bidir::{Pending, Vertex, VertexKind, VertexList, connectible};
 use crate::render::context::Context;
@@ -168,8 +168,22 @@ impl CacheRead<'_> {
         sink: &mut dyn FnMut(Pending),
     ) {
         let subpath = |e: usize, light: &mut VertexList, tail: bool| self.subpath(t, e, light, tail);
+        let prefetch = |drawn: &[usize]| self.prefetch(drawn);
+        let hint: Prefetch = if t.is_measured() { None } else { Some(&prefetch) };
         let n = self.entries.len();
-        vertex_strategies(ctx, (cam, &[]), t_len, n, (&subpath, None), self.counts, self.connections, rng, path, sink);
+        vertex_strategies(ctx, (cam, &[]), t_len, n, (&subpath, hint), self.counts, self.connections, rng, path, sink);
+    }
+
+    /// `LightVertexCache::prefetch` on the device cache: a host hint that loads nothing
+    /// the launch counts.
+    fn prefetch(&self, drawn: &[usize]) {
+        for &e in drawn {
+            self.entries.prefetch(e, 1);
+        }
+        for &e in drawn {
+            let [start, s] = self.entries.read(e);
+            self.vertices.prefetch(start as usize, s as usize);
+        }
     }
 }
 

@@ -137,7 +137,38 @@ pub use crate::render::walk::{ARITHMETIC_REGION, SHADE_REGIONS};
 /// camera subpath, every strategy at it is evaluated into the pending slots, and the
 /// BSDF chooses the next ray (or the path ends).
 pub fn shade(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
+    if !t.is_measured() {
+        prefetch_lanes(a, j);
+    }
     t.ambient(ARITHMETIC_REGION, || shade_lane(t, ctx, a, j))
+}
+
+/// Lanes ahead of the shading lane whose first reads [`prefetch_lanes`] starts; each
+/// of its three stages reads what the stage before it fetched.
+const LANES_AHEAD: usize = 4;
+
+/// A hint for the host CPU, not part of the kernel: the emulator runs a block's lanes
+/// one after another, and each begins with dependent misses (its active entry, its
+/// slot, its camera vertices; the sorted order scatters them) that a GPU's resident
+/// warps would overlap. So lane `j` starts them for the lanes ahead, in stages (an
+/// index read where the stage before fetched it), and their misses overlap. Nothing of
+/// it is counted, and a measured launch skips it.
+fn prefetch_lanes(a: &ShadeArgs, j: usize) {
+    use simt::Readable;
+    let sorted = |k: usize| (k < a.order.len()).then(|| a.order.read(k) as usize);
+    if let Some(i) = sorted(j + 3 * LANES_AHEAD) {
+        a.active.prefetch(i, 1);
+        a.hits.prefetch(i, 1);
+    }
+    if let Some(i) = sorted(j + 2 * LANES_AHEAD) {
+        a.slots.prefetch(a.active.read(i) as usize, 1);
+    }
+    if let Some(i) = sorted(j + LANES_AHEAD) {
+        let slot = a.active.read(i) as usize;
+        let depth = a.slots.read(slot).depth as usize;
+        a.vertices.prefetch(slot * MAX_CAMERA_VERTICES, depth);
+        a.pending.prefetch(slot * PENDING_PER_SLOT, PENDING_PER_SLOT);
+    }
 }
 
 fn shade_lane(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
