@@ -565,7 +565,9 @@ fn stats_report(
     // Calls made in parallel each count their own wall time, so the caster's sum can
     // exceed the render's wall time; shading is what remains only when it does not.
     let cast = stats.cast_seconds;
-    let shade = if cast <= stats.seconds && !stats.cast_overlapped {
+    let shade = if stats.single_rays > 0 {
+        format!("{} rays cast one at a time in kernel threads, untimed, in the rest", stats.single_rays)
+    } else if cast <= stats.seconds && !stats.cast_overlapped {
         format!("{:.3} s shading and the rest", stats.seconds - cast)
     } else {
         format!("casts overlapped on {threads} threads, so shading time is not the difference")

@@ -381,68 +381,72 @@ impl RayCaster for BvhCaster {
     }
 
     fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
-        per_ray(rays, hits, |ray| {
-            let (h, tests) = match &self.bvh {
-                Some(bvh)
-                    if ray.is_valid() && (self.traversal == Traversal::Robust || self.needs_robust_traversal(ray)) =>
-                {
-                    self.traverse_robust(bvh, ray, false)
-                }
-                Some(bvh) if ray.is_valid() => match self.closest_one(bvh, ray) {
-                    // obvhs' node test can reject a box the ray enters exactly
-                    // at a corner (a ray through a shared vertex): check misses.
-                    (h, n) if !h.is_hit() && self.traversal == Traversal::Checked => {
-                        let (h, m) = self.traverse_robust(bvh, ray, false);
-                        (h, n + m)
-                    }
-                    found => found,
-                },
-                _ => (Hit::MISS, 0),
-            };
-            let (mut h, mut tests) = (h, tests);
-            if ray.is_valid() && !self.outliers.is_empty() {
-                tests += self.closest_outliers(ray, &mut h);
-            }
-            (h, tests)
-        })
+        per_ray(rays, hits, |ray| self.closest_single(ray))
     }
 
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
-        per_ray(rays, out, |ray| {
-            let mut tests = 0u64;
-            let blocked = match &self.bvh {
-                Some(bvh)
-                    if ray.is_valid() && (self.traversal == Traversal::Robust || self.needs_robust_traversal(ray)) =>
-                {
-                    let (hit, n) = self.traverse_robust(bvh, ray, true);
-                    tests = n;
-                    hit.is_hit()
+        per_ray(rays, out, |ray| self.occluded_single(ray))
+    }
+
+    fn closest_single(&self, ray: &Ray) -> (Hit, u64) {
+        let (h, tests) = match &self.bvh {
+            Some(bvh)
+                if ray.is_valid() && (self.traversal == Traversal::Robust || self.needs_robust_traversal(ray)) =>
+            {
+                self.traverse_robust(bvh, ray, false)
+            }
+            Some(bvh) if ray.is_valid() => match self.closest_one(bvh, ray) {
+                // obvhs' node test can reject a box the ray enters exactly
+                // at a corner (a ray through a shared vertex): check misses.
+                (h, n) if !h.is_hit() && self.traversal == Traversal::Checked => {
+                    let (h, m) = self.traverse_robust(bvh, ray, false);
+                    (h, n + m)
                 }
-                Some(bvh) if ray.is_valid() => {
-                    let shear = RayShear::new(ray.dir);
-                    let blocked = !bvh.ray_traverse_miss(Self::obvhs_ray(ray), |_, id| {
-                        tests += 1;
-                        let [a, b, c] = self.tris[self.prim(bvh, id) as usize];
-                        // Any hit in the real interval counts; report it inside obvhs'.
-                        intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, ray.t_max)
-                            .map_or(f32::INFINITY, |_| ray.t_min + NODE_EPSILON_SHIFT)
-                    });
-                    // As for closest hits: an unblocked answer is checked.
-                    blocked
-                        || (self.traversal == Traversal::Checked && {
-                            let (hit, n) = self.traverse_robust(bvh, ray, true);
-                            tests += n;
-                            hit.is_hit()
-                        })
-                }
-                _ => false,
-            } || (ray.is_valid() && !self.outliers.is_empty() && {
-                let (hit, n) = any_hit_ids(&self.tris, self.outliers.iter().copied(), ray, &RayShear::new(ray.dir));
-                tests += n;
-                hit
-            });
-            (blocked, tests)
-        })
+                found => found,
+            },
+            _ => (Hit::MISS, 0),
+        };
+        let (mut h, mut tests) = (h, tests);
+        if ray.is_valid() && !self.outliers.is_empty() {
+            tests += self.closest_outliers(ray, &mut h);
+        }
+        (h, tests)
+    }
+
+    fn occluded_single(&self, ray: &Ray) -> (bool, u64) {
+        let mut tests = 0u64;
+        let blocked = match &self.bvh {
+            Some(bvh)
+                if ray.is_valid() && (self.traversal == Traversal::Robust || self.needs_robust_traversal(ray)) =>
+            {
+                let (hit, n) = self.traverse_robust(bvh, ray, true);
+                tests = n;
+                hit.is_hit()
+            }
+            Some(bvh) if ray.is_valid() => {
+                let shear = RayShear::new(ray.dir);
+                let blocked = !bvh.ray_traverse_miss(Self::obvhs_ray(ray), |_, id| {
+                    tests += 1;
+                    let [a, b, c] = self.tris[self.prim(bvh, id) as usize];
+                    // Any hit in the real interval counts; report it inside obvhs'.
+                    intersect_triangle(ray.origin, &shear, a, b, c, ray.t_min, ray.t_max)
+                        .map_or(f32::INFINITY, |_| ray.t_min + NODE_EPSILON_SHIFT)
+                });
+                // As for closest hits: an unblocked answer is checked.
+                blocked
+                    || (self.traversal == Traversal::Checked && {
+                        let (hit, n) = self.traverse_robust(bvh, ray, true);
+                        tests += n;
+                        hit.is_hit()
+                    })
+            }
+            _ => false,
+        } || (ray.is_valid() && !self.outliers.is_empty() && {
+            let (hit, n) = any_hit_ids(&self.tris, self.outliers.iter().copied(), ray, &RayShear::new(ray.dir));
+            tests += n;
+            hit
+        });
+        (blocked, tests)
     }
 
     fn memory_bytes(&self) -> usize {

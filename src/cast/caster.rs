@@ -89,6 +89,21 @@ pub trait RayCaster: Send + Sync {
     fn casts_single_rays(&self) -> bool {
         true
     }
+    /// The closest hit of one ray and the tests made, untimed: for callers that cast
+    /// their rays one at a time (the LVC megakernel's threads), where timing each call
+    /// would cost about as much as the traversal. The default is a one-ray batch.
+    fn closest_single(&self, ray: &Ray) -> (Hit, u64) {
+        let mut hit = [Hit::MISS];
+        let s = self.closest(std::slice::from_ref(ray), &mut hit);
+        (hit[0], s.tests)
+    }
+    /// Whether anything lies on one ray, and the tests made, untimed (see
+    /// [`RayCaster::closest_single`]).
+    fn occluded_single(&self, ray: &Ray) -> (bool, u64) {
+        let mut blocked = [false];
+        let s = self.occluded(std::slice::from_ref(ray), &mut blocked);
+        (blocked[0], s.tests)
+    }
 }
 
 /// A caster's traversal run by one thread of a `simt` kernel, its work counted as that
@@ -152,8 +167,11 @@ pub(crate) fn per_packet<T: Send>(
 /// Wraps a caster and adds up every call made through it, from any thread: what a
 /// render reports as rays cast, seconds inside the caster (summed over calls, so calls
 /// made in parallel each count their own wall time), tests and peak working bytes.
+/// Single-ray calls are counted, untimed, on a counter per worker thread (one shared
+/// counter would be contended by every ray of every thread).
 pub struct CountingCaster<'a> {
     inner: &'a dyn RayCaster,
+    singles: Box<[SingleRays]>,
     rays: AtomicU64,
     tests: AtomicU64,
     nanos: AtomicU64,
@@ -170,6 +188,7 @@ impl<'a> CountingCaster<'a> {
     pub fn new(inner: &'a dyn RayCaster) -> Self {
         CountingCaster {
             inner,
+            singles: (0..=rayon::current_num_threads()).map(|_| SingleRays::default()).collect(),
             rays: AtomicU64::new(0),
             tests: AtomicU64::new(0),
             nanos: AtomicU64::new(0),
@@ -184,13 +203,27 @@ impl<'a> CountingCaster<'a> {
     /// Rays sent through `occluded` (shadow and connection rays) so far; the rest of
     /// [`CastStats::rays`] went through `closest`.
     pub fn shadow_rays(&self) -> u64 {
-        self.shadow.load(Relaxed)
+        self.shadow.load(Relaxed) + self.singles.iter().map(|c| c.shadow.load(Relaxed)).sum::<u64>()
     }
 
     /// Caster calls (batches) with at least one ray so far: rays per call is how
     /// batch-friendly the caller is.
     pub fn calls(&self) -> u64 {
-        self.calls.load(Relaxed)
+        self.calls.load(Relaxed) + self.single_rays()
+    }
+
+    /// Rays cast one at a time (`closest_single`, `occluded_single`) so far: counted
+    /// in [`CastStats::rays`], but not in its seconds.
+    pub fn single_rays(&self) -> u64 {
+        self.singles.iter().map(|c| c.rays.load(Relaxed)).sum()
+    }
+
+    /// The calling worker thread's single-ray counters.
+    fn single(&self, tests: u64, shadow: bool) {
+        let c = &self.singles[rayon::current_thread_index().map_or(0, |i| i + 1) % self.singles.len()];
+        c.rays.fetch_add(1, Relaxed);
+        c.tests.fetch_add(tests, Relaxed);
+        c.shadow.fetch_add(shadow as u64, Relaxed);
     }
 
     /// Whether two calls ever ran at the same time (an integrator casting from
@@ -213,10 +246,10 @@ impl<'a> CountingCaster<'a> {
     /// Everything counted so far.
     pub fn stats(&self) -> CastStats {
         CastStats {
-            rays: self.rays.load(Relaxed) as usize,
+            rays: (self.rays.load(Relaxed) + self.single_rays()) as usize,
             seconds: self.nanos.load(Relaxed) as f64 * 1e-9,
             peak_working_bytes: self.peak.load(Relaxed),
-            tests: self.tests.load(Relaxed),
+            tests: self.tests.load(Relaxed) + self.singles.iter().map(|c| c.tests.load(Relaxed)).sum::<u64>(),
         }
     }
 
@@ -254,6 +287,25 @@ impl RayCaster for CountingCaster<'_> {
     fn in_thread(&self) -> Option<&dyn InThread> {
         self.inner.in_thread()
     }
+    fn closest_single(&self, ray: &Ray) -> (Hit, u64) {
+        let (hit, tests) = self.inner.closest_single(ray);
+        self.single(tests, false);
+        (hit, tests)
+    }
+    fn occluded_single(&self, ray: &Ray) -> (bool, u64) {
+        let (blocked, tests) = self.inner.occluded_single(ray);
+        self.single(tests, true);
+        (blocked, tests)
+    }
+}
+
+/// One worker thread's counts of single-ray calls, on a cache line of its own.
+#[derive(Default)]
+#[repr(align(64))]
+struct SingleRays {
+    rays: AtomicU64,
+    tests: AtomicU64,
+    shadow: AtomicU64,
 }
 
 /// A triangle list as the shared leaf tests read it: three corners by id. The casters

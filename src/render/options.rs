@@ -212,6 +212,9 @@ pub struct RenderStats {
     pub shadow_rays: u64,
     /// Caster calls: `rays / cast_calls` is the mean batch.
     pub cast_calls: u64,
+    /// Of `rays`, those cast one at a time from kernel threads (the LVC megakernel's),
+    /// each its own call, untimed: their time is the kernels', not in `cast_seconds`.
+    pub single_rays: u64,
     /// Whether caster calls ran at the same time (from several threads): then
     /// `cast_seconds` sums overlapping wall times and is not a part of `seconds`.
     pub cast_overlapped: bool,

@@ -24,7 +24,7 @@ pub struct Renderer<'a> {
     lights: Lights,
     integrator: Integrator,
     /// (shadow rays, caster calls) of every pass so far.
-    counts: (u64, u64),
+    counts: (u64, u64, u64),
     /// Whether caster calls ever ran at the same time.
     overlapped: bool,
 }
@@ -86,7 +86,8 @@ impl<'a> Renderer<'a> {
         }
         let lights = Lights::new(scene);
         let integrator = Integrator::new(&Context { scene, lights: &lights, caster, opts });
-        let r = Renderer { scene, caster, opts: opts.clone(), lights, integrator, counts: (0, 0), overlapped: false };
+        let r =
+            Renderer { scene, caster, opts: opts.clone(), lights, integrator, counts: (0, 0, 0), overlapped: false };
         if let Some(p) = &opts.gpu_profile {
             let dev = r.device().ok_or_else(|| {
                 Error::BadSetting(format!(
@@ -151,12 +152,14 @@ impl<'a> Renderer<'a> {
         let counted = counter.stats();
         self.counts.0 += counter.shadow_rays();
         self.counts.1 += counter.calls();
+        self.counts.2 += counter.single_rays();
         self.overlapped |= counter.overlapped();
         CastStats { peak_working_bytes: counted.peak_working_bytes.max(own.peak_working_bytes), ..counted }
     }
 
-    /// Shadow rays and caster calls of every pass so far (see [`RenderStats`]).
-    pub fn ray_counts(&self) -> (u64, u64) {
+    /// Shadow rays, caster calls and single rays of every pass so far (see
+    /// [`RenderStats`]).
+    pub fn ray_counts(&self) -> (u64, u64, u64) {
         self.counts
     }
 
@@ -236,7 +239,7 @@ pub fn render(
         }
     }
     stats.seconds = start.elapsed().as_secs_f64();
-    (stats.shadow_rays, stats.cast_calls) = renderer.ray_counts();
+    (stats.shadow_rays, stats.cast_calls, stats.single_rays) = renderer.ray_counts();
     stats.cast_overlapped = renderer.casts_overlapped();
     stats.device = renderer.device().map(|d| (d.kernel_stats(), d.memory().peak));
     Ok((film, stats))

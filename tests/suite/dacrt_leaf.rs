@@ -116,6 +116,19 @@ fn brute_force_counts_every_pair_and_the_counter_adds_up_calls() {
     counter.closest(&rays[10..30], &mut hits[10..30]);
     let s = counter.stats();
     assert_eq!((s.rays, s.tests), (30, 30 * tris.len() as u64));
+    // Single rays from several threads at once (the megakernel's calls) add to the same
+    // counts, each ray its own call, with the answers of a batch.
+    let mut blocked = vec![false; rays.len()];
+    oracle.occluded(&rays, &mut blocked);
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
+    pool.install(|| {
+        use rayon::prelude::*;
+        (30..60).into_par_iter().for_each(|i| assert_eq!(counter.closest_single(&rays[i]).0, hits[i]));
+        (60..80).into_par_iter().for_each(|i| assert_eq!(counter.occluded_single(&rays[i]).0, blocked[i]));
+    });
+    let s = counter.stats();
+    assert_eq!((s.rays, s.tests), (80, 80 * tris.len() as u64));
+    assert_eq!((counter.shadow_rays(), counter.calls(), counter.single_rays()), (20, 2 + 50, 50));
 }
 
 #[test]

@@ -83,7 +83,7 @@ fn grouped_passes_make_the_same_film_in_fewer_caster_calls() {
         assert!(one.pass_group() >= 5, "{}: a 16x12 image should group its passes", integrator.name());
         let mut film = one.film().unwrap();
         let rays: usize = (0..5).map(|p| one.pass(p, &mut film).rays).sum();
-        let (_, calls) = one.ray_counts();
+        let (_, calls, _) = one.ray_counts();
         let name = integrator.name();
         assert_eq!((grouped.passes, stats.rays), (film.passes, rays as u64), "{name}: passes and rays");
         assert!(

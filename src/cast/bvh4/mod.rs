@@ -237,7 +237,7 @@ impl RayCaster for Bvh4 {
         if let Some(width) = self.packets(rays.len()) {
             return width.closest(self, rays, hits);
         }
-        per_ray(rays, hits, |ray| if ray.is_valid() { self.closest_one(ray) } else { (Hit::MISS, 0) })
+        per_ray(rays, hits, |ray| self.closest_single(ray))
     }
 
     fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
@@ -245,7 +245,15 @@ impl RayCaster for Bvh4 {
         if let Some(width) = self.packets(rays.len()) {
             return width.occluded(self, rays, out);
         }
-        per_ray(rays, out, |ray| if ray.is_valid() { self.occluded_one(ray) } else { (false, 0) })
+        per_ray(rays, out, |ray| self.occluded_single(ray))
+    }
+
+    fn closest_single(&self, ray: &Ray) -> (Hit, u64) {
+        if ray.is_valid() { self.closest_one(ray) } else { (Hit::MISS, 0) }
+    }
+
+    fn occluded_single(&self, ray: &Ray) -> (bool, u64) {
+        if ray.is_valid() { self.occluded_one(ray) } else { (false, 0) }
     }
 
     fn memory_bytes(&self) -> usize {

@@ -41,9 +41,7 @@ fn trace(t: &Thread, ctx: &Context, ray: Ray) -> Hit {
         return k.closest_in_thread(t, &ray, TRACE_REGION);
     }
     t.work(TRACE_REGION, 0, 1);
-    let mut hit = [Hit::MISS];
-    ctx.caster.closest(std::slice::from_ref(&ray), &mut hit);
-    hit[0]
+    ctx.caster.closest_single(&ray).0
 }
 
 /// Whether nothing blocks shadow ray `ray`, traversed as [`trace`] does.
@@ -52,9 +50,7 @@ fn unblocked(t: &Thread, ctx: &Context, ray: Ray) -> bool {
         return !k.occluded_in_thread(t, &ray, TRACE_REGION);
     }
     t.work(TRACE_REGION, 1, 1);
-    let mut blocked = [false];
-    ctx.caster.occluded(std::slice::from_ref(&ray), &mut blocked);
-    !blocked[0]
+    !ctx.caster.occluded_single(&ray).0
 }
 
 /// Extends `verts` with `w` until the walker stops, one traced ray per bounce.
