@@ -105,7 +105,7 @@ pub struct StackList<T: Copy, const N: usize> {
 
 impl<T: Copy, const N: usize> Default for StackList<T, N> {
     fn default() -> Self {
-        StackList { buf: [std::mem::MaybeUninit::uninit(); N], len: 0 }
+        StackList { buf: [const { std::mem::MaybeUninit::uninit() }; N], len: 0 }
     }
 }
 

@@ -211,7 +211,10 @@ impl<'d> CameraPool<'d> {
         CameraPool {
             dev,
             slots: dev.alloc(pool),
-            vertices: dev.alloc(pool * MAX_CAMERA_VERTICES),
+            // Pooled, not zero-filled: a slot's vertices are written (the camera's by
+            // `generate`, the others by `shade`) before `shade` reads them. (The pending
+            // entries are not: the connect step scans all of them.)
+            vertices: dev.alloc_pooled(pool * MAX_CAMERA_VERTICES),
             pending: dev.alloc(pool * PENDING_PER_SLOT),
             estimates: dev.alloc(pixels),
             active: dev.alloc(0),

@@ -43,7 +43,9 @@ pub(crate) fn light_pass(
     let stride = ctx.opts.max_depth as usize + 1;
     let pool = pool.clamp(32, (n_light as usize).max(32));
     let mut slots = dev.alloc::<LightSlot>(pool);
-    let mut staging = dev.alloc::<Vertex>(pool * stride);
+    // Every staged vertex is written before it is read (a subpath's first by
+    // `light_generate`, the others by `light_shade`): pooled, not zero-filled.
+    let mut staging = dev.alloc_pooled::<Vertex>(pool * stride);
     let mut cache = DeviceCache::new(dev, n_light);
     let mut active = dev.alloc::<u32>(0);
     let (mut next, mut rays) = (0u32, 0usize);
