@@ -20,7 +20,7 @@ pub fn mix64(mut z: u64) -> u64 {
 
 /// A counter-based stream of uniform numbers. Cheap to create, `Copy`, and the same
 /// key always yields the same sequence.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(C)]
 pub struct Rng {
     key: u64,

@@ -323,9 +323,13 @@ pub(crate) fn strategy_emitter(cam: &[Vertex], t: usize, light: &[Vertex], path:
     Some(v.beta * v.le)
 }
 
+/// Uniform numbers [`strategy_light_sample`] draws from the stream, at a connectible
+/// camera vertex (none elsewhere): the light's choice and a point on it.
+pub(crate) const LIGHT_SAMPLE_DRAWS: usize = 3;
+
 /// Strategy s = 1 at camera vertex `t - 1`: a fresh light sample (next-event
-/// estimation). Returns the unweighted contribution and its shadow ray; the full path
-/// is left in `path`.
+/// estimation), drawing [`LIGHT_SAMPLE_DRAWS`] numbers. Returns the unweighted
+/// contribution and its shadow ray; the full path is left in `path`.
 #[inline]
 #[track_caller]
 pub(crate) fn strategy_light_sample(

@@ -7,8 +7,8 @@ use crate::cast::CastStats;
 use crate::cost::{BRANCH, DIV, LUMINANCE, V3};
 use crate::film::luminance;
 use crate::render::bidir::{
-    Pending, Vertex, VertexKind, VertexList, camera_vertex, connect_contribution, connect_to_camera, connectible,
-    full_path, strategy_connect, strategy_emitter, strategy_light_sample,
+    LIGHT_SAMPLE_DRAWS, Pending, Vertex, VertexKind, VertexList, camera_vertex, connect_contribution,
+    connect_to_camera, connectible, full_path, strategy_connect, strategy_emitter, strategy_light_sample,
 };
 use crate::render::context::{Context, Passes};
 use crate::render::mis::{Densities, Known, mis_weight_counts, subpath_densities};
@@ -212,18 +212,6 @@ fn entry_at(cache_len: usize, u: f32) -> usize {
     ((u * cache_len as f32) as usize).min(cache_len - 1)
 }
 
-/// Hands `prefetch` the first `n` (at most [`MAX_CANDIDATES`]) entries that
-/// [`uniform_entry`] will draw from `rng`, drawn from a copy of it: the draws that pick
-/// entries follow one another with nothing else on the stream between them.
-fn prefetch_ahead(prefetch: Prefetch, cache_len: usize, rng: &Rng, n: usize) {
-    if let Some(prefetch) = prefetch {
-        let (mut ahead, mut drawn) = (*rng, [0usize; MAX_CANDIDATES]);
-        let n = n.min(MAX_CANDIDATES);
-        drawn[..n].iter_mut().for_each(|e| *e = entry_at(cache_len, ahead.uniform()));
-        prefetch(&drawn[..n]);
-    }
-}
-
 /// Most candidates a resampled connection considers.
 pub const MAX_CANDIDATES: usize = 32;
 
@@ -296,6 +284,24 @@ pub(crate) fn vertex_strategies(
         let known = Known { light: &[], camera: cam_known };
         ctx.opts.strategy_weight(s, t, || mis_weight_counts(ctx, path, s, known, count))
     };
+    let connects = cache_len > 0 && connections.per_vertex() > 0 && t <= max_depth;
+    if let (true, Some(prefetch)) = (connects, prefetch) {
+        // The entries the connections below will draw start loading now, so that their
+        // misses hide behind the emitter and light-sample strategies: a copy of the
+        // stream, past the light sample's draws where it makes them, draws the same
+        // entries (connections draw nothing between them). A wrong guess costs time only.
+        let mut ahead = *rng;
+        if connectible(ctx, &cam[t - 1]) {
+            (0..LIGHT_SAMPLE_DRAWS).for_each(|_| _ = ahead.uniform());
+        }
+        let n = match connections {
+            Connections::Uniform { n } => n as usize,
+            Connections::Resampled { candidates, .. } => (candidates as usize).clamp(1, MAX_CANDIDATES),
+        };
+        let (mut drawn, n) = ([0usize; MAX_CANDIDATES], n.min(MAX_CANDIDATES));
+        drawn[..n].iter_mut().for_each(|e| *e = entry_at(cache_len, ahead.uniform()));
+        prefetch(&drawn[..n]);
+    }
     // (Each strategy is a scope for `simt`'s model: nvcc inlines `weight` at each.)
     {
         let _strategy = crate::cost::scope();
@@ -315,7 +321,7 @@ pub(crate) fn vertex_strategies(
             sink((Some(ray), l * w, None));
         }
     }
-    if cache_len == 0 || connections.per_vertex() == 0 || t > max_depth {
+    if !connects {
         return;
     }
     // One light-subpath buffer for every candidate and connection (filled in place).
@@ -335,10 +341,6 @@ pub(crate) fn vertex_strategies(
     };
     match connections {
         Connections::Uniform { n } => {
-            // Every drawn entry's subpath starts loading before the first connection
-            // needs one, so that the cache misses overlap (connections draw no random
-            // numbers).
-            prefetch_ahead(prefetch, cache_len, rng, n as usize);
             for _ in 0..n {
                 let _trip = crate::cost::scope();
                 let e = uniform_entry(cache_len, rng);
@@ -350,7 +352,6 @@ pub(crate) fn vertex_strategies(
             let (mut entry, mut target) = ([0usize; MAX_CANDIDATES], [0f32; MAX_CANDIDATES]);
             let mut total = 0.0f32;
             let mut tail = VertexList::default();
-            prefetch_ahead(prefetch, cache_len, rng, n);
             for k in 0..n {
                 let _trip = crate::cost::scope();
                 entry[k] = uniform_entry(cache_len, rng);

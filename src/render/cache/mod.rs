@@ -6,5 +6,7 @@
 pub(crate) mod device;
 pub mod host;
 pub(crate) mod kernels;
+#[cfg(test)]
+mod tests;
 
 pub use host::{Connections, LightVertexCache, MAX_CANDIDATES, StrategyCounts};
