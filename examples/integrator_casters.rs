@@ -73,17 +73,22 @@ fn run(a: Args) -> Result<()> {
             let (name, cname) = (integ.name(), caster.name());
             if a.json {
                 println!(
-                    "{{\"integrator\":\"{name}\",\"caster\":\"{cname}\",\"size\":{},\"spp\":{},\"threads\":{},\"render_ms\":{ms:.3},\"ratio_to_bvh\":{ratio:.3},\"rays\":{},\"cast_seconds\":{:.4},\"tests\":{}}}",
+                    "{{\"integrator\":\"{name}\",\"caster\":\"{cname}\",\"size\":{},\"spp\":{},\"threads\":{},\"render_ms\":{ms:.3},\"ratio_to_bvh\":{ratio:.3},\"rays\":{},\"cast_seconds\":{:.4},\"untimed_rays\":{},\"tests\":{}}}",
                     a.size,
                     a.spp,
                     rayon::current_num_threads(),
                     st.rays,
                     st.cast_seconds,
+                    st.single_rays,
                     st.tests
                 );
             } else {
+                // Rays cast one at a time from kernel threads (the megakernel's) are
+                // not timed: their seconds are in the render's, not the caster's.
+                let untimed =
+                    if st.single_rays > 0 { format!(" ({} rays untimed)", st.single_rays) } else { String::new() };
                 println!(
-                    "| {name} | {cname} | {ms:.1} | {ratio:.2} | {} | {:.3} | {:.1} |",
+                    "| {name} | {cname} | {ms:.1} | {ratio:.2} | {} | {:.3}{untimed} | {:.1} |",
                     st.rays,
                     st.cast_seconds,
                     st.tests as f64 / st.rays.max(1) as f64
