@@ -200,8 +200,8 @@ impl<'a> CountingCaster<'a> {
         }
     }
 
-    /// Rays sent through `occluded` (shadow and connection rays) so far; the rest of
-    /// [`CastStats::rays`] went through `closest`.
+    /// Rays sent through `occluded` or `occluded_single` (shadow and connection rays) so
+    /// far; the rest of [`CastStats::rays`] went through `closest` or `closest_single`.
     pub fn shadow_rays(&self) -> u64 {
         self.shadow.load(Relaxed) + self.singles.iter().map(|c| c.shadow.load(Relaxed)).sum::<u64>()
     }

@@ -39,18 +39,15 @@ impl LightVertexCache {
         (&self.vertices[start as usize..start as usize + s as usize], s as usize)
     }
 
-    /// Asks the CPU to start loading the subpaths of `drawn` entries: every entry's
-    /// record first, then each subpath it names, so that the misses of each pass
-    /// overlap (a hint: it reads the records, not the subpaths).
+    /// Asks the CPU to start loading the subpaths of `drawn` entries ([`prefetch_entries`]).
     #[inline]
     pub(crate) fn prefetch(&self, drawn: &[usize]) {
-        for &e in drawn {
-            simt::prefetch_host(self.entries.as_ptr().wrapping_add(e), 1);
-        }
-        for &e in drawn {
-            let (start, s) = self.entries[e];
-            simt::prefetch_host(self.vertices.as_ptr().wrapping_add(start as usize), s as usize);
-        }
+        prefetch_entries(
+            drawn,
+            |e| simt::prefetch_host(self.entries.as_ptr().wrapping_add(e), 1),
+            |e| self.entries[e],
+            |start, s| simt::prefetch_host(self.vertices.as_ptr().wrapping_add(start), s),
+        );
     }
 
     /// Samples drawn per connection strategy: `n_c · N_L / |cache|`.
@@ -204,6 +201,24 @@ fn uniform_entry(cache_len: usize, rng: &mut Rng) -> usize {
     let _inlined = crate::cost::scope();
     crate::cost::declare!(5);
     entry_at(cache_len, rng.uniform())
+}
+
+/// A prefetch of the subpaths of `drawn` cache entries, on the host's cache or the
+/// device's: every entry's record first (`record`), then, reading each (`read`), the
+/// subpath it names (`subpath(start, s)`), so that the misses of each pass overlap. A
+/// hint: it reads the records, not the subpaths.
+#[inline]
+pub(crate) fn prefetch_entries(
+    drawn: &[usize],
+    record: impl Fn(usize),
+    read: impl Fn(usize) -> (u32, u32),
+    subpath: impl Fn(usize, usize),
+) {
+    drawn.iter().for_each(|&e| record(e));
+    for &e in drawn {
+        let (start, s) = read(e);
+        subpath(start as usize, s as usize);
+    }
 }
 
 /// The cache entry a uniform number `u` in [0, 1) picks.

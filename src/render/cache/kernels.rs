@@ -1,7 +1,7 @@
 //! The light vertex cache's kernels: storing ended subpaths, their camera splats, and
 //! the camera side's reads ([`CacheRead`]). Plain `Copy` arguments; no allocation.
 
-use super::host::{Connections, Prefetch, StrategyCounts, light_splats, vertex_strategies};
+use super::host::{Connections, Prefetch, StrategyCounts, light_splats, prefetch_entries, vertex_strategies};
 use crate::geometry::Ray;
 use crate::render::bidir::{Pending, Vertex, VertexKind, VertexList, connectible};
 use crate::render::context::Context;
@@ -177,13 +177,12 @@ impl CacheRead<'_> {
     /// `LightVertexCache::prefetch` on the device cache: a host hint that loads nothing
     /// the launch counts.
     fn prefetch(&self, drawn: &[usize]) {
-        for &e in drawn {
-            self.entries.prefetch(e, 1);
-        }
-        for &e in drawn {
-            let [start, s] = self.entries.read(e);
-            self.vertices.prefetch(start as usize, s as usize);
-        }
+        prefetch_entries(
+            drawn,
+            |e| self.entries.prefetch(e, 1),
+            |e| self.entries.read(e).into(),
+            |start, s| self.vertices.prefetch(start, s),
+        );
     }
 }
 
