@@ -305,6 +305,7 @@ impl Device {
             footprint_sectors: if measured { counters.footprint_sectors() } else { 0 },
             block_sectors: counters.block_sectors,
             longest_warp: counters.longest_warp,
+            load_rounds: counters.load_rounds,
         };
         self.add_record(&record);
         record
@@ -418,6 +419,7 @@ impl Device {
             footprint_sectors: 0,
             block_sectors: 0,
             longest_warp: (0, 0),
+            load_rounds: 0,
         };
         self.add_record(&record);
         (r, record)

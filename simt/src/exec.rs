@@ -893,6 +893,23 @@ impl Thread<'_> {
         f()
     }
 
+    /// Loads issued together, until the guard drops: the compiled kernel issues them
+    /// back to back and waits once for all of them (a traversal step's node boxes and
+    /// ray fields, none of which depends on another). They are counted as every load is
+    /// (requests, sectors), but the warp's chain of the GPU time model waits for them
+    /// as one round instead of one after another ([`crate::LaunchRecord::load_rounds`]).
+    /// Say so only where the twin's SASS shows it: loads between which a value is used
+    /// stay apart. Nothing when the launch is not measured.
+    #[inline(always)]
+    #[track_caller]
+    #[must_use = "the loads are together until the guard drops: bind it with `let _together = ..`"]
+    pub fn loads_together(&self) -> Together<'_> {
+        match self.meter {
+            Some(m) => Together { meter: Some(m), outer: m.borrow_mut().begin_together(site()) },
+            None => Together { meter: None, outer: 0 },
+        }
+    }
+
     /// `__threadfence()`: this thread's global writes before it are seen by any thread
     /// that sees its writes (or atomics) after it. Views store with relaxed atomics, so
     /// without a fence a thread that learns of another's work through an atomic
@@ -912,6 +929,23 @@ impl Thread<'_> {
     pub fn work(&self, region: usize, path: usize, units: u32) {
         if let Some(m) = self.meter {
             note_work(m, site(), region, path, units);
+        }
+    }
+}
+
+/// Loads issued together, from [`Thread::loads_together`] until it drops.
+pub struct Together<'a> {
+    meter: Option<&'a RefCell<Meter>>,
+    outer: u32,
+}
+
+impl Drop for Together<'_> {
+    #[inline(always)]
+    fn drop(&mut self) {
+        if let Some(m) = self.meter
+            && let Ok(mut m) = m.try_borrow_mut()
+        {
+            m.end_together(self.outer);
         }
     }
 }

@@ -64,7 +64,7 @@ mod transform;
 
 pub use ambient::{Scope, scope};
 pub use device::{Device, DeviceConfig, LaunchConfig, LaunchError, MAX_BLOCK_DIM, MemoryStats};
-pub use exec::{Block, Local, Place, Shared, Thread, Unrolled, Warp};
+pub use exec::{Block, Local, Place, Shared, Thread, Together, Unrolled, Warp};
 pub use limits::{MAX_PATHS, MAX_REGIONS, REGISTER_WORDS_PER_THREAD, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES, WARP_SIZE};
 pub use memory::{DeviceBuffer, DeviceCopy, Global, GlobalMut, Readable, prefetch_host};
 pub use meter::{Race, Traffic};

@@ -75,7 +75,18 @@ pub(crate) enum Kind {
     Other,
     /// Declared work in a named region.
     Work(u8),
+    /// The start of loads issued together ([`Meter::begin_together`]): no instruction,
+    /// a slot that names the group.
+    Together,
 }
+
+/// No group of loads issued together.
+const NO_GROUP: u32 = u32::MAX;
+
+/// Marks a kept sector as written (by a store or an atomic) in a block's sample:
+/// above every sector number (addresses, host ones included, are below 2^64, so
+/// sectors below 2^59).
+const WRITTEN: u64 = 1 << 63;
 
 /// Counters of one launch (or of one worker's share of it).
 #[derive(Clone, Debug, Default)]
@@ -94,11 +105,14 @@ pub(crate) struct Counters {
     /// sector of host memory read by shared code (`limits::host_sector`), with repeats:
     /// sorted and deduplicated when the launch is recorded.
     pub footprint: Vec<u64>,
-    /// Distinct sectors per block, summed (estimated from the sampled ones): what
-    /// reaches L2 when a block's repeated accesses hit its SM's L1.
+    /// Distinct loaded sectors per block, summed (estimated from the sampled ones): the
+    /// loads that reach L2 when a block's repeated loads hit its SM's L1.
     pub block_sectors: u64,
-    /// The warp with the most warp instructions: (instructions, load requests).
+    /// The warp with the most warp instructions: (instructions, load rounds).
     pub longest_warp: (u64, u64),
+    /// Load rounds over every warp: the loads each waits for one after another (a
+    /// request is a round of its own, loads issued together one round).
+    pub load_rounds: u64,
 }
 
 impl Counters {
@@ -120,6 +134,7 @@ impl Counters {
         self.footprint.extend_from_slice(&o.footprint);
         self.block_sectors += o.block_sectors;
         self.longest_warp = self.longest_warp.max(o.longest_warp);
+        self.load_rounds += o.load_rounds;
         self
     }
 
@@ -143,6 +158,9 @@ struct Slot {
     /// The sector this instruction recorded last: consecutive lanes of a coalesced
     /// access touch the same sector, which is then recorded once.
     last_sector: u64,
+    /// For a load: the slot of the group of loads issued together it belongs to
+    /// (`NO_GROUP`: none, it waits alone).
+    group: u32,
 }
 
 /// Where a lane phase stands, for the race check.
@@ -219,8 +237,12 @@ pub(crate) struct Meter {
     spins: Vec<((usize, usize, u32), u32)>,
     /// The current block's sampled sectors, with repeats.
     block_sampled: Vec<u64>,
-    /// Per warp of the current block: (warp instructions, load requests).
+    /// Per warp of the current block: (warp instructions, load rounds).
     warp_chain: Vec<(u64, u64)>,
+    /// The group of loads issued together that the current lane is in (`NO_GROUP`).
+    group: u32,
+    /// The groups of a closing warp phase's loads (scratch).
+    groups: Vec<u32>,
     /// Instructions and load requests counted at once (`global_lanes`) in the current
     /// warp phase, added to its warp's chain when the phase closes.
     phase_chain: (u64, u64),
@@ -231,7 +253,24 @@ pub(crate) struct Meter {
 impl Meter {
     /// A meter; `predicting`: it also gathers footprints and warp chains.
     pub fn new(predicting: bool) -> Meter {
-        Meter { predicting, ..Meter::default() }
+        Meter { predicting, group: NO_GROUP, ..Meter::default() }
+    }
+
+    /// The current lane starts loads issued together at `site` (`Thread::loads_together`):
+    /// the loads until [`Meter::end_together`] count as one round of the warp's chain.
+    /// Returns the group it was in before (groups do not nest: an inner one joins the
+    /// outer).
+    pub fn begin_together(&mut self, site: usize) -> u32 {
+        let outer = self.group;
+        if outer == NO_GROUP {
+            self.group = self.op(site, Kind::Together, 1, 0);
+        }
+        outer
+    }
+
+    /// Ends the group [`Meter::begin_together`] started; `outer` is what it returned.
+    pub fn end_together(&mut self, outer: u32) {
+        self.group = outer;
     }
 
     fn intern(&mut self, key: usize) -> u32 {
@@ -279,7 +318,14 @@ impl Meter {
                 let s = self.slots.len() as u32;
                 per_site.push(s);
                 for _ in 0..parts {
-                    self.slots.push(Slot { kind, max_units: 0, sum_units: 0, on: 0, last_sector: u64::MAX });
+                    self.slots.push(Slot {
+                        kind,
+                        max_units: 0,
+                        sum_units: 0,
+                        on: 0,
+                        last_sector: u64::MAX,
+                        group: NO_GROUP,
+                    });
                 }
                 s
             }
@@ -299,6 +345,11 @@ impl Meter {
     pub fn global(&mut self, site: usize, kind: Kind, addr: u64, size: u64, width: u64, on: bool) {
         let parts = (size / width).max(1) as u32;
         let first = self.op(site, kind, parts, 1);
+        if kind == Kind::Load && self.group != NO_GROUP {
+            for p in 0..parts {
+                self.slots[(first + p) as usize].group = self.group;
+            }
+        }
         if !on {
             return;
         }
@@ -332,9 +383,10 @@ impl Meter {
         // Every sector of the lanes' elements is touched (by some part), so the sampled
         // footprint is that of the whole range.
         if self.predicting {
-            self.sample_range(lo, hi);
+            self.sample_range(lo, hi, kind != Kind::Load);
             self.phase_chain.0 += parts;
             self.phase_chain.1 += if kind == Kind::Load { parts } else { 0 };
+            self.totals.load_rounds += if kind == Kind::Load { parts } else { 0 };
         }
         let sectors = if parts == 1 && width == size {
             // Whole elements side by side: one contiguous byte range.
@@ -369,11 +421,13 @@ impl Meter {
         traffic.lanes += parts * lanes as u64;
     }
 
-    /// Keeps a sector for the block's (and so the launch's) footprint if it is sampled.
+    /// Keeps a sector for the block's (and so the launch's) footprint if it is sampled;
+    /// `written`: by a store or an atomic (marked, so that the block's distinct sectors
+    /// count its loads only).
     #[inline]
-    fn sample(&mut self, sector: u64) {
+    fn sample(&mut self, sector: u64, written: bool) {
         if self.predicting && (host_sector(sector) || footprint_sampled(sector)) {
-            self.block_sampled.push(sector);
+            self.block_sampled.push(sector | if written { WRITTEN } else { 0 });
         }
     }
 
@@ -381,18 +435,19 @@ impl Meter {
     /// multiplier, so each test is an add and a compare.
     #[cold]
     #[inline(never)]
-    fn sample_range(&mut self, lo: u64, hi: u64) {
+    fn sample_range(&mut self, lo: u64, hi: u64, written: bool) {
         let (k, top) = (FOOTPRINT_HASH, u64::MAX >> crate::limits::FOOTPRINT_SAMPLE_BITS);
+        let mark = if written { WRITTEN } else { 0 };
         let mut h = lo.wrapping_mul(k);
         for s in lo..hi + 1 {
             if h <= top {
-                self.block_sampled.push(s);
+                self.block_sampled.push(s | mark);
             }
             h = h.wrapping_add(k);
         }
     }
 
-    /// Adds one warp's instructions and load requests to its chain in this block.
+    /// Adds one warp's instructions and load rounds to its chain in this block.
     fn chain(&mut self, issued: u64, loads: u64) {
         if !self.predicting {
             return;
@@ -411,9 +466,12 @@ impl Meter {
         if !self.block_sampled.is_empty() {
             self.block_sampled.sort_unstable();
             self.block_sampled.dedup();
-            self.totals.block_sectors += self.block_sampled.iter().map(|&s| footprint_weight(s)).sum::<u64>();
-            // The launch's footprint gathers each block's distinct samples.
-            self.totals.footprint.extend_from_slice(&self.block_sampled);
+            // Loaded sectors sort before written ones (the mark is the top bit).
+            let loaded = self.block_sampled.partition_point(|&s| s & WRITTEN == 0);
+            self.totals.block_sectors += self.block_sampled[..loaded].iter().map(|&s| footprint_weight(s)).sum::<u64>();
+            // The launch's footprint gathers each block's distinct samples, loaded or
+            // written.
+            self.totals.footprint.extend(self.block_sampled.iter().map(|&s| s & !WRITTEN));
             self.block_sampled.clear();
         }
         for c in self.warp_chain.drain(..) {
@@ -579,7 +637,13 @@ impl Meter {
         let (mut issued, mut loads) = (0, 0);
         for s in &self.slots {
             issued += s.max_units as u64;
-            loads += (s.kind == Kind::Load && s.on > 0) as u64;
+            if s.kind == Kind::Load && s.on > 0 {
+                if s.group == NO_GROUP {
+                    loads += 1;
+                } else if self.predicting {
+                    self.groups.push(s.group);
+                }
+            }
             match s.kind {
                 Kind::Work(r) => {
                     self.totals.issued[r as usize] += s.max_units as u64;
@@ -607,7 +671,8 @@ impl Meter {
             }
             self.sectors.dedup();
             for i in 0..self.sectors.len() {
-                self.sample(self.sectors[i].1);
+                let (slot, sector) = self.sectors[i];
+                self.sample(sector, self.slots[slot as usize].kind != Kind::Load);
             }
             for &(slot, _) in &self.sectors {
                 match self.slots[slot as usize].kind {
@@ -623,6 +688,15 @@ impl Meter {
         }
         self.warp_touched.clear();
         self.slots.clear();
+        if !self.groups.is_empty() {
+            self.groups.sort_unstable();
+            self.groups.dedup();
+            loads += self.groups.len() as u64;
+            self.groups.clear();
+        }
+        if self.predicting {
+            self.totals.load_rounds += loads;
+        }
         let (i, l) = std::mem::take(&mut self.phase_chain);
         self.chain(issued + i, loads + l);
     }

@@ -71,11 +71,16 @@ pub struct LaunchRecord {
     /// Distinct 32-byte sectors the launch's global accesses touched (estimated from a
     /// sample of 1 in 16 addresses; 0 when unmeasured).
     pub footprint_sectors: u64,
-    /// Distinct sectors per block, summed (estimated likewise): the sectors that reach
-    /// L2 if each block's repeated accesses hit L1.
+    /// Distinct loaded sectors per block, summed (estimated likewise): the loads that
+    /// reach L2 if each block's repeated loads hit L1 (stores and atomics reach L2
+    /// every time; [`LaunchRecord::stores`] and [`LaunchRecord::atomics`] count them).
     pub block_sectors: u64,
-    /// The warp that issued the most instructions: (warp instructions, load requests).
+    /// The warp that issued the most instructions: (warp instructions, load rounds).
     pub longest_warp: (u64, u64),
+    /// Load rounds over every warp: the loads each warp waits for one after another. A
+    /// load request is a round of its own; loads a kernel issues together
+    /// ([`crate::Thread::loads_together`]) are one round. 0 when unmeasured.
+    pub load_rounds: u64,
 }
 
 impl LaunchRecord {
@@ -276,7 +281,11 @@ pub fn format_table(rows: &[KernelSummary]) -> String {
 }
 
 /// The columns of [`records_to_tsv`].
-const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads";
+const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds";
+
+/// The columns of record files written before load rounds were counted (every load
+/// request its own round): read with `load_rounds` = `ld_req`.
+const RECORD_HEADER_BEFORE_ROUNDS: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads";
 
 /// Launch records as tab-separated lines, one per launch, to keep a measured run and
 /// predict from it later ([`crate::timing::predict`]). Declared regions are summed into
@@ -289,7 +298,7 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
         let t = |x: &Traffic| format!("{}\t{}\t{}", x.requests, x.sectors, x.lanes);
         let _ = writeln!(
             s,
-            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
             r.name,
             r.grid,
             r.block,
@@ -308,7 +317,8 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
             r.footprint_sectors,
             r.block_sectors,
             r.longest_warp.0,
-            r.longest_warp.1
+            r.longest_warp.1,
+            r.load_rounds
         );
     }
     s
@@ -331,11 +341,11 @@ fn intern(name: &str) -> &'static str {
 /// Reads what [`records_to_tsv`] wrote; errors name the line and field.
 pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
     let mut lines = text.lines().enumerate();
-    match lines.next() {
-        Some((_, h)) if h == RECORD_HEADER => {}
+    let header = match lines.next() {
+        Some((_, h)) if h == RECORD_HEADER || h == RECORD_HEADER_BEFORE_ROUNDS => h,
         _ => return Err("not a simt launch-record file (its header differs)".into()),
-    }
-    let columns: Vec<&str> = RECORD_HEADER.split('\t').collect();
+    };
+    let columns: Vec<&str> = header.split('\t').collect();
     let mut out = Vec::new();
     for (i, line) in lines {
         let f: Vec<&str> = line.split('\t').collect();
@@ -365,6 +375,7 @@ pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
             footprint_sectors: n(21)?,
             block_sectors: n(22)?,
             longest_warp: (n(23)?, n(24)?),
+            load_rounds: if columns.len() > 25 { n(25)? } else { n(11)? },
         });
     }
     Ok(out)

@@ -214,7 +214,8 @@ pub struct Prediction {
     pub issue: f64,
     /// Sectors over the L1s' rate.
     pub l1: f64,
-    /// Bytes of each block's distinct sectors over L2 bandwidth.
+    /// Bytes of each block's distinct loaded sectors and of every written sector over
+    /// L2 bandwidth.
     pub l2: f64,
     /// Footprint bytes over HBM bandwidth.
     pub hbm: f64,
@@ -296,15 +297,18 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
     // sectors touched) queue on one word.
     let same = (r.atomics.lanes as f64 - 8.0 * r.atomics.sectors as f64).max(0.0);
     let distinct = r.atomics.lanes as f64 - same;
-    // One warp's dependent chain: each instruction waits on the one before, each load
-    // request waits for its data (from HBM for first touches, else L2).
+    // One warp's dependent chain: each instruction waits on the one before, each round
+    // of loads waits for its data (from HBM for first touches, else L2); a round is one
+    // load request, or loads the kernel issues together.
     let miss = if sectors > 0.0 { (footprint / sectors).min(1.0) } else { 0.0 };
     let mem_latency = miss * p.hbm_latency_s + (1.0 - miss) * p.l2_latency_s;
     let chain = |issued: f64, loads: f64| issued * p.alu_latency_cycles * cycle + loads * mem_latency;
-    let average = chain(issued / warps, r.loads.requests as f64 / warps);
+    let average = chain(issued / warps, r.load_rounds as f64 / warps);
     let longest = chain(r.longest_warp.0 as f64, r.longest_warp.1 as f64);
-    // Sectors that reach L2: each block's distinct ones (its repeats hit L1).
-    let l2_sectors = if r.block_sectors > 0 { r.block_sectors as f64 } else { sectors };
+    // Sectors that reach L2: each block's distinct loaded ones (its repeated loads hit
+    // L1) and every stored or atomic one (L1 writes through).
+    let written = (r.stores.sectors + r.atomics.sectors) as f64;
+    let l2_sectors = if r.block_sectors > 0 { r.block_sectors as f64 + written } else { sectors };
     let mut t = Prediction {
         launch: p.launch_s,
         issue: issued / (p.issue_per_cycle_per_sm * sms) * cycle,
@@ -353,6 +357,7 @@ mod tests {
             footprint_sectors: footprint,
             block_sectors: sectors,
             longest_warp: (issued, loads),
+            load_rounds: warps * loads,
         }
     }
 

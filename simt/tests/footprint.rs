@@ -1,7 +1,8 @@
 //! Known answers for what the GPU time model reads from a measured launch
 //! (`simt::timing`): the launch's distinct sectors (its footprint), each block's
-//! distinct sectors (what reaches L2 when a block's repeats hit L1), and the longest
-//! warp's instructions and loads. The sector counts are estimated from 1 address in 16,
+//! distinct loaded sectors (what its loads bring from L2 when its repeated loads hit
+//! L1; stores reach L2 every time and are counted as stores), and the longest warp's
+//! instructions and load rounds. The sector counts are estimated from 1 address in 16,
 //! so they are checked on arrays large enough for the estimate to be within 1 %.
 
 use simt::{Device, DeviceConfig, LaunchConfig};
@@ -28,11 +29,13 @@ fn a_stream_touches_each_sector_once_per_launch_and_per_block() {
     let rec = dev.for_each("stream", n, |t, i| t.store(&yv, i, t.load(&xv, i)));
     let sectors = 2 * (n as u64 * 4 / 32);
     assert!(near(rec.footprint_sectors, sectors), "{} vs {sectors}", rec.footprint_sectors);
-    // Blocks touch disjoint sectors, so per block is the launch's footprint again.
-    assert!(near(rec.block_sectors, sectors), "{} vs {sectors}", rec.block_sectors);
+    // Blocks load disjoint sectors, so per block is the loaded half of the footprint.
+    let loaded = sectors / 2;
+    assert!(near(rec.block_sectors, loaded), "{} vs {loaded}", rec.block_sectors);
+    assert_eq!(rec.stores.sectors, loaded);
     // The owned-element form records the same.
     let own = dev.transform("stream_owned", &x.view(), &mut y, |_, _, v| v);
-    assert!(near(own.footprint_sectors, sectors) && near(own.block_sectors, sectors), "{own:?}");
+    assert!(near(own.footprint_sectors, sectors) && near(own.block_sectors, loaded), "{own:?}");
     assert_eq!(own.longest_warp, (2, 1));
     assert_eq!(rec.longest_warp, (2, 1));
 }
@@ -60,10 +63,53 @@ fn a_table_every_block_reads_is_one_footprint_and_one_l2_read_per_block() {
     let (table_sectors, out_sectors) = (n as u64 * 4 / 32, 64 * 256 * 4 / 32);
     let footprint = table_sectors + out_sectors;
     assert!(near(rec.footprint_sectors, footprint), "{} vs {footprint}", rec.footprint_sectors);
-    let per_block = 64 * table_sectors + out_sectors;
+    let per_block = 64 * table_sectors;
     assert!(near(rec.block_sectors, per_block), "{} vs {per_block}", rec.block_sectors);
     // Every warp: 1,024 loads and a store, each with its issue slot.
     assert_eq!(rec.longest_warp, (1025, 1024));
+    assert_eq!(rec.load_rounds, 64 * 8 * 1024);
+}
+
+#[test]
+fn loads_issued_together_are_one_round_of_the_chain_and_the_same_traffic() {
+    let dev = measured();
+    let n = 1 << 14;
+    let x = dev.alloc_from(&vec![1u32; 4 * n]);
+    let mut out = dev.alloc::<u32>(n);
+    let (xv, ov) = (x.view(), out.view_mut());
+    let run = |together: bool| {
+        dev.for_each(if together { "together" } else { "apart" }, n, |t, i| {
+            // Four independent loads, then one that depends on their sum.
+            let group = together.then(|| t.loads_together());
+            let s: u32 = (0..4).map(|k| t.load(&xv, 4 * i + k)).sum();
+            drop(group);
+            t.store(&ov, i, t.load(&xv, (s as usize * i) % (4 * n)));
+        })
+    };
+    let (apart, together) = (run(false), run(true));
+    // Counted alike: requests, sectors, instructions (the group issues none).
+    assert_eq!((apart.loads, apart.ops.issued), (together.loads, together.ops.issued));
+    let warps = n as u64 / 32;
+    assert_eq!(apart.longest_warp, (6, 5));
+    assert_eq!(apart.load_rounds, 5 * warps);
+    // Together: the four are one round, the dependent load another.
+    assert_eq!(together.longest_warp, (6, 2));
+    assert_eq!(together.load_rounds, 2 * warps);
+    // A warp whose lanes take the group on a branch only some of them reach counts
+    // it once; a lane outside any group counts its own.
+    let rec = dev.for_each("branch", n, |t, i| {
+        if i % 2 == 0 {
+            let _g = t.loads_together();
+            t.load(&xv, 4 * i);
+            t.load(&xv, 4 * i + 1);
+        } else {
+            t.load(&xv, 4 * i + 2);
+        }
+    });
+    assert_eq!(rec.longest_warp.1, 2);
+    let p = simt::GpuProfile::named("h200").unwrap();
+    let (a, b) = (simt::timing::predict(&apart, &p).unwrap(), simt::timing::predict(&together, &p).unwrap());
+    assert!(b.latency < a.latency && b.l2 == a.l2, "{a:?} {b:?}");
 }
 
 #[test]

@@ -379,9 +379,13 @@ pub(crate) fn trace_key(t: &Thread, tree: &TreeView, ray: RayAt, any_hit: bool) 
         let _step = t.unroll(step);
         step += 1;
         if cur < 0 {
+            // The SASS issues the ray's fields and the triangle's nine words back to
+            // back and waits once (one round of the time model's chain).
+            let together = t.loads_together();
             let (origin, t_min) = (ray.origin(t), ray.t_min(t));
             let tri = t.load(&tree.tris, !cur as usize);
             let t_max = if any_hit { ray.t_max(t) } else { far.next_up() };
+            drop(together);
             tests += 1;
             let (past_edges, hit) = triangle_test(origin, &shear, corners(tri), t_min, t_max);
             t.work(rg, 1, if any_hit { ANY_HIT_TEST } else { TEST });
@@ -402,9 +406,14 @@ pub(crate) fn trace_key(t: &Thread, tree: &TreeView, ray: RayAt, any_hit: bool) 
             }
         } else {
             visits += 1;
+            // Three rounds, as the SASS issues them: the ray's origin and interval with
+            // the first two quads of boxes, then the third quad, then the children.
+            let together = t.loads_together();
             let t_min = ray.t_min(t);
             let origin = ray.origin(t);
-            let q = [0, 1, 2].map(|k| t.load_field(&tree.nodes, cur as usize, |n| &n.boxes[k]));
+            let q01 = [0, 1].map(|k| t.load_field(&tree.nodes, cur as usize, |n| &n.boxes[k]));
+            drop(together);
+            let q = [q01[0], q01[1], t.load_field(&tree.nodes, cur as usize, |n| &n.boxes[2])];
             let ch = t.load_field(&tree.nodes, cur as usize, |n| &n.child).0;
             t.work(rg, 4, VISIT);
             let cull = cull_distance(far);
