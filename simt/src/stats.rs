@@ -283,10 +283,6 @@ pub fn format_table(rows: &[KernelSummary]) -> String {
 /// The columns of [`records_to_tsv`].
 const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds";
 
-/// The columns of record files written before load rounds were counted (every load
-/// request its own round): read with `load_rounds` = `ld_req`.
-const RECORD_HEADER_BEFORE_ROUNDS: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads";
-
 /// Launch records as tab-separated lines, one per launch, to keep a measured run and
 /// predict from it later ([`crate::timing::predict`]). Declared regions are summed into
 /// one region named `work`.
@@ -342,7 +338,9 @@ fn intern(name: &str) -> &'static str {
 pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
     let mut lines = text.lines().enumerate();
     let header = match lines.next() {
-        Some((_, h)) if h == RECORD_HEADER || h == RECORD_HEADER_BEFORE_ROUNDS => h,
+        // Files written before load rounds were counted lack the last column; they are
+        // read with one round per load request.
+        Some((_, h)) if h == RECORD_HEADER || RECORD_HEADER.strip_suffix("\tload_rounds") == Some(h) => h,
         _ => return Err("not a simt launch-record file (its header differs)".into()),
     };
     let columns: Vec<&str> = header.split('\t').collect();
