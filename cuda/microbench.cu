@@ -10,8 +10,11 @@
 // calibrated on these only, then checked on those.
 //
 //   nvcc -std=c++17 -O3 -arch=sm_90 -o target/cuda/microbench cuda/microbench.cu
+//   target/cuda/microbench          every probe
+//   target/cuda/microbench fences   the atomic-latency and fence probes alone
 #include <cstdint>
 #include <cstdio>
+#include <string>
 #include <vector>
 
 #define CHECK(x)                                                                        \
@@ -122,6 +125,42 @@ __global__ void chase_hbm(const uint32_t* a, int hops, uint32_t* out) { out[0] =
 __global__ void chase_l2(const uint32_t* a, int hops, uint32_t* out) { out[0] = chase<true>(a, hops); }
 __global__ void chase_l1(const uint32_t* a, int hops, uint32_t* out) { out[0] = chase<false>(a, hops); }
 
+// Latency of an atomic whose old value is used (ATOMG, waited for; an atomic whose value
+// is unused compiles to RED, which is not): one thread, each atomic's address the value
+// the previous one returned. Adding 0 keeps the chain.
+__global__ void chase_atomic(uint32_t* a, int hops, uint32_t* out) {
+    uint32_t i = 0;
+    for (int h = 0; h < hops; ++h) i = atomicAdd(&a[i], 0u);
+    out[0] = i;
+}
+
+// Latency of __threadfence() (MEMBAR.SC.GPU on sm_90): one thread stores a word and
+// fences, again and again (the fence waits for the store to reach L2); and fences with
+// no store before it.
+__global__ void fence_store(uint32_t* a, int iters) {
+    for (int k = 0; k < iters; ++k) {
+        a[k & 2047] = k;
+        __threadfence();
+    }
+}
+// Fence throughput: every thread of a full grid stores its own word and fences, again
+// and again.
+__global__ void fence_many(uint32_t* a, int iters) {
+    uint32_t i = blockIdx.x * blockDim.x + threadIdx.x;
+    for (int k = 0; k < iters; ++k) {
+        a[i] = k;
+        __threadfence();
+    }
+}
+__global__ void fence_alone(uint32_t* a, int iters) {
+    uint32_t x = 0;
+    for (int k = 0; k < iters; ++k) {
+        x = x * 1664525u + 1013904223u;
+        __threadfence();
+    }
+    a[0] = x;
+}
+
 // Atomic throughput: every lane adds to its own word (coalesced), or every thread of the
 // grid to one word.
 __global__ void atomic_distinct(uint32_t* a, uint32_t words, int iters) {
@@ -170,9 +209,44 @@ static std::vector<uint32_t> chain(size_t n, size_t stride) {
     return v;
 }
 
-int main() {
+// The atomic-latency and fence probes: part of every run, and alone (`microbench
+// fences`) to add these quantities to a profile calibrated from an earlier full run.
+static int atomic_and_fence_probes(int sms) {
+    uint32_t *buf, *out, *words;
+    const int full_grid = sms * 8, threads = 256, many_iters = 256;
+    CHECK(cudaMalloc(&words, (size_t)full_grid * threads * 4));
+    CHECK(cudaMalloc(&buf, 8 << 10));
+    CHECK(cudaMalloc(&out, 64));
+    const int hops = 200000, iters = 100000;
+    // The same 8 KiB chain as the L2 chase: 2,048 words, each naming the one 33 on.
+    std::vector<uint32_t> v(2048);
+    for (size_t i = 0; i < v.size(); ++i) v[i] = (uint32_t)((i + 33) % v.size());
+    CHECK(cudaMemcpy(buf, v.data(), v.size() * 4, cudaMemcpyHostToDevice));
+    for (int r = 0; r < PROBE_LAUNCHES; ++r) micro::chase_atomic<<<1, 1>>>(buf, hops, out);
+    CHECK(cudaDeviceSynchronize());
+    for (int r = 0; r < PROBE_LAUNCHES; ++r) {
+        micro::fence_store<<<1, 1>>>(buf, iters);  // 2,048 words, as it indexes
+        micro::fence_alone<<<1, 1>>>(out, iters);
+        micro::fence_many<<<full_grid, threads>>>(words, many_iters);
+    }
+    CHECK(cudaDeviceSynchronize());
+    printf("probe\tchase_atomic\thops\t%d\n", hops);
+    printf("probe\tfence_store\tfences\t%d\n", iters);
+    printf("probe\tfence_alone\tfences\t%d\n", iters);
+    printf("probe\tfence_many\twarp_fences\t%lld\n", (long long)full_grid * (threads / 32) * many_iters);
+    cudaFree(words);
+    cudaFree(buf);
+    cudaFree(out);
+    return 0;
+}
+
+int main(int argc, char** argv) {
     cudaDeviceProp p;
     CHECK(cudaGetDeviceProperties(&p, 0));
+    if (argc > 1 && std::string(argv[1]) == "fences") {
+        printf("device\tname\t%s\n", p.name);
+        return atomic_and_fence_probes(p.multiProcessorCount);
+    }
     const int sms = p.multiProcessorCount;
     int clock_khz = 0, mem_khz = 0, bus_bits = 0;
     cudaDeviceGetAttribute(&clock_khz, cudaDevAttrClockRate, 0);
@@ -265,5 +339,5 @@ int main() {
     cudaFree(l2buf);
     cudaFree(hbm);
     cudaFree(out);
-    return 0;
+    return atomic_and_fence_probes(sms);
 }

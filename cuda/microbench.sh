@@ -7,6 +7,9 @@
 #   gpu_check calibrate --probes gpu-out/micro_probes.tsv --ncu gpu-out/micro_ncu.csv \
 #       --name h200 >simt/profiles/h200.toml
 #
+# MODE=fences runs the atomic-latency and fence probes alone (files micro_fences_*),
+# which `gpu_check calibrate` takes as a second --probes/--ncu pair.
+#
 # ncu runs with --clock-control none (the GPU's own clocks, as in cuda/check.sh) and its
 # default --cache-control all (caches flushed before each kernel), as the checked
 # kernels are profiled.
@@ -18,6 +21,9 @@ BIN=${BIN:-target/release/examples}
 OUT=${OUT:-gpu-out}
 mkdir -p target/cuda "$OUT"
 "$NVCC" -std=c++17 -O3 -arch="$ARCH" -o target/cuda/microbench cuda/microbench.cu
-ncu --clock-control none --csv --page raw --print-units base --metrics "$("$BIN/gpu_check" metrics)" \
-    --log-file "$OUT/micro_ncu.csv" target/cuda/microbench >"$OUT/micro_probes.tsv"
-echo "probes: $(grep -c '^probe' "$OUT/micro_probes.tsv"), launches profiled: $(grep -c '^"[0-9]' "$OUT/micro_ncu.csv")"
+MODE=${MODE:-}
+STEM=micro${MODE:+_$MODE}
+METRICS=${METRICS:-$("$BIN/gpu_check" metrics)}
+ncu --clock-control none --csv --page raw --print-units base --metrics "$METRICS" \
+    --log-file "$OUT/${STEM}_ncu.csv" target/cuda/microbench $MODE >"$OUT/${STEM}_probes.tsv"
+echo "probes: $(grep -c '^probe' "$OUT/${STEM}_probes.tsv"), launches profiled: $(grep -c '^"[0-9]' "$OUT/${STEM}_ncu.csv")"

@@ -146,10 +146,12 @@ enum Cmd {
     /// A GPU profile for simt's time model from the microbenchmarks' output and ncu's
     /// CSV of them (`cuda/microbench.sh`), to standard output.
     Calibrate {
-        #[arg(long)]
-        probes: std::path::PathBuf,
-        #[arg(long)]
-        ncu: std::path::PathBuf,
+        /// The probe program's output, one file per run (comma-separated).
+        #[arg(long, value_delimiter = ',')]
+        probes: Vec<std::path::PathBuf>,
+        /// ncu's CSV of each run, in the same order.
+        #[arg(long, value_delimiter = ',')]
+        ncu: Vec<std::path::PathBuf>,
         /// Lines for the file's header comment (the machine, the date, the command).
         #[arg(long, default_value = "")]
         header: String,
@@ -255,8 +257,15 @@ fn run(a: Args) -> Result<(), String> {
             source::source_run(&csv, simt_launches.as_deref(), &classes, first.unwrap_or(usize::MAX), lines)?
         }
         Cmd::Calibrate { probes, ncu: csv, header } => {
-            let c = warpray::gpu::calibrate::calibrate(&read(&probes)?, &read(&csv)?)
-                .map_err(|e| format!("{} / {}: {e}", probes.display(), csv.display()))?;
+            let texts = |paths: &[std::path::PathBuf]| paths.iter().map(|p| read(p)).collect::<Result<Vec<_>, _>>();
+            let (p, c) = (texts(&probes)?, texts(&csv)?);
+            let names = |paths: &[std::path::PathBuf]| {
+                paths.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(",")
+            };
+            let (p, c): (Vec<&str>, Vec<&str>) =
+                (p.iter().map(String::as_str).collect(), c.iter().map(String::as_str).collect());
+            let c = warpray::gpu::calibrate::calibrate(&p, &c)
+                .map_err(|e| format!("{} / {}: {e}", names(&probes), names(&csv)))?;
             print!("{}", c.to_text(&header));
         }
         Cmd::Time { records, ncu: csv, ncu_all, gpu_profile, sensitivity } => {

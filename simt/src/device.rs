@@ -4,7 +4,7 @@ use crate::exec::{Block, Thread, Worker};
 pub use crate::launch::{LaunchConfig, LaunchError, MAX_BLOCK_DIM};
 use crate::limits::MAX_REGIONS;
 use crate::memory::{BufferPool, DeviceBuffer, DeviceCopy, MemCounter, Scratch};
-use crate::meter::{Counters, Race};
+use crate::meter::{Counters, Race, WarpChain};
 use crate::stats::{KernelSummary, LaunchRecord, RegionStats, Stats};
 use crate::timing::{GpuProfile, predict};
 use rayon::prelude::*;
@@ -305,7 +305,7 @@ impl Device {
             footprint_sectors: if measured { counters.footprint_sectors() } else { 0 },
             block_sectors: counters.block_sectors,
             longest_warp: counters.longest_warp,
-            load_rounds: counters.load_rounds,
+            waits: counters.waits,
         };
         self.add_record(&record);
         record
@@ -418,8 +418,8 @@ impl Device {
             barriers: 0,
             footprint_sectors: 0,
             block_sectors: 0,
-            longest_warp: (0, 0),
-            load_rounds: 0,
+            longest_warp: WarpChain::default(),
+            waits: WarpChain::default(),
         };
         self.add_record(&record);
         (r, record)

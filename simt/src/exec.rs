@@ -15,7 +15,7 @@
 //! runs a plain loop whose `Thread`s carry no meter, so after inlining the kernel's
 //! accesses are ordinary loads and stores.
 //!
-//! About 890 lines on purpose: `Block`, `Warp` and `Thread` are one execution model,
+//! About 1,020 lines on purpose: `Block`, `Warp` and `Thread` are one execution model,
 //! and the meter that all three feed (sites, lanes, regions) must follow the same
 //! lockstep rules; keeping them together keeps those rules in one place.
 
@@ -25,6 +25,7 @@ use std::cell::{Cell, RefCell};
 use std::marker::PhantomData;
 use std::panic::Location;
 use std::sync::atomic::Ordering::Relaxed;
+use std::sync::atomic::{AtomicU32, AtomicU64};
 
 use crate::limits::{REGISTER_WORDS_PER_THREAD, WARP_SIZE};
 
@@ -477,6 +478,12 @@ fn note_shared(m: &RefCell<Meter>, site: usize, word: usize, words: usize, write
 
 #[cold]
 #[inline(never)]
+fn note_fence(m: &RefCell<Meter>, site: usize) {
+    m.borrow_mut().op(site, Kind::Fence, 1, 0);
+}
+
+#[cold]
+#[inline(never)]
 fn note_op(m: &RefCell<Meter>, site: usize) {
     m.borrow_mut().op(site, Kind::Other, 1, 1);
 }
@@ -602,7 +609,7 @@ impl Thread<'_> {
     fn note_if<T>(&self, kind: Kind, addr: u64, on: bool) {
         if let Some(m) = self.meter {
             let size = std::mem::size_of::<T>() as u64;
-            let width = if kind == Kind::Atomic { size } else { access_width::<T>() };
+            let width = if kind.is_atomic() { size } else { access_width::<T>() };
             note_global(m, site(), kind, addr, size, width, on);
         }
     }
@@ -701,72 +708,118 @@ impl Thread<'_> {
         }
     }
 
+    /// One atomic read-modify-write of a 4-byte element, counted as `kind`.
+    #[inline(always)]
+    #[track_caller]
+    fn rmw_u32<T: DeviceCopy>(
+        &self,
+        kind: Kind,
+        v: &GlobalMut<T>,
+        i: usize,
+        op: impl FnOnce(&AtomicU32) -> u32,
+    ) -> u32 {
+        self.note::<T>(kind, v.address(i));
+        op(v.atomic_u32(i))
+    }
+
+    /// One atomic read-modify-write of an 8-byte element, counted as `kind`.
+    #[inline(always)]
+    #[track_caller]
+    fn rmw_u64(&self, kind: Kind, v: &GlobalMut<u64>, i: usize, op: impl FnOnce(&AtomicU64) -> u64) -> u64 {
+        self.note::<u64>(kind, v.address(i));
+        op(v.atomic_u64(i))
+    }
+
+    // Atomics return the old value, and the GPU time model takes the warp to wait for it
+    // (`ATOMG` in SASS). Where a kernel ignores the value, nvcc emits a reduction
+    // (`RED`), which the warp does not wait for: use the `red_*` forms there.
+
     /// `atomicAdd` on a `u32`; returns the old value.
     #[track_caller]
     pub fn atomic_add(&self, v: &GlobalMut<u32>, i: usize, value: u32) -> u32 {
-        self.note::<u32>(Kind::Atomic, v.address(i));
-        v.atomic_u32(i).fetch_add(value, Relaxed)
+        self.rmw_u32(Kind::Atomic, v, i, |a| a.fetch_add(value, Relaxed))
     }
 
     /// `atomicAdd` on an `f32` (a compare-and-swap loop, as on older GPUs).
     #[track_caller]
     pub fn atomic_add_f32(&self, v: &GlobalMut<f32>, i: usize, value: f32) -> f32 {
-        self.note::<f32>(Kind::Atomic, v.address(i));
-        let a = v.atomic_u32(i);
-        let old = a
-            .fetch_update(Relaxed, Relaxed, |bits| Some((f32::from_bits(bits) + value).to_bits()))
-            .unwrap_or_else(|b| b);
-        f32::from_bits(old)
+        let add = |bits: u32| Some((f32::from_bits(bits) + value).to_bits());
+        f32::from_bits(
+            self.rmw_u32(Kind::Atomic, v, i, |a| a.fetch_update(Relaxed, Relaxed, add).unwrap_or_else(|b| b)),
+        )
     }
 
     /// `atomicMin` on a `u32`.
     #[track_caller]
     pub fn atomic_min(&self, v: &GlobalMut<u32>, i: usize, value: u32) -> u32 {
-        self.note::<u32>(Kind::Atomic, v.address(i));
-        v.atomic_u32(i).fetch_min(value, Relaxed)
+        self.rmw_u32(Kind::Atomic, v, i, |a| a.fetch_min(value, Relaxed))
     }
 
     /// `atomicMax` on a `u32`.
     #[track_caller]
     pub fn atomic_max(&self, v: &GlobalMut<u32>, i: usize, value: u32) -> u32 {
-        self.note::<u32>(Kind::Atomic, v.address(i));
-        v.atomic_u32(i).fetch_max(value, Relaxed)
+        self.rmw_u32(Kind::Atomic, v, i, |a| a.fetch_max(value, Relaxed))
     }
 
     /// `atomicCAS` on a `u32`: stores `new` if the element equals `expected`; returns the old value.
     #[track_caller]
     pub fn atomic_cas(&self, v: &GlobalMut<u32>, i: usize, expected: u32, new: u32) -> u32 {
-        self.note::<u32>(Kind::Atomic, v.address(i));
-        v.atomic_u32(i).compare_exchange(expected, new, Relaxed, Relaxed).unwrap_or_else(|x| x)
+        self.rmw_u32(Kind::Atomic, v, i, |a| a.compare_exchange(expected, new, Relaxed, Relaxed).unwrap_or_else(|x| x))
     }
 
     /// `atomicMin` on a `u64`: the closest-hit update for keys packing
     /// (distance bits << 32 | primitive id).
     #[track_caller]
     pub fn atomic_min_u64(&self, v: &GlobalMut<u64>, i: usize, value: u64) -> u64 {
-        self.note::<u64>(Kind::Atomic, v.address(i));
-        v.atomic_u64(i).fetch_min(value, Relaxed)
+        self.rmw_u64(Kind::Atomic, v, i, |a| a.fetch_min(value, Relaxed))
     }
 
     /// `atomicMax` on a `u64`.
     #[track_caller]
     pub fn atomic_max_u64(&self, v: &GlobalMut<u64>, i: usize, value: u64) -> u64 {
-        self.note::<u64>(Kind::Atomic, v.address(i));
-        v.atomic_u64(i).fetch_max(value, Relaxed)
+        self.rmw_u64(Kind::Atomic, v, i, |a| a.fetch_max(value, Relaxed))
     }
 
     /// `atomicAdd` on a `u64`.
     #[track_caller]
     pub fn atomic_add_u64(&self, v: &GlobalMut<u64>, i: usize, value: u64) -> u64 {
-        self.note::<u64>(Kind::Atomic, v.address(i));
-        v.atomic_u64(i).fetch_add(value, Relaxed)
+        self.rmw_u64(Kind::Atomic, v, i, |a| a.fetch_add(value, Relaxed))
     }
 
     /// `atomicCAS` on a `u64`.
     #[track_caller]
     pub fn atomic_cas_u64(&self, v: &GlobalMut<u64>, i: usize, expected: u64, new: u64) -> u64 {
-        self.note::<u64>(Kind::Atomic, v.address(i));
-        v.atomic_u64(i).compare_exchange(expected, new, Relaxed, Relaxed).unwrap_or_else(|x| x)
+        self.rmw_u64(Kind::Atomic, v, i, |a| a.compare_exchange(expected, new, Relaxed, Relaxed).unwrap_or_else(|x| x))
+    }
+
+    /// `atomicAdd` on a `u32` whose old value is not used (`RED.ADD`).
+    #[track_caller]
+    pub fn red_add(&self, v: &GlobalMut<u32>, i: usize, value: u32) {
+        self.rmw_u32(Kind::Reduce, v, i, |a| a.fetch_add(value, Relaxed));
+    }
+
+    /// `atomicMin` on a `u32` whose old value is not used (`RED.MIN`).
+    #[track_caller]
+    pub fn red_min(&self, v: &GlobalMut<u32>, i: usize, value: u32) {
+        self.rmw_u32(Kind::Reduce, v, i, |a| a.fetch_min(value, Relaxed));
+    }
+
+    /// `atomicMax` on a `u32` whose old value is not used (`RED.MAX`).
+    #[track_caller]
+    pub fn red_max(&self, v: &GlobalMut<u32>, i: usize, value: u32) {
+        self.rmw_u32(Kind::Reduce, v, i, |a| a.fetch_max(value, Relaxed));
+    }
+
+    /// `atomicMin` on a `u64` whose old value is not used (`RED.MIN.64`).
+    #[track_caller]
+    pub fn red_min_u64(&self, v: &GlobalMut<u64>, i: usize, value: u64) {
+        self.rmw_u64(Kind::Reduce, v, i, |a| a.fetch_min(value, Relaxed));
+    }
+
+    /// `atomicAdd` on a `u64` whose old value is not used (`RED.ADD.64`).
+    #[track_caller]
+    pub fn red_add_u64(&self, v: &GlobalMut<u64>, i: usize, value: u64) {
+        self.rmw_u64(Kind::Reduce, v, i, |a| a.fetch_add(value, Relaxed));
     }
 
     /// Words of element `i` of a shared array, checked against its length.
@@ -897,7 +950,7 @@ impl Thread<'_> {
     /// back to back and waits once for all of them (a traversal step's node boxes and
     /// ray fields, none of which depends on another). They are counted as every load is
     /// (requests, sectors), but the warp's chain of the GPU time model waits for them
-    /// as one round instead of one after another ([`crate::LaunchRecord::load_rounds`]).
+    /// as one round instead of one after another ([`crate::WarpChain::load_rounds`]).
     /// Say so only where the twin's SASS shows it: loads between which a value is used
     /// stay apart. Nothing when the launch is not measured.
     #[inline(always)]
@@ -913,10 +966,15 @@ impl Thread<'_> {
     /// `__threadfence()`: this thread's global writes before it are seen by any thread
     /// that sees its writes (or atomics) after it. Views store with relaxed atomics, so
     /// without a fence a thread that learns of another's work through an atomic
-    /// counter may read that work's stores stale. Counts nothing itself: a kernel's
-    /// declared work holds its `MEMBAR` (the SASS has it on the path).
+    /// counter may read that work's stores stale. No instruction of its own (a kernel's
+    /// declared work holds its `MEMBAR`, as the SASS has it on the path); the warp's
+    /// chain waits for it ([`crate::WarpChain::fences`]).
     #[inline(always)]
+    #[track_caller]
     pub fn thread_fence(&self) {
+        if let Some(m) = self.meter {
+            note_fence(m, site());
+        }
         std::sync::atomic::fence(std::sync::atomic::Ordering::SeqCst);
     }
 

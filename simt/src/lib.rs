@@ -35,6 +35,7 @@
 //! | `cudaMalloc` + `cudaMemcpy` | `dev.alloc_from(&host)`, `buf.as_slice()` |
 //! | `p[i]`, `p[i] = v` | `t.load(&view, i)`, `t.store(&view, i, v)` |
 //! | `atomicAdd`, `atomicMin`, `atomicMax`, `atomicCAS` | `t.atomic_add`, `t.atomic_min`, `t.atomic_max`, `t.atomic_cas` (`_u64` forms too) |
+//! | the same with the old value unused (`RED` in SASS) | `t.red_add`, `t.red_min`, `t.red_max` (`_u64` forms too) |
 //! | `laneid`, `warpid` | `t.lane_id()`, `t.warp_id()` |
 //! | `__ballot_sync`, `__any_sync`, `__all_sync` | `w.ballot(&pred)`, `w.any(&pred)`, `w.all(&pred)` in `blk.for_each_warp(\|w\| ..)` |
 //! | `__shfl_down_sync`, `__shfl_up_sync`, `__shfl_xor_sync`, `__shfl_sync` | `w.shfl_down(&v, d)`, `w.shfl_up`, `w.shfl_xor`, `w.shfl` on `[T; 32]` lane arrays |
@@ -67,7 +68,7 @@ pub use device::{Device, DeviceConfig, LaunchConfig, LaunchError, MAX_BLOCK_DIM,
 pub use exec::{Block, Local, Place, Shared, Thread, Together, Unrolled, Warp};
 pub use limits::{MAX_PATHS, MAX_REGIONS, REGISTER_WORDS_PER_THREAD, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES, WARP_SIZE};
 pub use memory::{DeviceBuffer, DeviceCopy, Global, GlobalMut, Readable, prefetch_host};
-pub use meter::{Race, Traffic};
+pub use meter::{Race, Traffic, WarpChain};
 pub use prims::queue::{QueuePusher, WorkQueue};
 pub use prims::scan::{exclusive_scan, inclusive_scan, reduce, transform_exclusive_scan, transform_reduce};
 pub use prims::select::{Flagged, copy_if, copy_if_stencil, fill, gather, reduce_by_key, scatter, sequence};

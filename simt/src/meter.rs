@@ -21,7 +21,7 @@
 //! sectors touched (the launch's and each block's distinct ones) and each warp's chain
 //! of instructions and loads.
 //!
-//! About 640 lines on purpose: the matching of lanes into warp instructions, the
+//! About 760 lines on purpose: the matching of lanes into warp instructions, the
 //! memory traffic, the footprints and the race check share the per-lane and per-warp
 //! state kept private here.
 
@@ -65,12 +65,43 @@ impl Traffic {
     }
 }
 
+/// One warp's dependent chain: what it waits for one after another (the GPU time
+/// model's latency term). Ordered by instructions first, as the longest warp is chosen.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord)]
+pub struct WarpChain {
+    /// Warp instructions.
+    pub instructions: u64,
+    /// Load rounds: a load request is a round of its own, loads issued together
+    /// ([`crate::Thread::loads_together`]) one round.
+    pub load_rounds: u64,
+    /// Atomics whose old value the warp waits for (`ATOMG`; reductions, `RED`, not).
+    pub atomic_rounds: u64,
+    /// Memory fences (`__threadfence`), each waited for.
+    pub fences: u64,
+}
+
+impl WarpChain {
+    /// Adds another chain's waits to this one.
+    pub fn add(&mut self, o: &WarpChain) {
+        self.instructions += o.instructions;
+        self.load_rounds += o.load_rounds;
+        self.atomic_rounds += o.atomic_rounds;
+        self.fences += o.fences;
+    }
+}
+
 /// What kind of instruction an operation is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Kind {
     Load,
     Store,
+    /// An atomic whose old value the lane uses (`ATOMG`): the warp waits for it.
     Atomic,
+    /// An atomic whose value is unused (`RED`): traffic like an atomic, not waited for.
+    Reduce,
+    /// `__threadfence`: no instruction of its own (the kernel's declared work holds its
+    /// `MEMBAR`), a wait in the warp's chain.
+    Fence,
     /// Shared-memory access, warp intrinsic: counted, no global traffic.
     Other,
     /// Declared work in a named region.
@@ -78,6 +109,13 @@ pub(crate) enum Kind {
     /// The start of loads issued together ([`Meter::begin_together`]): no instruction,
     /// a slot that names the group.
     Together,
+}
+
+impl Kind {
+    /// Atomics, waited for or not.
+    pub fn is_atomic(self) -> bool {
+        matches!(self, Kind::Atomic | Kind::Reduce)
+    }
 }
 
 /// No group of loads issued together.
@@ -108,11 +146,10 @@ pub(crate) struct Counters {
     /// Distinct loaded sectors per block, summed (estimated from the sampled ones): the
     /// loads that reach L2 when a block's repeated loads hit its SM's L1.
     pub block_sectors: u64,
-    /// The warp with the most warp instructions: (instructions, load rounds).
-    pub longest_warp: (u64, u64),
-    /// Load rounds over every warp: the loads each waits for one after another (a
-    /// request is a round of its own, loads issued together one round).
-    pub load_rounds: u64,
+    /// The warp with the most warp instructions.
+    pub longest_warp: WarpChain,
+    /// Every warp's chain summed.
+    pub waits: WarpChain,
 }
 
 impl Counters {
@@ -134,7 +171,7 @@ impl Counters {
         self.footprint.extend_from_slice(&o.footprint);
         self.block_sectors += o.block_sectors;
         self.longest_warp = self.longest_warp.max(o.longest_warp);
-        self.load_rounds += o.load_rounds;
+        self.waits.add(&o.waits);
         self
     }
 
@@ -237,15 +274,15 @@ pub(crate) struct Meter {
     spins: Vec<((usize, usize, u32), u32)>,
     /// The current block's sampled sectors, with repeats.
     block_sampled: Vec<u64>,
-    /// Per warp of the current block: (warp instructions, load rounds).
-    warp_chain: Vec<(u64, u64)>,
+    /// Per warp of the current block: its chain.
+    warp_chain: Vec<WarpChain>,
     /// The group of loads issued together that the current lane is in (`NO_GROUP`).
     group: u32,
     /// The groups of a closing warp phase's loads (scratch).
     groups: Vec<u32>,
     /// Instructions and load requests counted at once (`global_lanes`) in the current
     /// warp phase, added to its warp's chain when the phase closes.
-    phase_chain: (u64, u64),
+    phase_chain: WarpChain,
     /// Whether to gather footprints and warp chains (for the GPU time model).
     predicting: bool,
 }
@@ -384,9 +421,8 @@ impl Meter {
         // footprint is that of the whole range.
         if self.predicting {
             self.sample_range(lo, hi, kind != Kind::Load);
-            self.phase_chain.0 += parts;
-            self.phase_chain.1 += if kind == Kind::Load { parts } else { 0 };
-            self.totals.load_rounds += if kind == Kind::Load { parts } else { 0 };
+            self.phase_chain.instructions += parts;
+            self.phase_chain.load_rounds += if kind == Kind::Load { parts } else { 0 };
         }
         let sectors = if parts == 1 && width == size {
             // Whole elements side by side: one contiguous byte range.
@@ -447,17 +483,18 @@ impl Meter {
         }
     }
 
-    /// Adds one warp's instructions and load rounds to its chain in this block.
-    fn chain(&mut self, issued: u64, loads: u64) {
+    /// Adds one warp phase's chain to its warp's in this block, and its waits to the
+    /// launch's.
+    fn chain(&mut self, phase: WarpChain) {
         if !self.predicting {
             return;
         }
+        self.totals.waits.add(&phase);
         let warp = (self.now.thread / WARP_SIZE) as usize;
         if self.warp_chain.len() <= warp {
-            self.warp_chain.resize(warp + 1, (0, 0));
+            self.warp_chain.resize(warp + 1, WarpChain::default());
         }
-        let c = &mut self.warp_chain[warp];
-        (c.0, c.1) = (c.0 + issued, c.1 + loads);
+        self.warp_chain[warp].add(&phase);
     }
 
     /// Closes the current block: its distinct sectors and its longest warp go into the
@@ -634,15 +671,20 @@ impl Meter {
 
     /// Closes a lane phase of a warp: its warp instructions go into the totals.
     pub fn end_warp_phase(&mut self) {
-        let (mut issued, mut loads) = (0, 0);
+        let mut phase = std::mem::take(&mut self.phase_chain);
         for s in &self.slots {
-            issued += s.max_units as u64;
-            if s.kind == Kind::Load && s.on > 0 {
-                if s.group == NO_GROUP {
-                    loads += 1;
-                } else if self.predicting {
-                    self.groups.push(s.group);
+            phase.instructions += s.max_units as u64;
+            match s.kind {
+                Kind::Load if s.on > 0 => {
+                    if s.group == NO_GROUP {
+                        phase.load_rounds += 1;
+                    } else if self.predicting {
+                        self.groups.push(s.group);
+                    }
                 }
+                Kind::Atomic if s.on > 0 => phase.atomic_rounds += 1,
+                Kind::Fence => phase.fences += 1,
+                _ => {}
             }
             match s.kind {
                 Kind::Work(r) => {
@@ -655,7 +697,7 @@ impl Meter {
                     let traffic = match k {
                         Kind::Load => &mut self.totals.loads,
                         Kind::Store => &mut self.totals.stores,
-                        Kind::Atomic => &mut self.totals.atomics,
+                        Kind::Atomic | Kind::Reduce => &mut self.totals.atomics,
                         _ => continue,
                     };
                     if s.on > 0 {
@@ -691,14 +733,10 @@ impl Meter {
         if !self.groups.is_empty() {
             self.groups.sort_unstable();
             self.groups.dedup();
-            loads += self.groups.len() as u64;
+            phase.load_rounds += self.groups.len() as u64;
             self.groups.clear();
         }
-        if self.predicting {
-            self.totals.load_rounds += loads;
-        }
-        let (i, l) = std::mem::take(&mut self.phase_chain);
-        self.chain(issued + i, loads + l);
+        self.chain(phase);
     }
 }
 

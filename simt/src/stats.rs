@@ -1,7 +1,7 @@
 //! Launch records and their aggregation per kernel name.
 
 use crate::limits::WARP_SIZE;
-pub use crate::meter::Traffic;
+pub use crate::meter::{Traffic, WarpChain};
 use std::collections::{HashMap, VecDeque};
 use std::fmt::Write;
 
@@ -75,12 +75,11 @@ pub struct LaunchRecord {
     /// reach L2 if each block's repeated loads hit L1 (stores and atomics reach L2
     /// every time; [`LaunchRecord::stores`] and [`LaunchRecord::atomics`] count them).
     pub block_sectors: u64,
-    /// The warp that issued the most instructions: (warp instructions, load rounds).
-    pub longest_warp: (u64, u64),
-    /// Load rounds over every warp: the loads each warp waits for one after another. A
-    /// load request is a round of its own; loads a kernel issues together
-    /// ([`crate::Thread::loads_together`]) are one round. 0 when unmeasured.
-    pub load_rounds: u64,
+    /// The chain of the warp that issued the most instructions.
+    pub longest_warp: WarpChain,
+    /// Every warp's chain summed: what the warps wait for one after another (load
+    /// rounds, atomics whose value they use, fences). 0 when unmeasured.
+    pub waits: WarpChain,
 }
 
 impl LaunchRecord {
@@ -281,7 +280,12 @@ pub fn format_table(rows: &[KernelSummary]) -> String {
 }
 
 /// The columns of [`records_to_tsv`].
-const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds";
+const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences";
+
+/// Columns of [`RECORD_HEADER`] that files written before them lack, oldest last:
+/// the atomics and fences waited for (read as none), and load rounds (read as one per
+/// load request).
+const LATER_COLUMNS: &[&str] = &["\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences", "\tload_rounds"];
 
 /// Launch records as tab-separated lines, one per launch, to keep a measured run and
 /// predict from it later ([`crate::timing::predict`]). Declared regions are summed into
@@ -294,7 +298,7 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
         let t = |x: &Traffic| format!("{}\t{}\t{}", x.requests, x.sectors, x.lanes);
         let _ = writeln!(
             s,
-            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
             r.name,
             r.grid,
             r.block,
@@ -312,9 +316,13 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
             r.barriers,
             r.footprint_sectors,
             r.block_sectors,
-            r.longest_warp.0,
-            r.longest_warp.1,
-            r.load_rounds
+            r.longest_warp.instructions,
+            r.longest_warp.load_rounds,
+            r.waits.load_rounds,
+            r.longest_warp.atomic_rounds,
+            r.longest_warp.fences,
+            r.waits.atomic_rounds,
+            r.waits.fences
         );
     }
     s
@@ -338,9 +346,7 @@ fn intern(name: &str) -> &'static str {
 pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
     let mut lines = text.lines().enumerate();
     let header = match lines.next() {
-        // Files written before load rounds were counted lack the last column; they are
-        // read with one round per load request.
-        Some((_, h)) if h == RECORD_HEADER || RECORD_HEADER.strip_suffix("\tload_rounds") == Some(h) => h,
+        Some((_, h)) if is_record_header(h) => h,
         _ => return Err("not a simt launch-record file (its header differs)".into()),
     };
     let columns: Vec<&str> = header.split('\t').collect();
@@ -372,9 +378,86 @@ pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
             barriers: n(20)?,
             footprint_sectors: n(21)?,
             block_sectors: n(22)?,
-            longest_warp: (n(23)?, n(24)?),
-            load_rounds: if columns.len() > 25 { n(25)? } else { n(11)? },
+            longest_warp: WarpChain {
+                instructions: n(23)?,
+                load_rounds: n(24)?,
+                atomic_rounds: if columns.len() > 26 { n(26)? } else { 0 },
+                fences: if columns.len() > 26 { n(27)? } else { 0 },
+            },
+            waits: WarpChain {
+                instructions: n(7)? + n(9)?,
+                load_rounds: if columns.len() > 25 { n(25)? } else { n(11)? },
+                atomic_rounds: if columns.len() > 26 { n(28)? } else { 0 },
+                fences: if columns.len() > 26 { n(29)? } else { 0 },
+            },
         });
     }
     Ok(out)
+}
+
+/// The current header, or one that lacks only the [`LATER_COLUMNS`] added after it
+/// was written.
+fn is_record_header(h: &str) -> bool {
+    let mut current = RECORD_HEADER;
+    for later in std::iter::once("").chain(LATER_COLUMNS.iter().copied()) {
+        match current.strip_suffix(later) {
+            Some(older) => current = older,
+            None => return false,
+        }
+        if h == current {
+            return true;
+        }
+    }
+    false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record() -> LaunchRecord {
+        let t = |k: u64| Traffic { requests: k, sectors: 2 * k, lanes: 32 * k };
+        LaunchRecord {
+            name: "test::kernel",
+            grid: 3,
+            block: 64,
+            shared_bytes: 128,
+            registers: 0,
+            seconds: 0.25,
+            measured: true,
+            threads: 192,
+            ops: RegionStats { name: "ops", issued: 40, active: 1000 },
+            regions: vec![RegionStats { name: "work", issued: 60, active: 1500 }],
+            loads: t(5),
+            stores: t(3),
+            atomics: t(2),
+            barriers: 4,
+            footprint_sectors: 9,
+            block_sectors: 8,
+            longest_warp: WarpChain { instructions: 20, load_rounds: 3, atomic_rounds: 2, fences: 1 },
+            waits: WarpChain { instructions: 100, load_rounds: 12, atomic_rounds: 7, fences: 5 },
+        }
+    }
+
+    #[test]
+    fn records_read_back_as_written_and_older_files_without_their_later_columns() {
+        let text = records_to_tsv(&[record()]);
+        let back = &records_from_tsv(&text).unwrap()[0];
+        assert_eq!((back.longest_warp, back.waits), (record().longest_warp, record().waits));
+        assert_eq!((back.loads, back.atomics, back.block_sectors), (record().loads, record().atomics, 8));
+        // Cut the later columns off, newest first: atomics and fences are then none, and
+        // then load rounds are one per load request.
+        let cut = |text: &str, columns: usize| -> String {
+            text.lines().map(|l| l.split('\t').take(columns).collect::<Vec<_>>().join("\t") + "\n").collect()
+        };
+        let before_atomics = &records_from_tsv(&cut(&text, 26)).unwrap()[0];
+        assert_eq!(before_atomics.longest_warp, WarpChain { atomic_rounds: 0, fences: 0, ..record().longest_warp });
+        assert_eq!(before_atomics.waits, WarpChain { atomic_rounds: 0, fences: 0, ..record().waits });
+        let before_rounds = &records_from_tsv(&cut(&text, 25)).unwrap()[0];
+        assert_eq!(before_rounds.waits.load_rounds, 5);
+        // Any other header is refused.
+        for columns in [24, 27] {
+            assert!(records_from_tsv(&cut(&text, columns)).unwrap_err().contains("header differs"));
+        }
+    }
 }

@@ -13,7 +13,7 @@
 //! out.
 
 use crate::limits::{SECTOR_BYTES, WARP_SIZE};
-use crate::stats::LaunchRecord;
+use crate::stats::{LaunchRecord, WarpChain};
 use std::fmt::Write;
 
 /// What the time model knows of one GPU. Rates are per second; sizes in bytes.
@@ -49,6 +49,12 @@ pub struct GpuProfile {
     pub l2_latency_s: f64,
     /// Latency of a load served by HBM, seconds.
     pub hbm_latency_s: f64,
+    /// Latency of an atomic whose old value is waited for, served by L2, seconds.
+    pub atomic_latency_s: f64,
+    /// Latency of a memory fence (`__threadfence`), seconds.
+    pub fence_latency_s: f64,
+    /// Warp fences the whole GPU completes per second with every SM fencing.
+    pub fences_per_s: f64,
     /// Atomic lane operations per second on distinct words.
     pub atomics_per_s: f64,
     /// Atomic lane operations per second on one word.
@@ -80,6 +86,9 @@ const KEYS: &[&str] = &[
     "hbm_gb_per_s",
     "l2_latency_ns",
     "hbm_latency_ns",
+    "atomic_latency_ns",
+    "fence_latency_ns",
+    "fences_per_ns",
     "atomics_per_ns",
     "same_address_atomics_per_ns",
     "barriers_per_us_per_sm",
@@ -153,6 +162,9 @@ impl GpuProfile {
             hbm_bytes_per_s: get("hbm_gb_per_s")? * 1e9,
             l2_latency_s: get("l2_latency_ns")? * 1e-9,
             hbm_latency_s: get("hbm_latency_ns")? * 1e-9,
+            atomic_latency_s: get("atomic_latency_ns")? * 1e-9,
+            fence_latency_s: get("fence_latency_ns")? * 1e-9,
+            fences_per_s: get("fences_per_ns")? * 1e9,
             atomics_per_s: get("atomics_per_ns")? * 1e9,
             same_address_atomics_per_s: get("same_address_atomics_per_ns")? * 1e9,
             barriers_per_s_per_sm: get("barriers_per_us_per_sm")? * 1e6,
@@ -184,6 +196,9 @@ impl GpuProfile {
             self.hbm_bytes_per_s / 1e9,
             self.l2_latency_s * 1e9,
             self.hbm_latency_s * 1e9,
+            self.atomic_latency_s * 1e9,
+            self.fence_latency_s * 1e9,
+            self.fences_per_s / 1e9,
             self.atomics_per_s / 1e9,
             self.same_address_atomics_per_s / 1e9,
             self.barriers_per_s_per_sm / 1e6,
@@ -221,6 +236,8 @@ pub struct Prediction {
     pub hbm: f64,
     /// Atomic lanes over the atomic units' rates.
     pub atomics: f64,
+    /// Warp fences over the GPU's fence rate.
+    pub fences: f64,
     /// Barriers over the SMs' barrier rate.
     pub barriers: f64,
     /// Blocks over the dispatch rate.
@@ -240,6 +257,7 @@ impl Prediction {
         self.l2 += o.l2;
         self.hbm += o.hbm;
         self.atomics += o.atomics;
+        self.fences += o.fences;
         self.barriers += o.barriers;
         self.dispatch += o.dispatch;
         self.latency += o.latency;
@@ -253,6 +271,7 @@ impl Prediction {
             ("l2", self.l2),
             ("hbm", self.hbm),
             ("atomics", self.atomics),
+            ("fences", self.fences),
             ("barriers", self.barriers),
             ("dispatch", self.dispatch),
             ("latency", self.latency),
@@ -298,13 +317,21 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
     let same = (r.atomics.lanes as f64 - 8.0 * r.atomics.sectors as f64).max(0.0);
     let distinct = r.atomics.lanes as f64 - same;
     // One warp's dependent chain: each instruction waits on the one before, each round
-    // of loads waits for its data (from HBM for first touches, else L2); a round is one
-    // load request, or loads the kernel issues together.
+    // of loads waits for its data (from HBM for first touches, else L2; a round is one
+    // load request, or loads the kernel issues together), each atomic whose value it
+    // uses for L2's answer (and HBM's for first touches), each fence for its own.
     let miss = if sectors > 0.0 { (footprint / sectors).min(1.0) } else { 0.0 };
     let mem_latency = miss * p.hbm_latency_s + (1.0 - miss) * p.l2_latency_s;
-    let chain = |issued: f64, loads: f64| issued * p.alu_latency_cycles * cycle + loads * mem_latency;
-    let average = chain(issued / warps, r.load_rounds as f64 / warps);
-    let longest = chain(r.longest_warp.0 as f64, r.longest_warp.1 as f64);
+    let atomic_latency = p.atomic_latency_s + miss * (p.hbm_latency_s - p.l2_latency_s).max(0.0);
+    let chain = |c: &WarpChain, over: f64| {
+        (c.instructions as f64 * p.alu_latency_cycles * cycle
+            + c.load_rounds as f64 * mem_latency
+            + c.atomic_rounds as f64 * atomic_latency
+            + c.fences as f64 * p.fence_latency_s)
+            / over
+    };
+    let average = chain(&WarpChain { instructions: r.all_regions().issued, ..r.waits }, warps);
+    let longest = chain(&r.longest_warp, 1.0);
     // Sectors that reach L2: each block's distinct loaded ones (its repeated loads hit
     // L1) and every stored or atomic one (L1 writes through).
     let written = (r.stores.sectors + r.atomics.sectors) as f64;
@@ -316,12 +343,13 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
         l2: l2_sectors * SECTOR_BYTES as f64 / p.l2_bytes_per_s,
         hbm: footprint * SECTOR_BYTES as f64 / p.hbm_bytes_per_s,
         atomics: distinct / p.atomics_per_s + same / p.same_address_atomics_per_s,
+        fences: r.waits.fences as f64 / p.fences_per_s,
         barriers: r.barriers as f64 / (p.barriers_per_s_per_sm * sms),
         dispatch: grid / sms * p.block_dispatch_s,
         latency: (waves * average).max(longest),
         seconds: 0.0,
     };
-    let bounds = [t.issue, t.l1, t.l2, t.hbm, t.atomics, t.barriers, t.dispatch, t.latency];
+    let bounds = [t.issue, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch, t.latency];
     t.seconds = t.launch + bounds.iter().cloned().fold(0.0, f64::max);
     Some(t)
 }
@@ -356,8 +384,8 @@ mod tests {
             barriers: 0,
             footprint_sectors: footprint,
             block_sectors: sectors,
-            longest_warp: (issued, loads),
-            load_rounds: warps * loads,
+            longest_warp: WarpChain { instructions: issued, load_rounds: loads, ..WarpChain::default() },
+            waits: WarpChain { instructions: warps * issued, load_rounds: warps * loads, ..WarpChain::default() },
         }
     }
 
@@ -424,6 +452,30 @@ mod tests {
         assert!((t.hbm * 2.0 - base.hbm).abs() < 1e-12, "{t:?}");
         assert_eq!((t.issue, t.l2, t.latency), (base.issue, base.l2, base.latency));
         assert!(t.seconds < base.seconds * 0.9);
+    }
+
+    #[test]
+    fn waited_atomics_and_fences_lengthen_the_chain_and_fences_have_their_own_bound() {
+        let p = profile();
+        // One warp: its chain gains each waited atomic's and fence's latency.
+        let mut r = launch(1, 100, 10, 80, 0);
+        let base = predict(&r, &p).unwrap().latency;
+        r.longest_warp.atomic_rounds = 3;
+        r.longest_warp.fences = 2;
+        r.waits.atomic_rounds = 3;
+        r.waits.fences = 2;
+        let t = predict(&r, &p).unwrap();
+        let added = 3.0 * p.atomic_latency_s + 2.0 * p.fence_latency_s;
+        assert!((t.latency - base - added).abs() < 1e-12, "{t:?}");
+        // A full machine fencing with little else: bound by the fence rate, which a
+        // planted error moves alone.
+        let mut r = launch(p.sms as u32 * 64, 4, 0, 0, 0);
+        r.waits.fences = 50_000_000;
+        let t = predict(&r, &p).unwrap();
+        assert_eq!(t.bound(), "fences");
+        assert!((t.fences - 5e7 / p.fences_per_s).abs() < 1e-12);
+        let slow = predict(&r, &GpuProfile { fences_per_s: p.fences_per_s / 2.0, ..p.clone() }).unwrap();
+        assert!((slow.fences - 2.0 * t.fences).abs() < 1e-12 && slow.issue == t.issue);
     }
 
     #[test]

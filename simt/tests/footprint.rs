@@ -5,7 +5,12 @@
 //! instructions and load rounds. The sector counts are estimated from 1 address in 16,
 //! so they are checked on arrays large enough for the estimate to be within 1 %.
 
-use simt::{Device, DeviceConfig, LaunchConfig};
+use simt::{Device, DeviceConfig, LaunchConfig, WarpChain};
+
+/// A chain of `instructions` and `load_rounds`, nothing else waited for.
+fn chain(instructions: u64, load_rounds: u64) -> WarpChain {
+    WarpChain { instructions, load_rounds, ..WarpChain::default() }
+}
 
 /// A measured device predicting on the shipped H200 profile (the footprints and warp
 /// chains are gathered only then).
@@ -36,8 +41,8 @@ fn a_stream_touches_each_sector_once_per_launch_and_per_block() {
     // The owned-element form records the same.
     let own = dev.transform("stream_owned", &x.view(), &mut y, |_, _, v| v);
     assert!(near(own.footprint_sectors, sectors) && near(own.block_sectors, loaded), "{own:?}");
-    assert_eq!(own.longest_warp, (2, 1));
-    assert_eq!(rec.longest_warp, (2, 1));
+    assert_eq!(own.longest_warp, chain(2, 1));
+    assert_eq!(rec.longest_warp, chain(2, 1));
 }
 
 #[test]
@@ -66,8 +71,8 @@ fn a_table_every_block_reads_is_one_footprint_and_one_l2_read_per_block() {
     let per_block = 64 * table_sectors;
     assert!(near(rec.block_sectors, per_block), "{} vs {per_block}", rec.block_sectors);
     // Every warp: 1,024 loads and a store, each with its issue slot.
-    assert_eq!(rec.longest_warp, (1025, 1024));
-    assert_eq!(rec.load_rounds, 64 * 8 * 1024);
+    assert_eq!(rec.longest_warp, chain(1025, 1024));
+    assert_eq!(rec.waits, chain(64 * 8 * 1025, 64 * 8 * 1024));
 }
 
 #[test]
@@ -90,11 +95,11 @@ fn loads_issued_together_are_one_round_of_the_chain_and_the_same_traffic() {
     // Counted alike: requests, sectors, instructions (the group issues none).
     assert_eq!((apart.loads, apart.ops.issued), (together.loads, together.ops.issued));
     let warps = n as u64 / 32;
-    assert_eq!(apart.longest_warp, (6, 5));
-    assert_eq!(apart.load_rounds, 5 * warps);
+    assert_eq!(apart.longest_warp, chain(6, 5));
+    assert_eq!(apart.waits.load_rounds, 5 * warps);
     // Together: the four are one round, the dependent load another.
-    assert_eq!(together.longest_warp, (6, 2));
-    assert_eq!(together.load_rounds, 2 * warps);
+    assert_eq!(together.longest_warp, chain(6, 2));
+    assert_eq!(together.waits.load_rounds, 2 * warps);
     // A warp whose lanes take the group on a branch only some of them reach counts
     // it once; a lane outside any group counts its own.
     let rec = dev.for_each("branch", n, |t, i| {
@@ -106,10 +111,42 @@ fn loads_issued_together_are_one_round_of_the_chain_and_the_same_traffic() {
             t.load(&xv, 4 * i + 2);
         }
     });
-    assert_eq!(rec.longest_warp.1, 2);
+    assert_eq!(rec.longest_warp.load_rounds, 2);
     let p = simt::GpuProfile::named("h200").unwrap();
     let (a, b) = (simt::timing::predict(&apart, &p).unwrap(), simt::timing::predict(&together, &p).unwrap());
     assert!(b.latency < a.latency && b.l2 == a.l2, "{a:?} {b:?}");
+}
+
+#[test]
+fn a_warp_waits_for_atomics_whose_value_it_uses_and_for_fences_not_for_reductions() {
+    let dev = measured();
+    let n = 1 << 12;
+    let mut counts = dev.alloc::<u32>(64);
+    let cv = counts.view_mut();
+    // Each lane adds to a counter and branches on the old value (an `ATOMG` the warp
+    // waits for), after a fence; or adds without looking (a `RED`).
+    let used = dev.for_each("used", n, |t, i| {
+        t.thread_fence();
+        if t.atomic_add(&cv, i % 64, 1) == u32::MAX {
+            t.thread_fence();
+        }
+    });
+    let ignored = dev.for_each("ignored", n, |t, i| t.red_add(&cv, i % 64, 1));
+    assert!(counts.as_slice().iter().all(|&c| c == 2 * n as u32 / 64));
+    // The same traffic and instructions (a fence issues none of its own)...
+    assert_eq!((used.atomics, used.ops.issued), (ignored.atomics, ignored.ops.issued));
+    // ...but one atomic and one fence waited for per warp in the first (the second
+    // fence is never reached), none in the second.
+    let warps = n as u64 / 32;
+    let waited = WarpChain { instructions: 1, atomic_rounds: 1, fences: 1, ..WarpChain::default() };
+    assert_eq!(used.longest_warp, waited);
+    assert_eq!((used.waits.atomic_rounds, used.waits.fences), (warps, warps));
+    assert_eq!(ignored.longest_warp, chain(1, 0));
+    assert_eq!((ignored.waits.atomic_rounds, ignored.waits.fences), (0, 0));
+    let p = simt::GpuProfile::named("h200").unwrap();
+    let (a, b) = (simt::timing::predict(&used, &p).unwrap(), simt::timing::predict(&ignored, &p).unwrap());
+    assert!(a.latency > b.latency + p.atomic_latency_s + p.fence_latency_s - 1e-12, "{a:?} {b:?}");
+    assert_eq!(a.atomics, b.atomics);
 }
 
 #[test]
@@ -124,7 +161,7 @@ fn the_longest_warp_is_the_one_that_loops_longest() {
         let s: u32 = (0..trips).map(|k| t.load(&xv, (i + k) % 4096)).sum();
         t.store(&ov, i, s);
     });
-    assert_eq!(rec.longest_warp, (101, 100));
+    assert_eq!(rec.longest_warp, chain(101, 100));
     // Unmeasured launches, and measured ones without a profile, record none of it.
     for plain in [Device::default(), Device::new(DeviceConfig { measure: true, ..Default::default() })] {
         let y = plain.alloc_from(&vec![1u32; 64]);
@@ -132,7 +169,7 @@ fn the_longest_warp_is_the_one_that_loops_longest() {
         let r = plain.for_each("plain", 64, |t, i| {
             t.load(&yv, i);
         });
-        assert_eq!((r.footprint_sectors, r.block_sectors, r.longest_warp), (0, 0, (0, 0)));
+        assert_eq!((r.footprint_sectors, r.block_sectors, r.longest_warp), (0, 0, WarpChain::default()));
         assert_eq!(plain.kernel_stats()[0].gpu_seconds, 0.0);
     }
     assert!(dev.kernel_stats().iter().all(|k| k.gpu_seconds > 0.0));

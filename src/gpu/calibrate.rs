@@ -28,6 +28,9 @@ struct Report {
 fn read_report(text: &str) -> Result<Report, String> {
     let mut r = Report { device: Vec::new(), probes: Vec::new() };
     for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
         let f: Vec<&str> = line.split('\t').collect();
         match f.as_slice() {
             ["device", k, v] => r.device.push((k.to_string(), v.to_string())),
@@ -46,10 +49,22 @@ fn read_report(text: &str) -> Result<Report, String> {
 /// printed one): the 65,536 of every NVIDIA GPU since Kepler, the H200 included.
 const REGISTERS_PER_SM: f64 = 65536.0;
 
-/// Builds the profile from the probe program's output (`probes`) and ncu's CSV of it.
-pub fn calibrate(probes: &str, ncu_csv: &str) -> Result<Calibration, String> {
-    let report = read_report(probes)?;
-    let kernels = parse_csv(ncu_csv)?;
+/// Builds the profile from the probe program's output and ncu's CSV of it, one pair per
+/// run (`probes[k]` with `ncu_csvs[k]`): a later run may add probes an earlier one
+/// lacked (`microbench fences`); where two runs have a probe, the first one's counts.
+pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, String> {
+    if probes.is_empty() || probes.len() != ncu_csvs.len() {
+        return Err(format!(
+            "{} probe outputs for {} ncu CSVs: give one of each per run",
+            probes.len(),
+            ncu_csvs.len()
+        ));
+    }
+    let report = read_report(&probes.join("\n"))?;
+    let mut kernels = Vec::new();
+    for csv in ncu_csvs {
+        kernels.extend(parse_csv(csv)?);
+    }
     let dev = |k: &str| -> Result<f64, String> {
         let v = report.device.iter().find(|(n, _)| n == k).ok_or_else(|| format!("probe output: no device {k}"))?;
         v.1.parse().map_err(|_| format!("probe output: device {k}: '{}' is not a number", v.1))
@@ -96,6 +111,10 @@ pub fn calibrate(probes: &str, ncu_csv: &str) -> Result<Calibration, String> {
     let l1 = probe("l1_read")?;
     let chase_hbm = probe("chase_hbm")?;
     let chase_l2 = probe("chase_l2")?;
+    let chase_atomic = probe("chase_atomic")?;
+    let fence_store = probe("fence_store")?;
+    let fence_alone = probe("fence_alone")?;
+    let fence_many = probe("fence_many")?;
     let at = probe("atomic_distinct")?;
     let at_same = probe("atomic_same")?;
     let barrier = probe("barrier")?;
@@ -106,6 +125,10 @@ pub fn calibrate(probes: &str, ncu_csv: &str) -> Result<Calibration, String> {
     // hops are charged at the HBM latency.
     let l2_misses = (chase_l2.dram_bytes / 32.0).min(amount("chase_l2")? - 1.0);
     let l2_latency = (busy(&chase_l2) - l2_misses * hbm_latency) / (amount("chase_l2")? - l2_misses);
+    // The atomic chase runs over the L2 chase's 8 KiB, and its first pass misses alike.
+    let atomic_misses = (chase_atomic.dram_bytes / 32.0).min(amount("chase_atomic")? - 1.0);
+    let atomic_latency =
+        (busy(&chase_atomic) - atomic_misses * hbm_latency) / (amount("chase_atomic")? - atomic_misses);
     let profile = GpuProfile {
         name,
         sms,
@@ -122,6 +145,9 @@ pub fn calibrate(probes: &str, ncu_csv: &str) -> Result<Calibration, String> {
         hbm_bytes_per_s: hbm.dram_bytes / busy(&hbm),
         l2_latency_s: l2_latency,
         hbm_latency_s: hbm_latency,
+        atomic_latency_s: atomic_latency,
+        fence_latency_s: busy(&fence_store) / amount("fence_store")?,
+        fences_per_s: amount("fence_many")? / busy(&fence_many),
         atomics_per_s: amount("atomic_distinct")? / busy(&at),
         same_address_atomics_per_s: amount("atomic_same")? / busy(&at_same),
         barriers_per_s_per_sm: amount("barrier")? / (busy(&barrier) * sms),
@@ -151,6 +177,15 @@ pub fn calibrate(probes: &str, ncu_csv: &str) -> Result<Calibration, String> {
         ("hbm_gb_per_s", probe_of("hbm_read", "dram__bytes_read / time")),
         ("l2_latency_ns", probe_of("chase_l2", "one-thread pointer chase, first-pass misses at HBM latency")),
         ("hbm_latency_ns", probe_of("chase_hbm", "one-thread pointer chase, 8,212-byte steps")),
+        (
+            "atomic_latency_ns",
+            probe_of(
+                "chase_atomic",
+                "one-thread chase of atomicAdd's returned values, first-pass misses at HBM latency",
+            ),
+        ),
+        ("fence_latency_ns", probe_of("fence_store", "one thread: a store, then __threadfence(), repeated")),
+        ("fences_per_ns", probe_of("fence_many", "warp __threadfence()s after a store each, every SM full / time")),
         ("atomics_per_ns", probe_of("atomic_distinct", "atomicAdd lanes to distinct words / time")),
         ("same_address_atomics_per_ns", probe_of("atomic_same", "atomicAdd lanes to one word / time")),
         ("barriers_per_us_per_sm", probe_of("barrier", "block barriers / time / SMs")),
@@ -170,6 +205,10 @@ pub fn calibrate(probes: &str, ncu_csv: &str) -> Result<Calibration, String> {
         format!(
             "shared_rw: {:.2} warp instructions per SM cycle with shared loads and stores",
             shared.inst / (busy(&shared) * clock * sms)
+        ),
+        format!(
+            "fence_alone: {:.1} ns per __threadfence() with no store before it",
+            busy(&fence_alone) / amount("fence_alone")? * 1e9
         ),
     ];
     Ok(Calibration { profile, sources, notes })

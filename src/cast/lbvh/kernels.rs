@@ -246,7 +246,12 @@ pub(crate) fn fit_leaf(
     i: usize,
 ) {
     let mut up = t.load(leaf_parent, i);
-    let mut b = t.load(leaf_boxes, i);
+    // The box's six words are issued back to back and waited for once (as are the
+    // parent's index and the sibling's box below: the SASS has them so).
+    let mut b = {
+        let _together = t.loads_together();
+        t.load(leaf_boxes, i)
+    };
     t.work(0, 0, FIT_HEAD);
     let mut level = 0;
     while up != NO_PARENT {
@@ -267,11 +272,13 @@ pub(crate) fn fit_leaf(
             return;
         }
         t.thread_fence();
+        let together = t.loads_together();
         up = t.load(inner_parent, p);
         // The sibling's slot, written by the reference that arrived first: six
         // `volatile` single-float loads (past L1).
         let f = |k: usize| t.load_field(nodes, p, |n| float_of(&n.boxes, 6 * (side ^ 1) + k));
         let other = Aabb { min: Vec3::new(f(0), f(1), f(2)), max: Vec3::new(f(3), f(4), f(5)) };
+        drop(together);
         b = b.union(other);
         t.work(0, 0, FIT_UNION);
     }
@@ -464,7 +471,7 @@ pub(crate) fn add_warp(w: &mut Warp, counts: &[u32; 32], totals: &GlobalMut<u64>
     w.for_each_lane(|t| {
         if t.lane_id() == 0 {
             t.work(0, 10, lane0_work);
-            t.atomic_add_u64(totals, which, c[0]);
+            t.red_add_u64(totals, which, c[0]);
         }
     });
 }

@@ -130,9 +130,9 @@ pub(crate) fn node_bounds(
             t.work(0, 0, if last { BOUNDS_LAST_WORD_TEST } else { BOUNDS_WORD_TEST });
             if (word < 3 && value < old) || (word >= 3 && value > old) {
                 if word < 3 {
-                    t.atomic_min(bounds, base + word, value);
+                    t.red_min(bounds, base + word, value);
                 } else {
-                    t.atomic_max(bounds, base + word, value);
+                    t.red_max(bounds, base + word, value);
                 }
                 if last && in_loop {
                     t.work(0, 0, BOUNDS_LAST_ATOMIC_MOVE);
@@ -725,18 +725,18 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
         let id = t.get(ray_id);
         if id != u32::MAX {
             if let Some(v) = &a.visits {
-                t.atomic_add(v, id as usize, 1);
+                t.red_add(v, id as usize, 1);
             }
             t.atomic_add_shared_u64(block_tests, 0, t.get(tests));
             if t.get(best) != NO_HIT {
-                t.atomic_min_u64(&a.keys, id as usize, t.get(best));
+                t.red_min_u64(&a.keys, id as usize, t.get(best));
             }
         }
     });
     blk.sync_threads();
     blk.for_each_thread(|t| {
         if t.thread_idx() == 0 {
-            t.atomic_add_u64(&a.tests, 0, t.load_shared(block_tests, 0));
+            t.red_add_u64(&a.tests, 0, t.load_shared(block_tests, 0));
         }
     });
 }
