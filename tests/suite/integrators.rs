@@ -3,8 +3,9 @@
 use crate::common::*;
 use crate::reference::{self, TestBox};
 use crate::seeds::{Runs, assert_agree, assert_constant, runs};
-use warpray::cast::BvhCaster;
+use warpray::cast::{BvhCaster, CastStats, RayCaster};
 use warpray::film::Film;
+use warpray::geometry::{Hit, Ray};
 use warpray::glam::{Vec2, Vec3};
 use warpray::render::{Budget, IntegratorKind, RenderOptions, render};
 use warpray::scene::{Camera, Material, Scene};
@@ -128,6 +129,58 @@ fn every_integrator_is_deterministic_across_thread_counts() {
         };
         let (a, b) = (run(1), run(2));
         assert!(a.sum == b.sum && a.splat == b.splat, "{}: 1 and 2 threads differ", kind.name());
+    }
+}
+
+/// The BVH's calls, from a caster that asks for large batches as DACRT does: the path
+/// tracer then traces each pass as one wavefront instead of in chunks.
+struct WholePasses(BvhCaster);
+
+impl RayCaster for WholePasses {
+    fn name(&self) -> &'static str {
+        "whole-passes"
+    }
+    fn closest(&self, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
+        self.0.closest(rays, hits)
+    }
+    fn occluded(&self, rays: &[Ray], out: &mut [bool]) -> CastStats {
+        self.0.occluded(rays, out)
+    }
+    fn memory_bytes(&self) -> usize {
+        self.0.memory_bytes()
+    }
+    fn casts_single_rays(&self) -> bool {
+        false
+    }
+}
+
+#[test]
+fn the_path_tracers_chunks_give_the_whole_wavefronts_image_at_any_thread_count() {
+    // 96 × 96 pixels: several chunks of paths, traced in parallel.
+    let scene = glossy_glass_box();
+    let opts = RenderOptions {
+        width: 96,
+        height: 96,
+        budget: Budget::Samples(2),
+        max_depth: 8,
+        integrator: IntegratorKind::Path,
+        ..Default::default()
+    };
+    let run = |caster: &dyn RayCaster, threads| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| render(&scene, caster, &opts, |_, _| true).unwrap().0)
+    };
+    let chunked = BvhCaster::new(&scene);
+    let whole = WholePasses(BvhCaster::new(&scene));
+    let want = run(&whole, 1);
+    assert!(want.image_mean().max_element() > 0.0, "the box renders black");
+    for (caster, threads) in [(&chunked as &dyn RayCaster, 1), (&chunked, 3), (&whole, 2)] {
+        let got = run(caster, threads);
+        assert!(
+            got.sum == want.sum && got.splat == want.splat,
+            "{} on {threads} threads: another image",
+            caster.name()
+        );
     }
 }
 

@@ -1,7 +1,9 @@
 //! Path tracing with next-event estimation and multiple importance sampling (power
-//! heuristic) between light sampling and BSDF sampling, run as a wavefront: every
-//! bounce casts the whole batch of live paths through the caster, shades them in
-//! parallel, casts the batch of shadow rays, and drops finished paths.
+//! heuristic) between light sampling and BSDF sampling, run as wavefronts: every
+//! bounce casts a wavefront's live paths through the caster as one batch, shades them,
+//! casts the batch of their shadow rays, and drops finished paths. A wavefront is a
+//! chunk of the pass's pixels, or the whole pass for casters that want large batches
+//! ([`CHUNK`]).
 
 use crate::bsdf::TransportMode;
 use crate::cast::CastStats;
@@ -30,8 +32,35 @@ struct PathState {
     shadow: Option<(Ray, Vec3)>,
 }
 
-/// The path tracer's reusable buffers.
+/// Paths traced together from camera to end by one task, when the caster takes small
+/// batches well (a stored structure traversed per ray or per packet): each chunk's
+/// buffers stay in its core's cache (at most 2,048 paths of about 140 bytes), and
+/// chunks need no barrier between bounces. A pass is cut into at least eight chunks per
+/// thread where it can be (not below [`MIN_CHUNK`] paths), so that threads finish
+/// together. The divide-and-conquer and GPU casters trace the pass as one wavefront,
+/// since their work per call comes from the batch's size. Every path's stream comes
+/// from its pixel and pass, so the image does not depend on the chunks. (Mitsuba box,
+/// 2 threads, CPU s at 32 spp: 2.19 in chunks of 2,048, 2.24 of 512, 2.27 of 256, 2.5
+/// as one wavefront.)
+const CHUNK: usize = 2048;
+
+/// The smallest chunk of paths one task traces.
+const MIN_CHUNK: usize = 256;
+
+/// Paths one task takes inside a wavefront: a chunk runs as one task.
+const SERIAL: usize = 4096;
+
+/// The path tracer's buffers: one wavefront's per chunk.
 pub struct PathTracer {
+    /// Per pixel: its path's estimate this pass.
+    estimates: Vec<Vec3>,
+    /// Wavefront buffers kept between passes, one per chunk in flight.
+    spare: std::sync::Mutex<Vec<Wavefront>>,
+}
+
+/// One wavefront's reusable buffers.
+#[derive(Default)]
+struct Wavefront {
     paths: Vec<PathState>,
     /// The live paths of the next bounce, compacted out of `paths`.
     spare: Vec<PathState>,
@@ -44,25 +73,13 @@ pub struct PathTracer {
     blocked: Vec<bool>,
     /// Per live path: its shadow ray was cast and not blocked.
     visible: Vec<bool>,
-    estimates: Vec<Vec3>,
 }
 
 impl PathTracer {
     /// A path tracer with buffers for the render's image size.
     pub(crate) fn new(ctx: &Context) -> Self {
         let n = (ctx.opts.width * ctx.opts.height) as usize;
-        PathTracer {
-            paths: Vec::with_capacity(n),
-            spare: Vec::with_capacity(n),
-            finished: Vec::new(),
-            rays: Vec::new(),
-            hits: Vec::new(),
-            shadow_rays: Vec::new(),
-            shadow_owner: Vec::new(),
-            blocked: Vec::new(),
-            visible: Vec::new(),
-            estimates: vec![Vec3::ZERO; n],
-        }
+        PathTracer { estimates: vec![Vec3::ZERO; n], spare: Default::default() }
     }
 
     /// Adds the passes of `span` to `film`, one at a time.
@@ -72,11 +89,40 @@ impl PathTracer {
 
     /// One sample per pixel, added to `film`. Returns the caster statistics of the pass.
     fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
-        let (w, h) = (ctx.opts.width, ctx.opts.height);
+        let n = self.estimates.len();
+        let chunk = if ctx.caster.casts_single_rays() {
+            (n / (8 * rayon::current_num_threads())).clamp(MIN_CHUNK, CHUNK)
+        } else {
+            n.max(1)
+        };
+        let spare = &self.spare;
+        let stats = self
+            .estimates
+            .par_chunks_mut(chunk)
+            .enumerate()
+            .map(|(k, estimates)| {
+                let mut wf = spare.lock().unwrap().pop().unwrap_or_default();
+                let stats = wf.trace(ctx, pass, (k * chunk) as u32, estimates);
+                spare.lock().unwrap().push(wf);
+                stats
+            })
+            .reduce(CastStats::default, CastStats::merge);
+        film.add_pass(pass, &self.estimates);
+        stats
+    }
+}
+
+impl Wavefront {
+    /// Traces the paths of pixels `first..first + estimates.len()` of pass `pass` to
+    /// their ends, writing each pixel's estimate.
+    fn trace(&mut self, ctx: &Context, pass: u32, first: u32, estimates: &mut [Vec3]) -> CastStats {
+        let w = ctx.opts.width;
+        let h = ctx.opts.height;
         let cam = &ctx.scene.camera;
         let seed = ctx.opts.seed;
-        (0..w * h)
+        (first..first + estimates.len() as u32)
             .into_par_iter()
+            .with_min_len(SERIAL)
             .map(|pixel| {
                 let mut rng = Rng::for_sample(seed, pixel as u64, pass as u64);
                 let (film_pos, weight) = ctx.camera_sample(pixel, pass);
@@ -95,24 +141,28 @@ impl PathTracer {
                 }
             })
             .collect_into_vec(&mut self.paths);
-        self.estimates.fill(Vec3::ZERO);
+        estimates.fill(Vec3::ZERO);
         let mut stats = CastStats::default();
 
         for depth in 0..=ctx.opts.max_depth {
             if self.paths.is_empty() {
                 break;
             }
-            self.paths.par_iter().map(|p| p.ray).collect_into_vec(&mut self.rays);
+            self.paths.par_iter().with_min_len(SERIAL).map(|p| p.ray).collect_into_vec(&mut self.rays);
             self.hits.resize(self.rays.len(), Hit::MISS);
             stats = stats.merge(ctx.caster.closest(&self.rays, &mut self.hits));
 
-            self.paths.par_iter_mut().zip(&self.hits).for_each(|(p, hit)| shade(ctx, depth, p, hit));
+            self.paths
+                .par_iter_mut()
+                .zip(&self.hits)
+                .with_min_len(SERIAL)
+                .for_each(|(p, hit)| shade(ctx, depth, p, hit));
 
             // Shadow rays of this bounce, as one batch (in path order).
             compact_into(&self.paths, &mut self.shadow_owner, |p| p.shadow.is_some(), |i, _| i as u32);
             let paths = &self.paths;
             let shadow_ray = |&i: &u32| paths[i as usize].shadow.map_or(Ray::new(Vec3::ZERO, Vec3::Z), |s| s.0);
-            self.shadow_owner.par_iter().map(shadow_ray).collect_into_vec(&mut self.shadow_rays);
+            self.shadow_owner.par_iter().with_min_len(SERIAL).map(shadow_ray).collect_into_vec(&mut self.shadow_rays);
             self.blocked.resize(self.shadow_rays.len(), false);
             stats = stats.merge(ctx.caster.occluded(&self.shadow_rays, &mut self.blocked));
             // Each path's shadow ray was blocked or not: scatter the answers back.
@@ -121,7 +171,7 @@ impl PathTracer {
             for (&i, &blocked) in self.shadow_owner.iter().zip(&self.blocked) {
                 self.visible[i as usize] = !blocked;
             }
-            self.paths.par_iter_mut().zip(&self.visible).for_each(|(p, &visible)| {
+            self.paths.par_iter_mut().zip(&self.visible).with_min_len(SERIAL).for_each(|(p, &visible)| {
                 if let Some((_, l)) = p.shadow.take()
                     && visible
                 {
@@ -132,15 +182,14 @@ impl PathTracer {
             // Finished paths leave their estimate; the live ones are compacted.
             compact_into(&self.paths, &mut self.finished, |p| !p.alive, |_, p| (p.pixel, p.radiance));
             for &(pixel, radiance) in &self.finished {
-                self.estimates[pixel as usize] = radiance;
+                estimates[(pixel - first) as usize] = radiance;
             }
             compact_into(&self.paths, &mut self.spare, |p| p.alive, |_, p| *p);
             std::mem::swap(&mut self.paths, &mut self.spare);
         }
         for p in &self.paths {
-            self.estimates[p.pixel as usize] = p.radiance;
+            estimates[(p.pixel - first) as usize] = p.radiance;
         }
-        film.add_pass(pass, &self.estimates);
         stats
     }
 }
