@@ -108,8 +108,7 @@ fn first_surface(scene: &Scene, ray: &Ray, hit: &Hit, seed: u64, pixel: u64, sam
     if !hit.is_hit() {
         return None;
     }
-    let [a, b, c] = scene.vertices(hit.prim);
-    let ng = (b - a).cross(c - a).normalize_or_zero();
+    let ng = scene.unit_normal(hit.prim);
     if ng == Vec3::ZERO {
         return None;
     }

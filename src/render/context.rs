@@ -17,9 +17,18 @@ pub(crate) struct Context<'a> {
     pub caster: &'a dyn RayCaster,
     /// The render's settings.
     pub opts: &'a RenderOptions,
+    /// Every triangle's unit geometric normal ([`Scene::unit_normals`]), read at hits.
+    pub normals: &'a [glam::Vec3],
 }
 
 impl Context<'_> {
+    /// The unit geometric normal of triangle `tri`, as [`Scene::unit_normal`] gives it
+    /// (host code: the kernels work it out from the corners, as their CUDA twins do).
+    #[inline]
+    pub(crate) fn normal(&self, tri: u32) -> glam::Vec3 {
+        self.normals[tri as usize]
+    }
+
     /// Camera sample `pass` of `pixel`: its film position and weight.
     #[inline]
     pub(crate) fn camera_sample(&self, pixel: u32, pass: u32) -> (glam::Vec2, f32) {

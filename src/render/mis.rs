@@ -262,7 +262,8 @@ mod tests {
         let lights = Lights::new(&scene);
         let caster = BvhCaster::new(&scene);
         let opts = RenderOptions { width: 64, height: 64, ..Default::default() };
-        let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts };
+        let ctx =
+            Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts, normals: &scene.unit_normals() };
         let path = sample_path(&scene, false);
         let weights: Vec<f32> = (0..path.len()).map(|s| mis_weight(&ctx, &path, s, Known::default())).collect();
         let sum: f32 = weights.iter().sum();
@@ -321,7 +322,8 @@ mod tests {
         let lights = Lights::new(&scene);
         let caster = BvhCaster::new(&scene);
         let opts = RenderOptions { width: 64, height: 64, ..Default::default() };
-        let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts };
+        let ctx =
+            Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts, normals: &scene.unit_normals() };
         let light_tri = (0..n as u32).find(|&t| scene.emission_of(t).max_element() > 0.0).unwrap();
         let [a, b, c] = scene.vertices(light_tri);
         let light_at = |u: f32| {

@@ -22,6 +22,8 @@ pub struct Renderer<'a> {
     caster: &'a dyn RayCaster,
     opts: RenderOptions,
     lights: Lights,
+    /// Every triangle's unit normal, for the integrators' hits.
+    normals: Vec<glam::Vec3>,
     integrator: Integrator,
     /// (shadow rays, caster calls) of every pass so far.
     counts: (u64, u64, u64),
@@ -85,9 +87,18 @@ impl<'a> Renderer<'a> {
             )));
         }
         let lights = Lights::new(scene);
-        let integrator = Integrator::new(&Context { scene, lights: &lights, caster, opts });
-        let r =
-            Renderer { scene, caster, opts: opts.clone(), lights, integrator, counts: (0, 0, 0), overlapped: false };
+        let normals = scene.unit_normals();
+        let integrator = Integrator::new(&Context { scene, lights: &lights, caster, opts, normals: &normals });
+        let r = Renderer {
+            scene,
+            caster,
+            opts: opts.clone(),
+            lights,
+            normals,
+            integrator,
+            counts: (0, 0, 0),
+            overlapped: false,
+        };
         if let Some(p) = &opts.gpu_profile {
             let dev = r.device().ok_or_else(|| {
                 Error::BadSetting(format!(
@@ -134,7 +145,13 @@ impl<'a> Renderer<'a> {
     /// not hand over from the calling thread one by one.
     pub fn passes(&mut self, first: u32, count: u32, film: &mut Film) -> CastStats {
         let counter = CountingCaster::new(self.caster);
-        let ctx = Context { scene: self.scene, lights: &self.lights, caster: &counter, opts: &self.opts };
+        let ctx = Context {
+            scene: self.scene,
+            lights: &self.lights,
+            caster: &counter,
+            opts: &self.opts,
+            normals: &self.normals,
+        };
         let (group, per_pass) = (self.pass_group(), self.opts.width * self.opts.height);
         let integrator = &mut self.integrator;
         let mut body = || {

@@ -134,3 +134,37 @@ fn built_in_scenes_load_by_name_and_render() {
     let e = load_scene("no-such-scene").unwrap_err().to_string();
     assert!(e.contains("built-in scene") && e.contains("dragon") && e.contains("WARPRAY_MODELS"), "{e}");
 }
+
+#[test]
+fn a_scenes_unit_normals_follow_the_winding_and_are_zero_for_degenerate_triangles() {
+    // The normals a render reads at its hits (`Scene::unit_normals`), against the cross
+    // product worked out in f64.
+    let v = Vec3::new;
+    let tris = [
+        [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)],
+        [v(0.0, 0.0, 0.0), v(0.0, 1.0, 0.0), v(1.0, 0.0, 0.0)],
+        [v(3.0, -2.0, 7.5), v(-1.25, 4.0, 0.5), v(2.0, 2.0, -6.0)],
+        [v(1e4, 1e4, 1e4), v(1e4 + 0.01, 1e4, 1e4), v(1e4, 1e4 + 0.02, 1e4 + 0.03)],
+        [v(1.0, 1.0, 1.0), v(2.0, 2.0, 2.0), v(3.0, 3.0, 3.0)],
+        [v(5.0, 5.0, 5.0), v(5.0, 5.0, 5.0), v(5.0, 5.0, 5.0)],
+    ];
+    let scene = scene_from_triangles(&tris);
+    let normals = scene.unit_normals();
+    assert_eq!(normals.len(), tris.len());
+    for (i, (t, n)) in tris.iter().zip(&normals).enumerate() {
+        assert_eq!(*n, scene.unit_normal(i as u32), "triangle {i}");
+        let d = |p: Vec3, q: Vec3| [(q.x - p.x) as f64, (q.y - p.y) as f64, (q.z - p.z) as f64];
+        let (e1, e2) = (d(t[0], t[1]), d(t[0], t[2]));
+        let c = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+        let len = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+        if len == 0.0 {
+            assert_eq!(*n, Vec3::ZERO, "degenerate triangle {i}");
+        } else {
+            for k in 0..3 {
+                assert!((n[k] as f64 - c[k] / len).abs() < 1e-4, "triangle {i}: {n} against {c:?} / {len}");
+            }
+        }
+    }
+    assert_eq!(normals[0], Vec3::Z);
+    assert_eq!(normals[1], -Vec3::Z);
+}

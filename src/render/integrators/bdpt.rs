@@ -145,7 +145,13 @@ mod tests {
         for integrator in [IntegratorKind::Light, IntegratorKind::Bdpt, IntegratorKind::Lvc] {
             let opts =
                 RenderOptions { width: size, height: size, integrator, seed: 5, max_depth: 5, ..Default::default() };
-            let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts };
+            let ctx = Context {
+                scene: &scene,
+                lights: &lights,
+                caster: &caster,
+                opts: &opts,
+                normals: &scene.unit_normals(),
+            };
             let render = |spans: &[Passes], wave: u32| {
                 let mut film = Film::new(size, size).unwrap();
                 let buffers = WaveBuffers { wave, ..Default::default() };

@@ -204,7 +204,7 @@ fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) {
     let scene = ctx.scene;
     let [a, b, c] = scene.vertices(hit.prim);
     let pos = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
-    let ng = (b - a).cross(c - a).normalize_or_zero();
+    let ng = ctx.normal(hit.prim);
     let wo = -p.ray.dir.normalize();
     if ng == Vec3::ZERO {
         p.alive = false;

@@ -183,7 +183,8 @@ mod tests {
         let lights = Lights::new(&scene);
         let caster = BvhCaster::new(&scene);
         let opts = RenderOptions { width: 32, height: 24, seed: 11, max_depth: 6, ..Default::default() };
-        let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts };
+        let ctx =
+            Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts, normals: &scene.unit_normals() };
         let n_light = 32 * 24;
         let (mut host, _) = build_caches(&ctx, Passes { first: 2, count: 1, per_pass: n_light }, 3, WAVE);
         let LightPass { cache: host, counts: host_counts, splats: host_splats } = host.pop().expect("one pass");
