@@ -47,6 +47,9 @@ pub struct Film {
     pub seed: u64,
     /// `filter` with its stepped values tabulated (remade when `filter` has changed).
     prepared: PreparedFilter,
+    /// [`FilterMode::Splat`]'s per-sample weights of one band of rows, kept from pass
+    /// to pass (every entry a pass reads, it writes first).
+    band_weights: Vec<f32>,
 }
 
 /// Largest image accepted: 16384 pixels a side and 2^26 pixels (64 Mpx) in all.
@@ -89,6 +92,7 @@ impl Film {
             seed: 0,
             weight: Vec::new(),
             prepared: Filter::Box.prepared(),
+            band_weights: Vec::new(),
         })
     }
 
@@ -113,7 +117,7 @@ impl Film {
     /// Bytes of the film's buffers.
     pub fn memory_bytes(&self) -> usize {
         (self.sum.len() + self.splat.len() + self.sum_sq.len() + self.pass_splat.len()) * size_of::<Vec3>()
-            + self.weight.len() * size_of::<f32>()
+            + (self.weight.len() + self.band_weights.len()) * size_of::<f32>()
     }
 
     /// Pixels.
@@ -163,7 +167,8 @@ impl Film {
         let k = self.filter.splat_reach() as usize;
         let n = 2 * k + 1;
         const BAND: usize = 32;
-        let mut weights = vec![0.0f32; (BAND + 2 * k) * w * 2 * n];
+        let mut weights = std::mem::take(&mut self.band_weights);
+        weights.resize((BAND + 2 * k) * w * 2 * n, 0.0);
         for y0 in (0..h).step_by(BAND) {
             let y1 = (y0 + BAND).min(h);
             // Sample rows that reach the band, and their per-axis weights.
@@ -204,6 +209,7 @@ impl Film {
                 }
             });
         }
+        self.band_weights = weights;
     }
 
     /// Adds splatted contributions `(film position in pixels, value)` in the order given
