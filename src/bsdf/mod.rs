@@ -97,7 +97,7 @@ impl Material {
     }
 
     /// The BSDF value for the pair (continuous part only).
-    #[inline]
+    #[inline(always)]
     #[track_caller]
     pub fn f(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> Vec3 {
         let _inlined = crate::cost::scope();
@@ -141,7 +141,7 @@ impl Material {
     }
 
     /// Solid-angle density with which [`Material::sample_f`] picks `wi` (continuous part).
-    #[inline]
+    #[inline(always)]
     #[track_caller]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
         let _inlined = crate::cost::scope();
