@@ -130,7 +130,7 @@ impl Lights {
     }
 
     /// Picks a light with `u_select` and a point on it with `u`.
-    #[inline]
+    #[inline(always)]
     #[track_caller]
     pub fn sample(&self, scene: &Scene, u_select: f32, u: Vec2) -> Option<LightSample> {
         let _inlined = crate::cost::scope();

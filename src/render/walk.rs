@@ -284,7 +284,9 @@ pub(crate) fn step(
         return None;
     }
     let [a, b, c] = ctx.scene.vertices(hit.prim);
-    let n = (b - a).cross(c - a).normalize_or_zero();
+    // The render's stored normal: the value the corners give (as the kernels' CUDA twins
+    // compute it), read instead of worked out; the model declares neither.
+    let n = ctx.normal(hit.prim);
     if n == Vec3::ZERO {
         return None;
     }
