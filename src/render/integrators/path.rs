@@ -55,7 +55,7 @@ pub struct PathTracer {
     /// Per pixel: its path's estimate this pass.
     estimates: Vec<Vec3>,
     /// Wavefront buffers kept between passes, one per chunk in flight.
-    spare: std::sync::Mutex<Vec<Wavefront>>,
+    pool: std::sync::Mutex<Vec<Wavefront>>,
 }
 
 /// One wavefront's reusable buffers.
@@ -79,7 +79,7 @@ impl PathTracer {
     /// A path tracer with buffers for the render's image size.
     pub(crate) fn new(ctx: &Context) -> Self {
         let n = (ctx.opts.width * ctx.opts.height) as usize;
-        PathTracer { estimates: vec![Vec3::ZERO; n], spare: Default::default() }
+        PathTracer { estimates: vec![Vec3::ZERO; n], pool: Default::default() }
     }
 
     /// Adds the passes of `span` to `film`, one at a time.
@@ -95,15 +95,15 @@ impl PathTracer {
         } else {
             n.max(1)
         };
-        let spare = &self.spare;
+        let pool = &self.pool;
         let stats = self
             .estimates
             .par_chunks_mut(chunk)
             .enumerate()
             .map(|(k, estimates)| {
-                let mut wf = spare.lock().unwrap().pop().unwrap_or_default();
+                let mut wf = pool.lock().unwrap().pop().unwrap_or_default();
                 let stats = wf.trace(ctx, pass, (k * chunk) as u32, estimates);
-                spare.lock().unwrap().push(wf);
+                pool.lock().unwrap().push(wf);
                 stats
             })
             .reduce(CastStats::default, CastStats::merge);
