@@ -22,8 +22,10 @@ pub(crate) struct Context<'a> {
 }
 
 impl Context<'_> {
-    /// The unit geometric normal of triangle `tri`, as [`Scene::unit_normal`] gives it
-    /// (host code: the kernels work it out from the corners, as their CUDA twins do).
+    /// The unit geometric normal of triangle `tri`, as [`Scene::unit_normal`] gives it:
+    /// read by the path tracer and by the subpath walks, which the megakernel and CIS's
+    /// light pass share (their CUDA twins work it out from the corners, the same value;
+    /// CIS's camera shading kernel does so too).
     #[inline]
     pub(crate) fn normal(&self, tri: u32) -> glam::Vec3 {
         self.normals[tri as usize]
