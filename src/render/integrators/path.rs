@@ -29,12 +29,15 @@ struct PathState {
     eta2: f32,
     prev_delta: bool,
     alive: bool,
-    shadow: Option<(Ray, Vec3)>,
 }
+
+/// A path's light sample this bounce, waiting for its shadow ray: the ray and the
+/// radiance it brings if unblocked.
+type Shadow = Option<(Ray, Vec3)>;
 
 /// Paths traced together from camera to end by one task, when the caster takes small
 /// batches well (a stored structure traversed per ray or per packet): each chunk's
-/// buffers stay in its core's cache (at most 2,048 paths of about 140 bytes), and
+/// buffers stay in its core's cache (at most 2,048 paths of 88 bytes), and
 /// chunks need no barrier between bounces. A pass is cut into at least eight chunks per
 /// thread where it can be (not below [`MIN_CHUNK`] paths), so that threads finish
 /// together. The divide-and-conquer and GPU casters trace the pass as one wavefront,
@@ -68,11 +71,12 @@ struct Wavefront {
     finished: Vec<(u32, Vec3)>,
     rays: Vec<Ray>,
     hits: Vec<Hit>,
+    /// Per live path: its light sample of this bounce (kept apart from the path state,
+    /// which the compaction copies every bounce).
+    shadows: Vec<Shadow>,
     shadow_rays: Vec<Ray>,
     shadow_owner: Vec<u32>,
     blocked: Vec<bool>,
-    /// Per live path: its shadow ray was cast and not blocked.
-    visible: Vec<bool>,
 }
 
 impl PathTracer {
@@ -137,7 +141,6 @@ impl Wavefront {
                     eta2: 1.0,
                     prev_delta: true,
                     alive: true,
-                    shadow: None,
                 }
             })
             .collect_into_vec(&mut self.paths);
@@ -152,32 +155,28 @@ impl Wavefront {
             self.hits.resize(self.rays.len(), Hit::MISS);
             stats = stats.merge(ctx.caster.closest(&self.rays, &mut self.hits));
 
+            self.shadows.clear();
+            self.shadows.resize(self.paths.len(), None);
             self.paths
                 .par_iter_mut()
                 .zip(&self.hits)
+                .zip(&mut self.shadows)
                 .with_min_len(SERIAL)
-                .for_each(|(p, hit)| shade(ctx, depth, p, hit));
+                .for_each(|((p, hit), shadow)| *shadow = shade(ctx, depth, p, hit));
 
             // Shadow rays of this bounce, as one batch (in path order).
-            compact_into(&self.paths, &mut self.shadow_owner, |p| p.shadow.is_some(), |i, _| i as u32);
-            let paths = &self.paths;
-            let shadow_ray = |&i: &u32| paths[i as usize].shadow.map_or(Ray::new(Vec3::ZERO, Vec3::Z), |s| s.0);
+            compact_into(&self.shadows, &mut self.shadow_owner, |s| s.is_some(), |i, _| i as u32);
+            let shadows = &self.shadows;
+            let shadow_ray = |&i: &u32| shadows[i as usize].map_or(Ray::new(Vec3::ZERO, Vec3::Z), |s| s.0);
             self.shadow_owner.par_iter().with_min_len(SERIAL).map(shadow_ray).collect_into_vec(&mut self.shadow_rays);
             self.blocked.resize(self.shadow_rays.len(), false);
             stats = stats.merge(ctx.caster.occluded(&self.shadow_rays, &mut self.blocked));
-            // Each path's shadow ray was blocked or not: scatter the answers back.
-            self.visible.clear();
-            self.visible.resize(self.paths.len(), false);
+            // What each unblocked shadow ray brings goes to its path.
             for (&i, &blocked) in self.shadow_owner.iter().zip(&self.blocked) {
-                self.visible[i as usize] = !blocked;
-            }
-            self.paths.par_iter_mut().zip(&self.visible).with_min_len(SERIAL).for_each(|(p, &visible)| {
-                if let Some((_, l)) = p.shadow.take()
-                    && visible
-                {
-                    p.radiance += l;
+                if let (false, Some((_, l))) = (blocked, self.shadows[i as usize]) {
+                    self.paths[i as usize].radiance += l;
                 }
-            });
+            }
 
             // Finished paths leave their estimate; the live ones are compacted.
             compact_into(&self.paths, &mut self.finished, |p| !p.alive, |_, p| (p.pixel, p.radiance));
@@ -194,12 +193,12 @@ impl Wavefront {
     }
 }
 
-/// One bounce of one path: emission, light sample, BSDF sample.
-fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) {
-    p.shadow = None;
+/// One bounce of one path: emission, light sample, BSDF sample. Returns the light
+/// sample's shadow ray and what it brings, if any.
+fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) -> Shadow {
     if !hit.is_hit() {
         p.alive = false;
-        return;
+        return None;
     }
     let scene = ctx.scene;
     let [a, b, c] = scene.vertices(hit.prim);
@@ -208,7 +207,7 @@ fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) {
     let wo = -p.ray.dir.normalize();
     if ng == Vec3::ZERO {
         p.alive = false;
-        return;
+        return None;
     }
 
     let le = scene.emission_of(hit.prim);
@@ -225,7 +224,7 @@ fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) {
     }
     if depth >= ctx.opts.max_depth {
         p.alive = false;
-        return;
+        return None;
     }
 
     let frame = Frame::from_normal(ng);
@@ -234,6 +233,7 @@ fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) {
     let mode = TransportMode::Radiance;
 
     // Next-event estimation.
+    let mut shadow = None;
     if !material.is_delta()
         && let Some(ls) = ctx.lights.sample(scene, p.rng.uniform(), p.rng.uniform2())
     {
@@ -261,14 +261,14 @@ fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) {
         if contribution.max_element() > 0.0 && contribution.is_finite() {
             let origin = offset_ray_origin(pos, if wi.dot(ng) > 0.0 { ng } else { -ng });
             let target = if ls.is_delta { ls.position } else { offset_ray_origin(ls.position, ls.normal) };
-            p.shadow = Some((Ray::segment(origin, target - origin, 1.0 - 1e-4), contribution));
+            shadow = Some((Ray::segment(origin, target - origin, 1.0 - 1e-4), contribution));
         }
     }
 
     // Continue the path.
     let Some(s) = material.sample_f(wo_local, p.rng.uniform(), p.rng.uniform2(), mode) else {
         p.alive = false;
-        return;
+        return shadow;
     };
     let wi = frame.to_world(s.wi);
     p.throughput *= s.weight;
@@ -281,13 +281,23 @@ fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) {
         let q = (p.throughput.max_element() * p.eta2).min(0.95);
         if p.rng.uniform() >= q {
             p.alive = false;
-            return;
+            return shadow;
         }
         p.throughput /= q;
     }
     if !p.throughput.is_finite() || p.throughput.max_element() <= 0.0 {
         p.alive = false;
-        return;
+        return shadow;
     }
     p.ray = Ray::new(offset_ray_origin(pos, if wi.dot(ng) > 0.0 { ng } else { -ng }), wi);
+    shadow
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_path_state_is_88_bytes() {
+        // The figure the chunk size's comment and docs/mitsuba.md give.
+        assert_eq!(std::mem::size_of::<super::PathState>(), 88);
+    }
 }
