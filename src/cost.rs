@@ -130,6 +130,19 @@ macro_rules! read {
 }
 pub(crate) use read;
 
+/// Whether a kernel's lane is counting the arithmetic that runs on this thread now
+/// ([`simt::ambient::counting`]); never without the feature `model-arithmetic`. Shared
+/// code that takes a shortcut its kernels' CUDA twins do not take (the same values, bit
+/// for bit, from less work) takes it only when this is false, so that the model counts
+/// the twins' work.
+#[inline(always)]
+pub(crate) fn counting() -> bool {
+    #[cfg(feature = "model-arithmetic")]
+    return simt::ambient::counting();
+    #[cfg(not(feature = "model-arithmetic"))]
+    false
+}
+
 /// The caller's inlined copy ([`simt::scope`]) with the feature `model-arithmetic`.
 #[cfg(feature = "model-arithmetic")]
 #[inline(always)]

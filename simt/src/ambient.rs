@@ -191,6 +191,14 @@ pub const fn site_of(file: &str, line: u32, column: u32) -> usize {
     h as usize
 }
 
+/// True while an ambient lane records on this thread ([`Thread::ambient`] in a
+/// measured launch): code shared with the host may then have to run the way the
+/// kernel's CUDA twin runs, so that the work it declares is the twin's.
+#[inline(always)]
+pub fn counting() -> bool {
+    ambient().is_some()
+}
+
 /// The function behind [`declare!`].
 #[doc(hidden)]
 #[inline(always)]

@@ -15,6 +15,7 @@ mod sample;
 use crate::cost::{BRANCH, DIV, DOT, LUMINANCE, SQRT, V3, V3_DIV};
 use crate::cost::{declare, reads};
 use crate::film::luminance;
+use crate::sampling::Frame;
 use crate::scene::Material;
 use glam::{Vec2, Vec3};
 use layered::SMOOTH;
@@ -94,6 +95,22 @@ impl Material {
             Material::Layered(l) => l.is_delta(),
             Material::Diffuse { .. } | Material::Glossy { .. } | Material::Plastic(_) => false,
         }
+    }
+
+    /// `wo` and `wi`, unit directions in world space at a surface of unit normal `n`,
+    /// in the shading frame, as [`Material::f`] and [`Material::pdf`] take them. A Lambertian lobe reads nothing of them but their
+    /// cosines, so for it the frame is not built and the tangential parts are left zero:
+    /// the cosines are [`Frame::to_local`]'s own, bit for bit (its `z` is the dot product
+    /// with `n`), and so are `f` and `pdf`. While a kernel's lane is counted
+    /// ([`crate::cost::counting`]) the frame is always built, as the CUDA twins build it.
+    #[inline(always)]
+    #[track_caller]
+    pub(crate) fn local_pair(&self, n: Vec3, wo: Vec3, wi: Vec3) -> (Vec3, Vec3) {
+        if matches!(self, Material::Diffuse { .. }) && !crate::cost::counting() {
+            return (Vec3::new(0.0, 0.0, wo.dot(n)), Vec3::new(0.0, 0.0, wi.dot(n)));
+        }
+        let frame = Frame::from_normal(n);
+        (frame.to_local(wo), frame.to_local(wi))
     }
 
     /// The BSDF value for the pair (continuous part only).
@@ -285,5 +302,74 @@ impl Material {
                 Some(BsdfSample { wi, f: ft, pdf: 1.0 - fr, weight: tint * scale, delta: true })
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::{Rng, uniform_sphere};
+    use crate::scene::Plastic;
+
+    /// `local_pair` gives every material's `f` and `pdf` what the shading frame gives,
+    /// bit for bit, for random normals and directions on both sides: the Lambertian
+    /// shortcut (only the cosines) must not reach a lobe that reads more of the
+    /// directions, and must give the frame's own cosines.
+    #[test]
+    fn local_pairs_give_the_frames_values_bit_for_bit() {
+        let materials = [
+            Material::Diffuse { albedo: Vec3::new(0.8, 0.5, 0.2) },
+            Material::Glossy { diffuse: Vec3::splat(0.4), specular: Vec3::splat(0.5), roughness: 0.3 },
+            Material::Conductor { eta: Vec3::splat(0.2), k: Vec3::splat(3.0), roughness: 0.3 },
+            Material::RoughGlass { ior: 1.5, roughness: 0.3, tint: Vec3::ONE },
+            Material::Plastic(Plastic::new(Vec3::new(0.2, 0.4, 0.7), Vec3::ONE, 1.49, 0.0, false)),
+            Material::Plastic(Plastic::new(Vec3::new(0.7, 0.3, 0.1), Vec3::ONE, 1.6, 0.25, true)),
+        ];
+        let mut rng = Rng::for_sample(3, 0, 0);
+        let mut nonzero = 0;
+        for m in &materials {
+            for _ in 0..2000 {
+                let (n, wo, wi) =
+                    (uniform_sphere(rng.uniform2()), uniform_sphere(rng.uniform2()), uniform_sphere(rng.uniform2()));
+                let frame = Frame::from_normal(n);
+                let (lo, li) = (frame.to_local(wo), frame.to_local(wi));
+                let (po, pi) = m.local_pair(n, wo, wi);
+                if matches!(m, Material::Diffuse { .. }) {
+                    assert_eq!((po.x, po.y, pi.x, pi.y), (0.0, 0.0, 0.0, 0.0), "the shortcut was not taken");
+                }
+                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                for mode in [TransportMode::Radiance, TransportMode::Importance] {
+                    assert_eq!(bits(m.f(po, pi, mode)), bits(m.f(lo, li, mode)), "{m:?}: f at {n}, {wo}, {wi}");
+                }
+                assert_eq!(m.pdf(po, pi).to_bits(), m.pdf(lo, li).to_bits(), "{m:?}: pdf at {n}, {wo}, {wi}");
+                nonzero += (m.pdf(lo, li) > 0.0) as u32;
+            }
+        }
+        assert!(nonzero > 4000, "only {nonzero} pairs with a density");
+    }
+
+    /// Inside a measured kernel (with the feature `model-arithmetic`) a Lambertian pair
+    /// is worked out through the frame, as the CUDA twins do: each lane declares the
+    /// frame and its two changes of basis, and the shortcut declares nothing.
+    #[cfg(feature = "model-arithmetic")]
+    #[test]
+    fn a_counted_lane_builds_the_frame_as_the_cuda_twins_do() {
+        use crate::cost::{FRAME, Part, TO_LOCAL};
+        const PARTS: [&str; 6] = [
+            Part::ALL[0].name(),
+            Part::ALL[1].name(),
+            Part::ALL[2].name(),
+            Part::ALL[3].name(),
+            Part::ALL[4].name(),
+            Part::ALL[5].name(),
+        ];
+        let dev = simt::Device::new(simt::DeviceConfig { measure: true, ..Default::default() });
+        let m = Material::Diffuse { albedo: Vec3::splat(0.5) };
+        let (n, wo, wi) = (Vec3::new(0.0, 0.6, 0.8), Vec3::new(0.3, 0.1, 0.9).normalize(), Vec3::Z);
+        let rec = dev.for_each_in("bsdf::local_pair", &PARTS, 32, |t, _| {
+            t.ambient(0, || std::hint::black_box(m.local_pair(n, wo, wi)));
+        });
+        let all = rec.all_regions();
+        assert_eq!((all.issued, all.active), ((FRAME + 2 * TO_LOCAL) as u64, 32 * (FRAME + 2 * TO_LOCAL) as u64));
     }
 }

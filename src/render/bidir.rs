@@ -21,7 +21,7 @@ use crate::cost::declare;
 use crate::cost::{BRANCH, DIV, DOT, NORMALIZE, SIN_COS, SQRT, V3, V3_DIV, VERTEX_COPY};
 use crate::geometry::{Ray, offset_ray_origin};
 use crate::lights::LightSample;
-use crate::sampling::{Frame, Rng};
+use crate::sampling::Rng;
 use crate::scene::Camera;
 use glam::{Vec2, Vec3};
 
@@ -213,9 +213,10 @@ fn vertex_f_inlined(ctx: &Context, v: &Vertex, prev: Option<&Vertex>, toward: Ve
             declare!(BRANCH);
             let Some(prev) = prev else { return Vec3::ZERO };
             declare!(V3 + NORMALIZE + 3 * BRANCH);
-            let frame = Frame::from_normal(v.n);
-            let wo = frame.to_local((prev.p - v.p).normalize());
-            ctx.scene.bsdf(v.tri, wo).f(wo, frame.to_local(w), mode)
+            let wo = (prev.p - v.p).normalize();
+            let material = ctx.scene.bsdf_facing(v.tri, wo.dot(v.n));
+            let (wo, wi) = material.local_pair(v.n, wo, w);
+            material.f(wo, wi, mode)
         }
         VertexKind::Camera => Vec3::ZERO,
     }

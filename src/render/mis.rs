@@ -6,7 +6,6 @@
 use super::bidir::{MAX_PATH, StackList, Vertex, VertexKind, camera_importance, cos_at};
 use super::context::Context;
 use crate::cost::{BRANCH, DIV, DOT, NORMALIZE, SQRT, V3, V3_DIV, declare};
-use crate::sampling::Frame;
 use glam::Vec3;
 use std::f32::consts::{FRAC_1_PI, PI};
 
@@ -51,9 +50,10 @@ fn pdf_area_inlined(ctx: &Context, prev: Option<&Vertex>, cur: &Vertex, next: &V
             }
             let Some(prev) = prev else { return 0.0 };
             declare!(V3 + NORMALIZE + 3 * BRANCH);
-            let frame = Frame::from_normal(cur.n);
-            let wo = frame.to_local((prev.p - cur.p).normalize());
-            ctx.scene.bsdf(cur.tri, wo).pdf(wo, frame.to_local(w))
+            let wo = (prev.p - cur.p).normalize();
+            let material = ctx.scene.bsdf_facing(cur.tri, wo.dot(cur.n));
+            let (wo, wi) = material.local_pair(cur.n, wo, w);
+            material.pdf(wo, wi)
         }
     };
     declare!(BRANCH + 1 + DIV);
@@ -217,9 +217,38 @@ pub(crate) fn mis_weight_counts(
         let connectible = |v: &Vertex| v.kind != VertexKind::Surface || !v.delta;
         connectible(&path[s - 1]) && connectible(&path[s])
     };
-    let p = |s: usize| count(s, k + 1 - s) * pl[..s].iter().product::<f64>() * pc[s..=k].iter().product::<f64>();
-    let total: f64 = (0..=k).filter(|&s| valid(s)).map(p).sum();
-    if total > 0.0 && valid(s) { (p(s) / total) as f32 } else { 0.0 }
+    balance(&pl, &pc, s, valid, count) as f32
+}
+
+/// The balance heuristic's weight of strategy `s` among the strategies of a full path
+/// (in double precision, as the twin's before it rounds) of `pl.len()` vertices whose light-end densities are `pl` and camera-end densities
+/// `pc`: strategy s' density is count(s, t) · Π pl[..s] · Π pc[s..], each product
+/// folded from the left starting at 1, as the CUDA twin folds them strategy by
+/// strategy. Here the light products are one running product (the same folds) and each
+/// strategy's density is computed once, for the sum and for the quotient, so the
+/// weight is the twin's bit for bit in (k + 1)(k + 2) / 2 + k + 1 multiplies instead of
+/// 2 (k + 1)² and more (`mis_weight_counts` declares the twin's loops for the model).
+#[inline]
+fn balance(
+    pl: &[f64],
+    pc: &[f64],
+    s: usize,
+    valid: impl Fn(usize) -> bool,
+    count: impl Fn(usize, usize) -> f64,
+) -> f64 {
+    let n = pl.len();
+    let mut densities = StackList::<f64, MAX_PATH>::default();
+    let mut light = 1.0f64;
+    for (j, &d) in pl.iter().enumerate() {
+        let mut camera = 1.0f64;
+        for &c in &pc[j..] {
+            camera *= c;
+        }
+        densities.push(if valid(j) { count(j, n - j) * light * camera } else { 0.0 });
+        light *= d;
+    }
+    let total: f64 = densities.iter().sum();
+    if total > 0.0 && valid(s) { densities[s] / total } else { 0.0 }
 }
 
 #[cfg(test)]
@@ -276,6 +305,36 @@ mod tests {
         assert_eq!((weights[1], weights[2]), (0.0, 0.0), "{weights:?}");
         let sum: f32 = weights.iter().sum();
         assert!((sum - 1.0).abs() < 1e-4, "weights {weights:?} sum to {sum}");
+    }
+
+    /// The running products give the strategy-by-strategy folds of the CUDA twin bit
+    /// for bit: random densities over six orders of magnitude (and zeros), random
+    /// valid strategies and counts, paths of 2 to 12 vertices.
+    #[test]
+    fn balance_weights_are_the_twins_strategy_by_strategy_folds() {
+        let mut rng = crate::sampling::Rng::for_sample(11, 0, 0);
+        let mut density = || if rng.uniform() < 0.05 { 0.0 } else { 10f64.powf(6.0 * rng.uniform() as f64 - 3.0) };
+        let (mut compared, mut between) = (0, 0);
+        for trial in 0..2000 {
+            let n = 2 + trial % 11;
+            let pl: Vec<f64> = (0..n).map(|_| density()).collect();
+            let mut pc: Vec<f64> = (0..n).map(|_| density()).collect();
+            pc[n - 1] = 1.0;
+            let mask = (trial as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 20;
+            let valid = |j: usize| (mask >> (2 * j)) & 3 != 0;
+            let count = |j: usize, t: usize| 1.0 + (j * 7 + t) as f64 * 0.25;
+            // The twin's loops (`cuda/cis_device.cuh`, `mis_weight`).
+            let p = |j: usize| count(j, n - j) * pl[..j].iter().product::<f64>() * pc[j..].iter().product::<f64>();
+            let total: f64 = (0..n).filter(|&j| valid(j)).map(p).sum();
+            for s in 0..n {
+                let twin = if total > 0.0 && valid(s) { p(s) / total } else { 0.0 };
+                let ours = balance(&pl, &pc, s, valid, count);
+                assert_eq!(ours.to_bits(), twin.to_bits(), "n {n}, s {s}: {ours} against {twin}");
+                compared += 1;
+                between += (twin > 0.0 && twin < 1.0) as u32;
+            }
+        }
+        assert!(between * 3 > compared, "{between} of {compared} weights strictly between 0 and 1");
     }
 
     /// A subpath of `len` vertices: its first at `first`, the others at random points of

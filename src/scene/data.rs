@@ -101,10 +101,17 @@ impl Scene {
     /// one-sided and `wo` lies behind it.
     #[inline]
     pub fn bsdf(&self, tri: u32, wo_local: Vec3) -> &Material {
+        self.bsdf_facing(tri, wo_local.z)
+    }
+
+    /// [`Scene::bsdf`] from the cosine of the outgoing direction with the triangle's
+    /// normal alone.
+    #[inline]
+    pub fn bsdf_facing(&self, tri: u32, cos_o: f32) -> &Material {
         const BLACK: Material = Material::Diffuse { albedo: Vec3::ZERO };
         use crate::cost::read;
         let m = read!(self.material_of, tri as usize) as usize;
-        if wo_local.z < 0.0 && !read!(self.two_sided, m) && !self.materials[m].is_dielectric() {
+        if cos_o < 0.0 && !read!(self.two_sided, m) && !self.materials[m].is_dielectric() {
             &BLACK
         } else {
             &self.materials[m]
