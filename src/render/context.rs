@@ -31,6 +31,21 @@ impl Context<'_> {
         self.normals[tri as usize]
     }
 
+    /// Samples per wave of the bidirectional wavefronts (light tracing, BDPT, LVC) on
+    /// the current thread pool: [`WAVE`] with the casters whose work comes from the
+    /// batch (DACRT, PDACRT, the GPU casters); with those that take rays one at a time
+    /// (BVH4, obvhs, Embree), 4,096 per thread and at least 8,192, so that a wave's
+    /// pending connections (about 650 bytes a BDPT sample on the Cornell box) stay in
+    /// the caches instead of streaming through memory (`docs/mitsuba.md`). The image
+    /// does not depend on it.
+    pub(crate) fn wave(&self) -> u32 {
+        if self.caster.casts_single_rays() {
+            (WAVE_PER_THREAD * rayon::current_num_threads() as u32).clamp(MIN_WAVE, WAVE)
+        } else {
+            WAVE
+        }
+    }
+
     /// Camera sample `pass` of `pixel`: its film position and weight.
     #[inline]
     pub(crate) fn camera_sample(&self, pixel: u32, pass: u32) -> (glam::Vec2, f32) {
@@ -42,6 +57,13 @@ impl Context<'_> {
 /// Most samples (or light paths) in one wave: bounds the vertex and pending buffers
 /// (about 64 bytes per vertex) whatever the image size.
 pub(crate) const WAVE: u32 = 1 << 16;
+
+/// Samples per thread in a wave of the bidirectional wavefronts when the caster takes
+/// rays one at a time ([`Context::wave`]).
+const WAVE_PER_THREAD: u32 = 1 << 12;
+
+/// The fewest samples in such a wave.
+const MIN_WAVE: u32 = 1 << 13;
 
 /// The waves of up to `size` covering `0..n`, in order.
 pub(crate) fn waves(n: u32, size: u32) -> impl Iterator<Item = Range<u32>> {

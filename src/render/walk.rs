@@ -1,7 +1,7 @@
 //! Subpaths extended as a wavefront, for the bidirectional integrators (light tracing,
 //! BDPT, LVC-BDPT and the light pass of CIS-LBDPT).
 //!
-//! A wave holds up to [`WAVE`] subpaths side by side, of one pass or, for a small
+//! A wave holds up to [`Context::wave`] subpaths side by side, of one pass or, for a small
 //! image, of several ([`Passes`]). Each bounce gathers the next ray
 //! of every live subpath into one batch, casts it through the caster (so DACRT and
 //! PDACRT see thousands of rays per call, never one), and then advances every subpath
@@ -14,7 +14,7 @@
 //! on the wave size, the thread count or the caster.
 
 use super::bidir::{Pending, Vertex, VertexKind, camera_vertex, light_vertex};
-use super::context::{Context, Passes, WAVE};
+use super::context::{Context, Passes};
 use crate::bsdf::TransportMode;
 use crate::cast::CastStats;
 use crate::geometry::{Hit, Ray, offset_ray_origin};
@@ -464,8 +464,16 @@ pub(crate) struct WaveBuffers {
     pub light_walkers: Vec<Walker>,
     /// The wave's pending contributions and their shadow rays.
     pub pending: PendingLists,
-    /// Samples per wave (the image does not depend on it).
-    pub wave: u32,
+    /// Samples per wave, or `None` for the context's ([`Context::wave`]); the image
+    /// does not depend on it.
+    pub wave: Option<u32>,
+}
+
+impl WaveBuffers {
+    /// Samples per wave with `ctx`.
+    pub fn wave(&self, ctx: &Context) -> u32 {
+        self.wave.unwrap_or_else(|| ctx.wave())
+    }
 }
 
 impl Default for WaveBuffers {
@@ -476,7 +484,7 @@ impl Default for WaveBuffers {
             camera_walkers: Vec::new(),
             light_walkers: Vec::new(),
             pending: PendingLists::default(),
-            wave: WAVE,
+            wave: None,
         }
     }
 }

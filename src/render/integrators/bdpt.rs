@@ -2,7 +2,7 @@
 //!
 //! It takes the samples of one or more passes (`walk::Passes`: a small image's passes
 //! share waves, so the caster still gets large batches) in waves of up to 65,536
-//! samples (`walk::WAVE`).
+//! samples (fewer with the casters that take rays one at a time: `Context::wave`).
 //! Per wave, the host loop reads like the algorithm:
 //!
 //! 1. *camera subpaths* (BDPT): every sample's camera subpath, one batch of rays per bounce;
@@ -43,7 +43,7 @@ impl Bdpt {
         let b = &mut self.buffers;
         let mut stats = CastStats::default();
         let mut estimates = Vec::with_capacity(span.per_pass as usize);
-        for wave in span.waves(b.wave) {
+        for wave in span.waves(b.wave(ctx)) {
             // Camera and light subpaths, extended together: one batch of rays per bounce.
             let n = wave.len();
             let camera = start_camera_wave(ctx, span, wave.clone(), &mut b.camera, &mut b.camera_walkers);
@@ -154,11 +154,11 @@ mod tests {
             };
             let render = |spans: &[Passes], wave: u32| {
                 let mut film = Film::new(size, size).unwrap();
-                let buffers = WaveBuffers { wave, ..Default::default() };
+                let buffers = WaveBuffers { wave: Some(wave), ..Default::default() };
                 let mut light = LightTracer { buffers };
-                let mut bdpt = Bdpt { buffers: WaveBuffers { wave, ..Default::default() } };
+                let mut bdpt = Bdpt { buffers: WaveBuffers { wave: Some(wave), ..Default::default() } };
                 let mut lvc = LvcBdpt {
-                    buffers: WaveBuffers { wave, ..Default::default() },
+                    buffers: WaveBuffers { wave: Some(wave), ..Default::default() },
                     ..LvcBdpt::new(LvcParams::default())
                 };
                 for &span in spans {

@@ -24,7 +24,7 @@ impl LightTracer {
         let cam_v = camera_vertex(&ctx.scene.camera);
         let b = &mut self.buffers;
         let mut stats = CastStats::default();
-        for wave in span.waves(b.wave) {
+        for wave in span.waves(b.wave(ctx)) {
             let rng_of = |i: usize| {
                 let (path, pass) = span.at(wave.start + i as u32);
                 Rng::for_sample(ctx.opts.seed ^ 0x4c54, path as u64, pass as u64)

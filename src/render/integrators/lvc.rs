@@ -44,10 +44,10 @@ impl LvcBdpt {
         let n_light = self.params.light_paths_for(ctx.opts.width * ctx.opts.height);
         let n_c = self.params.connections;
         let light_span = Passes { per_pass: n_light, ..span };
-        let (mut light, mut stats) = build_caches(ctx, light_span, n_c, self.buffers.wave);
+        let (mut light, mut stats) = build_caches(ctx, light_span, n_c, self.buffers.wave(ctx));
         let b = &mut self.buffers;
         let mut estimates = Vec::with_capacity(span.per_pass as usize);
-        for wave in span.waves(b.wave) {
+        for wave in span.waves(b.wave(ctx)) {
             let camera = start_camera_wave(ctx, span, wave.clone(), &mut b.camera, &mut b.camera_walkers);
             stats = stats.merge(extend_together(ctx, &mut [camera]));
             let (camera, walkers) = (&b.camera, &b.camera_walkers);
