@@ -66,9 +66,10 @@ struct Walker {
     Rng rng;
     uint32_t bounces;
     bool live;
+    float rr_scale;  // 1, or 1 / the largest component of a light subpath's starting beta
 };
-HD Walker walker_new(Ray ray, V3 beta, Rng rng) { return {ray, beta, rng, 0, true}; }
-HD Walker walker_done(Rng rng) { return {{splat(0.0f), v3(0.0f, 0.0f, 1.0f), 0.0f, INFINITY}, splat(0.0f), rng, 0, false}; }
+HD Walker walker_new(Ray ray, V3 beta, Rng rng) { return {ray, beta, rng, 0, true, 1.0f}; }
+HD Walker walker_done(Rng rng) { return {{splat(0.0f), v3(0.0f, 0.0f, 1.0f), 0.0f, INFINITY}, splat(0.0f), rng, 0, false, 1.0f}; }
 
 // walk::start_light_subpath: the light vertex (false: no light to sample) and the
 // walker that continues it.
@@ -100,6 +101,8 @@ HD bool start_light_subpath(const Scene& sc, Rng rng, int max_vertices, Vertex& 
     V3 beta = origin.beta * ls.emitted * cos / pdf_dir;
     V3 start = ls.is_delta ? ls.position : offset_ray_origin(ls.position, ls.normal);
     w = walker_new({start, dir, 0.0f, INFINITY}, beta, rng);
+    float largest = max_element(beta);
+    w.rr_scale = largest > 0.0f ? 1.0f / largest : 1.0f;
     return true;
 }
 
@@ -125,7 +128,7 @@ HD bool step(const Scene& sc, Walker& w, const Hit& hit, int len, bool radiance,
     w.beta *= s.weight;
     w.bounces += 1;
     if (w.bounces > 3) {
-        float q = fminf(max_element(w.beta), 0.95f);
+        float q = fminf(max_element(w.beta) * w.rr_scale, 0.95f);
         if (uniform(w.rng) >= q) return true;
         w.beta = w.beta / q;
     }

@@ -33,7 +33,8 @@ struct LightSlot {
     Rng rng;
     Ray ray;
     V3 beta;
-    uint32_t path, len, bounces, alive, pad;
+    uint32_t path, len, bounces, alive;
+    float rr_scale;
 };
 // cache::kernels::SplatData
 struct SplatData {
@@ -149,7 +150,7 @@ HD void splat_gather(const K& k, size_t i) {
 
 HD void light_free_flags(const K& k, size_t s) { k.flags[s] = k.light_slots[s].alive == 0; }
 HD LightSlot light_slot(const Walker& w, uint32_t path, uint32_t len) {
-    return {w.rng, w.ray, w.beta, path, len, w.bounces, w.live ? 1u : 0u, 0};
+    return {w.rng, w.ray, w.beta, path, len, w.bounces, w.live ? 1u : 0u, w.rr_scale};
 }
 // cis::light_generate
 HD void light_generate(const K& k, size_t i) {
@@ -166,7 +167,7 @@ HD void light_shade(const K& k, size_t j) {
     uint32_t slot_id = k.active[i];
     LightSlot slot = k.light_slots[slot_id];
     if (slot.alive == 0) return;
-    Walker w = {slot.ray, slot.beta, slot.rng, slot.bounces, true};
+    Walker w = {slot.ray, slot.beta, slot.rng, slot.bounces, true, slot.rr_scale};
     Vertex v;
     uint32_t len = slot.len;
     if (step(k.sc, w, k.hits[i], (int)len, false, (int)k.stride, v)) {

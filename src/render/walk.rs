@@ -88,6 +88,12 @@ pub(crate) struct Walker {
     pub bounces: u32,
     /// Whether it has a ray to cast.
     pub live: bool,
+    /// What Russian roulette multiplies the throughput's largest component by: 1 for
+    /// camera subpaths, whose throughput starts at the camera sample's weight; for a
+    /// light subpath the reciprocal of its starting throughput's largest component, which
+    /// carries the light's emitted power, so that its survival does not depend on the
+    /// units or the brightness of the lights ([`start_light_subpath`]).
+    pub rr_scale: f32,
     /// Position of this walker's ray in the current batch.
     slot: u32,
 }
@@ -95,12 +101,12 @@ pub(crate) struct Walker {
 impl Walker {
     /// A walker that will cast `ray` with throughput `beta`.
     pub fn new(ray: Ray, beta: Vec3, rng: Rng) -> Walker {
-        Walker { ray, beta, rng, bounces: 0, live: true, slot: u32::MAX }
+        Walker { ray, beta, rng, bounces: 0, live: true, rr_scale: 1.0, slot: u32::MAX }
     }
 
     /// A walker resumed from stored state (a device pool slot).
-    pub fn resume(ray: Ray, beta: Vec3, rng: Rng, bounces: u32, live: bool) -> Walker {
-        Walker { bounces, live, ..Walker::new(ray, beta, rng) }
+    pub fn resume(ray: Ray, beta: Vec3, rng: Rng, bounces: u32, live: bool, rr_scale: f32) -> Walker {
+        Walker { bounces, live, rr_scale, ..Walker::new(ray, beta, rng) }
     }
 
     /// A walker that casts nothing (its subpath is complete as it stands).
@@ -217,7 +223,9 @@ pub(crate) fn start_light_subpath(ctx: &Context, mut rng: Rng, max_vertices: usi
     }
     let beta = origin.beta * ls.emitted * cos / pdf_dir;
     let start = if ls.is_delta { ls.position } else { offset_ray_origin(ls.position, ls.normal) };
-    (Some(origin), Walker::new(Ray::new(start, dir), beta, rng))
+    let largest = beta.max_element();
+    let rr_scale = if largest > 0.0 { 1.0 / largest } else { 1.0 };
+    (Some(origin), Walker { rr_scale, ..Walker::new(Ray::new(start, dir), beta, rng) })
 }
 
 /// A set of subpaths to extend together: their walkers and storage, the transport
@@ -304,7 +312,7 @@ pub(crate) fn step(
     w.beta *= s.weight;
     w.bounces += 1;
     if w.bounces > 3 {
-        let q = w.beta.max_element().min(0.95);
+        let q = (w.beta.max_element() * w.rr_scale).min(0.95);
         if w.rng.uniform() >= q {
             return Some(vertex);
         }

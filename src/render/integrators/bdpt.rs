@@ -193,4 +193,46 @@ mod tests {
             assert!(expected == reference.3, "{integrator:?}: squared sums are not the passes' own estimates");
         }
     }
+
+    /// Russian roulette weighs a light subpath's throughput against its start, so the
+    /// same streams give light subpaths of the same lengths with the lights 1,000 times
+    /// brighter; with the emitted power in the throughput it would keep every bright
+    /// subpath alive to the depth limit.
+    #[test]
+    fn light_subpaths_survive_roulette_alike_whatever_the_lights_brightness() {
+        use crate::render::walk::{Subpaths, extend_together, start_light_wave};
+        const N: usize = 4096;
+        let max_vertices = 14;
+        let lengths = |brightness: f32| {
+            let mut scene = cornell_box();
+            scene.emission.iter_mut().for_each(|e| *e *= brightness);
+            let lights = Lights::new(&scene);
+            let caster = BvhCaster::new(&scene);
+            let opts = RenderOptions { width: 64, height: 64, max_depth: 12, ..Default::default() };
+            let ctx = Context {
+                scene: &scene,
+                lights: &lights,
+                caster: &caster,
+                opts: &opts,
+                normals: &scene.unit_normals(),
+            };
+            let (mut subpaths, mut walkers) = (Subpaths::default(), Vec::new());
+            let walk = start_light_wave(
+                &ctx,
+                N,
+                |i| Rng::for_sample(9, i as u64, 0),
+                max_vertices,
+                &mut subpaths,
+                &mut walkers,
+            );
+            extend_together(&ctx, &mut [walk]);
+            (0..N).map(|i| subpaths.get(i).len()).collect::<Vec<_>>()
+        };
+        let (dim, bright) = (lengths(1.0), lengths(1000.0));
+        let differ = dim.iter().zip(&bright).filter(|(a, b)| a != b).count();
+        assert!(differ <= N / 1000, "{differ} of {N} light subpaths end elsewhere with brighter lights");
+        // Roulette did act: many subpaths that left the light's side end before the limit.
+        let cut = dim.iter().filter(|&&l| l > 4 && l < max_vertices).count();
+        assert!(cut > N / 10, "only {cut} of {N} subpaths ended early");
+    }
 }

@@ -31,8 +31,8 @@ pub struct LightSlot {
     pub bounces: u32,
     /// 1 while the subpath goes on.
     pub alive: u32,
-    /// Padding to a 16-byte multiple.
-    pub _pad: u32,
+    /// The walker's Russian-roulette scale ([`Walker::rr_scale`]).
+    pub rr_scale: f32,
 }
 
 // SAFETY: #[repr(C)], 4- and 8-byte fields laid out without padding.
@@ -40,11 +40,20 @@ unsafe impl DeviceCopy for LightSlot {}
 
 impl LightSlot {
     fn new(w: &Walker, path: u32, len: u32) -> LightSlot {
-        LightSlot { rng: w.rng, ray: w.ray, beta: w.beta, path, len, bounces: w.bounces, alive: w.live as u32, _pad: 0 }
+        LightSlot {
+            rng: w.rng,
+            ray: w.ray,
+            beta: w.beta,
+            path,
+            len,
+            bounces: w.bounces,
+            alive: w.live as u32,
+            rr_scale: w.rr_scale,
+        }
     }
 
     fn walker(&self) -> Walker {
-        Walker::resume(self.ray, self.beta, self.rng, self.bounces, self.alive != 0)
+        Walker::resume(self.ray, self.beta, self.rng, self.bounces, self.alive != 0, self.rr_scale)
     }
 }
 
