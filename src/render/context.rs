@@ -54,6 +54,14 @@ impl Context<'_> {
     }
 }
 
+/// Runs `f` with a context for `scene` and `opts` (its lights, a BVH caster and the
+/// unit normals): the unit tests' set-up.
+#[cfg(test)]
+pub(crate) fn with_test_context<R>(scene: &Scene, opts: &RenderOptions, f: impl FnOnce(&Context) -> R) -> R {
+    let (lights, caster, normals) = (Lights::new(scene), crate::cast::BvhCaster::new(scene), scene.unit_normals());
+    f(&Context { scene, lights: &lights, caster: &caster, opts, normals: &normals })
+}
+
 /// Most samples (or light paths) in one wave: bounds the vertex and pending buffers
 /// (about 64 bytes per vertex) whatever the image size.
 pub(crate) const WAVE: u32 = 1 << 16;

@@ -124,8 +124,7 @@ fn connect(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cast::BvhCaster;
-    use crate::lights::Lights;
+    use crate::render::context::with_test_context;
     use crate::render::{IntegratorKind, LightTracer, LvcBdpt, LvcParams, RenderOptions};
     use crate::scene::cornell_box;
 
@@ -138,60 +137,56 @@ mod tests {
     #[test]
     fn grouping_passes_and_the_wave_size_do_not_change_the_image() {
         let scene = cornell_box();
-        let lights = Lights::new(&scene);
-        let caster = BvhCaster::new(&scene);
         let (size, passes) = (32u32, 3u32);
-        let per_pass = size * size;
         for integrator in [IntegratorKind::Light, IntegratorKind::Bdpt, IntegratorKind::Lvc] {
             let opts =
                 RenderOptions { width: size, height: size, integrator, seed: 5, max_depth: 5, ..Default::default() };
-            let ctx = Context {
-                scene: &scene,
-                lights: &lights,
-                caster: &caster,
-                opts: &opts,
-                normals: &scene.unit_normals(),
-            };
-            let render = |spans: &[Passes], wave: u32| {
-                let mut film = Film::new(size, size).unwrap();
-                let buffers = WaveBuffers { wave: Some(wave), ..Default::default() };
-                let mut light = LightTracer { buffers };
-                let mut bdpt = Bdpt { buffers: WaveBuffers { wave: Some(wave), ..Default::default() } };
-                let mut lvc = LvcBdpt {
-                    buffers: WaveBuffers { wave: Some(wave), ..Default::default() },
-                    ..LvcBdpt::new(LvcParams::default())
-                };
-                for &span in spans {
-                    match integrator {
-                        IntegratorKind::Light => light.render_passes(&ctx, span, &mut film),
-                        IntegratorKind::Bdpt => bdpt.render_passes(&ctx, span, &mut film),
-                        _ => lvc.render_passes(&ctx, span, &mut film),
-                    };
-                }
-                let bits = |v: &[glam::Vec3]| v.iter().flat_map(|c| c.to_array().map(f32::to_bits)).collect::<Vec<_>>();
-                (film.passes, bits(&film.sum), bits(&film.splat), bits(&film.sum_sq))
-            };
-            let one_by_one: Vec<Passes> = (0..passes).map(|first| Passes { first, count: 1, per_pass }).collect();
-            let reference = render(&one_by_one, per_pass);
-            assert_eq!(reference.0, passes);
-            assert!(reference.1.iter().chain(&reference.2).any(|&b| f32::from_bits(b) > 0.0), "{integrator:?}: black");
-            let together = [Passes { first: 0, count: passes, per_pass }];
-            for wave in [per_pass * passes, 1000, 7] {
-                assert!(render(&together, wave) == reference, "{integrator:?}: grouped, waves of {wave}: another film");
-            }
-            // Each pass's own estimate (its camera estimate plus its splats) is what the
-            // squared sums add up: rendered alone on a fresh film, pass p's estimate is
-            // that film's sum plus its splats, bit for bit.
-            let mut expected = vec![0u32; reference.3.len()];
-            for p in &one_by_one {
-                let (_, sum, splat, _) = render(std::slice::from_ref(p), per_pass);
-                for ((q, s), l) in expected.iter_mut().zip(sum).zip(splat) {
-                    let x = f32::from_bits(s) + f32::from_bits(l);
-                    *q = (f32::from_bits(*q) + x * x).to_bits();
-                }
-            }
-            assert!(expected == reference.3, "{integrator:?}: squared sums are not the passes' own estimates");
+            with_test_context(&scene, &opts, |ctx| check_grouping(ctx, integrator, size, passes));
         }
+    }
+
+    /// The body of the test above for one integrator.
+    fn check_grouping(ctx: &Context, integrator: IntegratorKind, size: u32, passes: u32) {
+        let per_pass = size * size;
+        let render = |spans: &[Passes], wave: u32| {
+            let mut film = Film::new(size, size).unwrap();
+            let buffers = WaveBuffers { wave: Some(wave), ..Default::default() };
+            let mut light = LightTracer { buffers };
+            let mut bdpt = Bdpt { buffers: WaveBuffers { wave: Some(wave), ..Default::default() } };
+            let mut lvc = LvcBdpt {
+                buffers: WaveBuffers { wave: Some(wave), ..Default::default() },
+                ..LvcBdpt::new(LvcParams::default())
+            };
+            for &span in spans {
+                match integrator {
+                    IntegratorKind::Light => light.render_passes(ctx, span, &mut film),
+                    IntegratorKind::Bdpt => bdpt.render_passes(ctx, span, &mut film),
+                    _ => lvc.render_passes(ctx, span, &mut film),
+                };
+            }
+            let bits = |v: &[glam::Vec3]| v.iter().flat_map(|c| c.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+            (film.passes, bits(&film.sum), bits(&film.splat), bits(&film.sum_sq))
+        };
+        let one_by_one: Vec<Passes> = (0..passes).map(|first| Passes { first, count: 1, per_pass }).collect();
+        let reference = render(&one_by_one, per_pass);
+        assert_eq!(reference.0, passes);
+        assert!(reference.1.iter().chain(&reference.2).any(|&b| f32::from_bits(b) > 0.0), "{integrator:?}: black");
+        let together = [Passes { first: 0, count: passes, per_pass }];
+        for wave in [per_pass * passes, 1000, 7] {
+            assert!(render(&together, wave) == reference, "{integrator:?}: grouped, waves of {wave}: another film");
+        }
+        // Each pass's own estimate (its camera estimate plus its splats) is what the
+        // squared sums add up: rendered alone on a fresh film, pass p's estimate is
+        // that film's sum plus its splats, bit for bit.
+        let mut expected = vec![0u32; reference.3.len()];
+        for p in &one_by_one {
+            let (_, sum, splat, _) = render(std::slice::from_ref(p), per_pass);
+            for ((q, s), l) in expected.iter_mut().zip(sum).zip(splat) {
+                let x = f32::from_bits(s) + f32::from_bits(l);
+                *q = (f32::from_bits(*q) + x * x).to_bits();
+            }
+        }
+        assert!(expected == reference.3, "{integrator:?}: squared sums are not the passes' own estimates");
     }
 
     /// Russian roulette weighs a light subpath's throughput against its start, so the
@@ -206,27 +201,20 @@ mod tests {
         let lengths = |brightness: f32| {
             let mut scene = cornell_box();
             scene.emission.iter_mut().for_each(|e| *e *= brightness);
-            let lights = Lights::new(&scene);
-            let caster = BvhCaster::new(&scene);
             let opts = RenderOptions { width: 64, height: 64, max_depth: 12, ..Default::default() };
-            let ctx = Context {
-                scene: &scene,
-                lights: &lights,
-                caster: &caster,
-                opts: &opts,
-                normals: &scene.unit_normals(),
-            };
-            let (mut subpaths, mut walkers) = (Subpaths::default(), Vec::new());
-            let walk = start_light_wave(
-                &ctx,
-                N,
-                |i| Rng::for_sample(9, i as u64, 0),
-                max_vertices,
-                &mut subpaths,
-                &mut walkers,
-            );
-            extend_together(&ctx, &mut [walk]);
-            (0..N).map(|i| subpaths.get(i).len()).collect::<Vec<_>>()
+            with_test_context(&scene, &opts, |ctx| {
+                let (mut subpaths, mut walkers) = (Subpaths::default(), Vec::new());
+                let walk = start_light_wave(
+                    ctx,
+                    N,
+                    |i| Rng::for_sample(9, i as u64, 0),
+                    max_vertices,
+                    &mut subpaths,
+                    &mut walkers,
+                );
+                extend_together(ctx, &mut [walk]);
+                (0..N).map(|i| subpaths.get(i).len()).collect::<Vec<_>>()
+            })
         };
         let (dim, bright) = (lengths(1.0), lengths(1000.0));
         let differ = dim.iter().zip(&bright).filter(|(a, b)| a != b).count();
