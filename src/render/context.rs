@@ -54,12 +54,30 @@ impl Context<'_> {
     }
 }
 
-/// Runs `f` with a context for `scene` and `opts` (its lights, a BVH caster and the
-/// unit normals): the unit tests' set-up.
+/// What a unit test's [`Context`] borrows besides the scene and the options: the
+/// scene's lights, a BVH caster and the unit normals.
 #[cfg(test)]
-pub(crate) fn with_test_context<R>(scene: &Scene, opts: &RenderOptions, f: impl FnOnce(&Context) -> R) -> R {
-    let (lights, caster, normals) = (Lights::new(scene), crate::cast::BvhCaster::new(scene), scene.unit_normals());
-    f(&Context { scene, lights: &lights, caster: &caster, opts, normals: &normals })
+pub(crate) struct TestSetup {
+    lights: Lights,
+    caster: crate::cast::BvhCaster,
+    normals: Vec<glam::Vec3>,
+}
+
+#[cfg(test)]
+impl TestSetup {
+    /// The set-up for `scene`.
+    pub fn new(scene: &Scene) -> TestSetup {
+        TestSetup {
+            lights: Lights::new(scene),
+            caster: crate::cast::BvhCaster::new(scene),
+            normals: scene.unit_normals(),
+        }
+    }
+
+    /// A context for `scene` (the one this was made for) and `opts`.
+    pub fn ctx<'a>(&'a self, scene: &'a Scene, opts: &'a RenderOptions) -> Context<'a> {
+        Context { scene, lights: &self.lights, caster: &self.caster, opts, normals: &self.normals }
+    }
 }
 
 /// Most samples (or light paths) in one wave: bounds the vertex and pending buffers

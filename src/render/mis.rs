@@ -226,8 +226,10 @@ pub(crate) fn mis_weight_counts(
 /// folded from the left starting at 1, as the CUDA twin folds them strategy by
 /// strategy. Here the light products are one running product (the same folds) and each
 /// strategy's density is computed once, for the sum and for the quotient, so the
-/// weight is the twin's bit for bit in (k + 1)(k + 2) / 2 + k + 1 multiplies instead of
-/// 2 (k + 1)² and more (`mis_weight_counts` declares the twin's loops for the model).
+/// weight is the twin's bit for bit in (k + 1)(k + 2) / 2 + 3 (k + 1) multiplies (72 for
+/// a path of nine vertices) instead of (k + 2)(k + 3) (110): the twin folds every
+/// strategy's products for the sum and its own again for the quotient
+/// (`mis_weight_counts` declares the twin's loops for the model).
 #[inline]
 fn balance(
     pl: &[f64],
@@ -248,16 +250,16 @@ fn balance(
         light *= d;
     }
     let total: f64 = densities.iter().sum();
-    if total > 0.0 && valid(s) { densities[s] / total } else { 0.0 }
+    // An invalid strategy's density is 0, and so is its weight.
+    if total > 0.0 { densities[s] / total } else { 0.0 }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cast::BvhCaster;
-    use crate::lights::Lights;
     use crate::render::RenderOptions;
     use crate::render::bidir::Vertex;
+    use crate::render::context::TestSetup;
     use crate::scene::{Material, Scene, cornell_box};
 
     /// A concrete path through the Cornell box: light, floor, back wall, camera.
@@ -288,11 +290,9 @@ mod tests {
     #[test]
     fn mis_weights_of_all_strategies_sum_to_one() {
         let scene = cornell_box();
-        let lights = Lights::new(&scene);
-        let caster = BvhCaster::new(&scene);
         let opts = RenderOptions { width: 64, height: 64, ..Default::default() };
-        let ctx =
-            Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts, normals: &scene.unit_normals() };
+        let setup = TestSetup::new(&scene);
+        let ctx = setup.ctx(&scene, &opts);
         let path = sample_path(&scene, false);
         let weights: Vec<f32> = (0..path.len()).map(|s| mis_weight(&ctx, &path, s, Known::default())).collect();
         let sum: f32 = weights.iter().sum();
@@ -378,11 +378,9 @@ mod tests {
                 _ => {}
             }
         }
-        let lights = Lights::new(&scene);
-        let caster = BvhCaster::new(&scene);
         let opts = RenderOptions { width: 64, height: 64, ..Default::default() };
-        let ctx =
-            Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts, normals: &scene.unit_normals() };
+        let setup = TestSetup::new(&scene);
+        let ctx = setup.ctx(&scene, &opts);
         let light_tri = (0..n as u32).find(|&t| scene.emission_of(t).max_element() > 0.0).unwrap();
         let [a, b, c] = scene.vertices(light_tri);
         let light_at = |u: f32| {

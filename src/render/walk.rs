@@ -465,6 +465,7 @@ pub(crate) fn resolve_wave(ctx: &Context, pending: &mut PendingLists) -> (Resolv
 }
 
 /// Buffers of one wave, kept across waves and passes, and the wave size.
+#[derive(Default)]
 pub(crate) struct WaveBuffers {
     pub camera: Subpaths,
     pub light: Subpaths,
@@ -481,18 +482,5 @@ impl WaveBuffers {
     /// Samples per wave with `ctx`.
     pub fn wave(&self, ctx: &Context) -> u32 {
         self.wave.unwrap_or_else(|| ctx.wave())
-    }
-}
-
-impl Default for WaveBuffers {
-    fn default() -> Self {
-        WaveBuffers {
-            camera: Subpaths::default(),
-            light: Subpaths::default(),
-            camera_walkers: Vec::new(),
-            light_walkers: Vec::new(),
-            pending: PendingLists::default(),
-            wave: None,
-        }
     }
 }

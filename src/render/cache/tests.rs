@@ -1,10 +1,8 @@
 //! The light vertex cache's host half, checked where nothing else would notice.
 use super::host::*;
-use crate::cast::BvhCaster;
-use crate::lights::Lights;
 use crate::render::RenderOptions;
 use crate::render::bidir::{Vertex, VertexKind, VertexList, camera_vertex};
-use crate::render::context::Context;
+use crate::render::context::TestSetup;
 use crate::sampling::Rng;
 use crate::scene::cornell_box;
 use glam::Vec3;
@@ -23,10 +21,9 @@ fn the_prefetched_entries_are_the_ones_the_connections_read() {
         Vec3::ZERO,
     );
     scene.material_of[2] = mirror;
-    let lights = Lights::new(&scene);
-    let caster = BvhCaster::new(&scene);
     let opts = RenderOptions { width: 16, height: 16, max_depth: 6, ..Default::default() };
-    let ctx = Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts, normals: &scene.unit_normals() };
+    let setup = TestSetup::new(&scene);
+    let ctx = setup.ctx(&scene, &opts);
     let light_tri = (0..scene.triangle_count() as u32).find(|&t| scene.emission_of(t).max_element() > 0.0).unwrap();
     // A vertex at the centre of triangle `tri`, of `kind`, with the triangle's emission.
     let at_centre = |kind: VertexKind, tri: u32| {

@@ -157,11 +157,9 @@ fn splat_stream(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cast::BvhCaster;
-    use crate::lights::Lights;
     use crate::render::RenderOptions;
     use crate::render::cache::host::{LightPass, build_caches};
-    use crate::render::context::{Passes, WAVE};
+    use crate::render::context::{Passes, TestSetup, WAVE};
     use crate::scene::cornell_box;
 
     /// Splats as sortable bit patterns (the stream makes them in another order).
@@ -180,11 +178,9 @@ mod tests {
     #[test]
     fn the_stream_caches_what_the_host_light_pass_caches() {
         let scene = cornell_box();
-        let lights = Lights::new(&scene);
-        let caster = BvhCaster::new(&scene);
         let opts = RenderOptions { width: 32, height: 24, seed: 11, max_depth: 6, ..Default::default() };
-        let ctx =
-            Context { scene: &scene, lights: &lights, caster: &caster, opts: &opts, normals: &scene.unit_normals() };
+        let setup = TestSetup::new(&scene);
+        let ctx = setup.ctx(&scene, &opts);
         let n_light = 32 * 24;
         let (mut host, _) = build_caches(&ctx, Passes { first: 2, count: 1, per_pass: n_light }, 3, WAVE);
         let LightPass { cache: host, counts: host_counts, splats: host_splats } = host.pop().expect("one pass");
