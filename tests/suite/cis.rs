@@ -82,18 +82,19 @@ fn cis_with_one_candidate_and_one_draw_is_uniform_lvc() {
 }
 
 #[test]
-fn cis_is_deterministic_across_thread_counts_with_or_without_sorting_and_compaction() {
+fn cis_is_deterministic_across_thread_counts_with_or_without_sorting_compaction_or_measurement() {
     let scene = glossy_glass_box();
-    let run = |threads, sort, regenerate| {
+    let run_measured = |threads, sort, regenerate, measure| {
         let o = opts(
             IntegratorKind::Cis,
             2,
-            CisParams { sort, regenerate, ..small_pool(CisParams::default()) },
+            CisParams { sort, regenerate, measure, ..small_pool(CisParams::default()) },
             LvcParams::default(),
             13,
         );
         rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| film(&scene, &o))
     };
+    let run = |threads, sort, regenerate| run_measured(threads, sort, regenerate, false);
     let (a, b) = (run(1, true, true), run(2, true, true));
     assert!(a.sum == b.sum && a.splat == b.splat, "1 and 2 threads differ");
     // Sorting and compaction reorder the work, not the random numbers: the same image.
@@ -101,6 +102,11 @@ fn cis_is_deterministic_across_thread_counts_with_or_without_sorting_and_compact
     assert!(a.sum == c.sum && a.splat == c.splat, "sorting changed the image");
     let d = run(2, true, false);
     assert!(a.sum == d.sum && a.splat == d.splat, "compaction changed the image");
+    // A measured launch evaluates every MIS density where a weight needs it, as the
+    // CUDA twin does; an unmeasured one reads the camera subpath's densities evaluated
+    // once per vertex: the same weights, bit for bit.
+    let e = run_measured(2, true, true, true);
+    assert!(a.sum == e.sum && a.splat == e.splat, "measurement changed the image");
 }
 
 #[test]

@@ -3,8 +3,9 @@
 
 use super::host::{Connections, Prefetch, StrategyCounts, light_splats, prefetch_entries, vertex_strategies};
 use crate::geometry::Ray;
-use crate::render::bidir::{Pending, Vertex, VertexKind, VertexList, connectible};
+use crate::render::bidir::{MAX_PATH, Pending, StackList, Vertex, VertexKind, VertexList, connectible};
 use crate::render::context::Context;
+use crate::render::mis::{Densities, subpath_densities};
 use crate::sampling::Rng;
 use glam::{Vec2, Vec3};
 use simt::{DeviceCopy, Global, GlobalMut, Readable, Thread};
@@ -127,6 +128,14 @@ pub fn splat_entries(
     }
 }
 
+/// The densities of camera subpath `cam` that every strategy at its vertices reads
+/// ([`subpath_densities`]), evaluated once; none in a measured launch, whose lanes
+/// evaluate each density where a weight needs it, as the CUDA twins do (the weights
+/// are the same bit for bit either way).
+pub fn known_densities(t: &Thread, ctx: &Context, cam: &[Vertex]) -> StackList<Densities, MAX_PATH> {
+    if t.is_measured() { StackList::default() } else { subpath_densities(ctx, cam) }
+}
+
 /// The light vertex cache as camera-side kernels read it: CIS's `cis::shade` and the
 /// LVC megakernel's `lvc::camera_path`.
 #[derive(Clone, Copy)]
@@ -156,12 +165,13 @@ impl CacheRead<'_> {
 
     /// Every strategy at vertex `t_len` of the camera subpath `cam`, with its cache
     /// connections, into `sink` (LVC's `vertex_strategies` over this cache).
+    /// `cam_known`: the camera subpath's densities ([`known_densities`]), or empty.
     #[allow(clippy::too_many_arguments)]
     pub fn strategies(
         &self,
         t: &Thread,
         ctx: &Context,
-        cam: &[Vertex],
+        (cam, cam_known): (&[Vertex], &[Densities]),
         t_len: usize,
         rng: &mut Rng,
         path: &mut VertexList,
@@ -171,7 +181,8 @@ impl CacheRead<'_> {
         let prefetch = |drawn: &[usize]| self.prefetch(drawn);
         let hint: Prefetch = if t.is_measured() { None } else { Some(&prefetch) };
         let n = self.entries.len();
-        vertex_strategies(ctx, (cam, &[]), t_len, n, (&subpath, hint), self.counts, self.connections, rng, path, sink);
+        let access = (&subpath as _, hint);
+        vertex_strategies(ctx, (cam, cam_known), t_len, n, access, self.counts, self.connections, rng, path, sink);
     }
 
     /// `LightVertexCache::prefetch` on the device cache: a host hint that loads nothing

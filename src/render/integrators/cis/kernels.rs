@@ -5,7 +5,7 @@
 use crate::filter::{Filter, FilterMode};
 use crate::geometry::{Hit, Ray, offset_ray_origin};
 use crate::render::bidir::{MAX_PATH, Pending, Vertex, VertexKind, VertexList};
-use crate::render::cache::kernels::CacheRead;
+use crate::render::cache::kernels::{CacheRead, known_densities};
 use crate::render::context::Context;
 use crate::render::walk::SHADE_REGION;
 use crate::sampling::{Frame, Rng};
@@ -221,7 +221,8 @@ fn shade_lane(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
             next += 1;
         }
     };
-    a.cache.strategies(t, ctx, &cam, t_len, &mut slot.rng, &mut path, &mut sink);
+    let known = known_densities(t, ctx, &cam);
+    a.cache.strategies(t, ctx, (&cam, &known), t_len, &mut slot.rng, &mut path, &mut sink);
 
     // Continue the subpath.
     let max_vertices = ctx.opts.max_depth as usize + 2;

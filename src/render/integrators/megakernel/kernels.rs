@@ -10,7 +10,7 @@ use crate::bsdf::TransportMode;
 use crate::geometry::{Hit, Ray};
 use crate::render::bidir::{Vertex, VertexList, camera_vertex};
 use crate::render::cache::host::{StrategyCounts, light_path_rng};
-use crate::render::cache::kernels::{CacheRead, SplatData, splat_entries};
+use crate::render::cache::kernels::{CacheRead, SplatData, known_densities, splat_entries};
 use crate::render::context::Context;
 pub use crate::render::walk::ARITHMETIC_REGION;
 use crate::render::walk::{SHADE_REGION, SHADE_REGIONS, Walker, start_light_subpath, step};
@@ -128,8 +128,9 @@ pub fn camera_path(
     walk(t, ctx, &mut walker, &mut cam, TransportMode::Radiance, ctx.opts.max_depth as usize + 2);
     let mut rng = walker.rng;
     let (mut path, mut estimate) = (VertexList::default(), Vec3::ZERO);
+    let known = known_densities(t, ctx, &cam);
     for k in 2..=cam.len() {
-        cache.strategies(t, ctx, &cam, k, &mut rng, &mut path, &mut |p| {
+        cache.strategies(t, ctx, (&cam, &known), k, &mut rng, &mut path, &mut |p| {
             if p.0.is_none_or(|ray| unblocked(t, ctx, ray)) {
                 estimate += p.1;
             }
