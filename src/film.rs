@@ -25,13 +25,14 @@ pub struct Film {
     /// by (empty otherwise).
     pub weight: Vec<f32>,
     /// Per pixel: sum of contributions splatted by light paths (light tracing, BDPT's
-    /// camera connections), normalised so that it too is divided by `passes`.
+    /// camera connections), normalised so that it too is divided by `passes`: the
+    /// finished passes' (a pass's splats are added to it when the pass ends).
     pub splat: Vec<Vec3>,
     /// Per pixel: sum of the squares of each pass's estimate (its own estimate plus
     /// that pass's splats), for the per-pixel sample variance.
     pub sum_sq: Vec<Vec3>,
-    /// Per pixel: the splats of the pass in progress (folded into `sum_sq` when the
-    /// pass ends).
+    /// Per pixel: the splats of the pass in progress (added to `splat` and folded into
+    /// `sum_sq` when the pass ends: each splat touches one buffer).
     pass_splat: Vec<Vec3>,
     /// Number of passes (samples per pixel) accumulated.
     pub passes: u32,
@@ -140,12 +141,14 @@ impl Film {
         };
         match self.mode {
             FilterMode::Sample => {
-                for ((s, q), (&e, p)) in
-                    self.sum.iter_mut().zip(&mut self.sum_sq).zip(estimates.iter().zip(&mut self.pass_splat))
+                let splats = self.splat.iter_mut().zip(&mut self.pass_splat);
+                for ((s, q), (&e, (splat, p))) in self.sum.iter_mut().zip(&mut self.sum_sq).zip(estimates.iter().zip(splats))
                 {
                     let e = valid(e);
                     *s += e;
-                    let x = e + std::mem::take(p);
+                    let p = std::mem::take(p);
+                    *splat += p;
+                    let x = e + p;
                     *q += x * x;
                 }
             }
@@ -187,8 +190,9 @@ impl Film {
                 .par_chunks_mut(w)
                 .zip(self.weight[y0 * w..y1 * w].par_chunks_mut(w))
                 .zip(self.sum_sq[y0 * w..y1 * w].par_chunks_mut(w))
-                .zip(self.pass_splat[y0 * w..y1 * w].par_chunks_mut(w));
-            rows.enumerate().for_each(|(row, (((sum, weight), sum_sq), pass_splat))| {
+                .zip(self.pass_splat[y0 * w..y1 * w].par_chunks_mut(w))
+                .zip(self.splat[y0 * w..y1 * w].par_chunks_mut(w));
+            rows.enumerate().for_each(|(row, ((((sum, weight), sum_sq), pass_splat), splat))| {
                 let y = y0 + row;
                 for x in 0..w {
                     let (mut num, mut den) = (Vec3::ZERO, 0.0f32);
@@ -204,7 +208,9 @@ impl Film {
                     sum[x] += num;
                     weight[x] += den;
                     let own = if den > 0.0 { num / den } else { Vec3::ZERO };
-                    let v = own + std::mem::take(&mut pass_splat[x]);
+                    let p = std::mem::take(&mut pass_splat[x]);
+                    splat[x] += p;
+                    let v = own + p;
                     sum_sq[x] += v * v;
                 }
             });
@@ -220,10 +226,7 @@ impl Film {
         let (w, h, filter) = (self.width, self.height, self.prepared_filter());
         for (p, v) in splats {
             if v.is_finite() && v.min_element() >= 0.0 && p.is_finite() {
-                filter.splat(p, w, h, |i, wt| {
-                    self.splat[i as usize] += v * wt;
-                    self.pass_splat[i as usize] += v * wt;
-                });
+                filter.splat(p, w, h, |i, wt| self.pass_splat[i as usize] += v * wt);
             } else {
                 self.rejected += 1;
             }
@@ -232,8 +235,9 @@ impl Film {
 
     /// Ends a pass that added only splats.
     pub fn end_pass(&mut self) {
-        for (q, p) in self.sum_sq.iter_mut().zip(&mut self.pass_splat) {
+        for ((q, p), s) in self.sum_sq.iter_mut().zip(&mut self.pass_splat).zip(&mut self.splat) {
             let x = std::mem::take(p);
+            *s += x;
             *q += x * x;
         }
         self.passes += 1;
@@ -263,14 +267,19 @@ impl Film {
     pub fn mean(&self) -> Vec<Vec3> {
         let inv = if self.passes > 0 { 1.0 / self.passes as f32 } else { 0.0 };
         match self.mode {
-            FilterMode::Sample => self.sum.iter().zip(&self.splat).map(|(&s, &p)| (s + p) * inv).collect(),
+            FilterMode::Sample => (0..self.sum.len()).map(|i| (self.sum[i] + self.splats(i)) * inv).collect(),
             FilterMode::Splat => (0..self.sum.len())
                 .map(|i| {
                     let own = if self.weight[i] > 0.0 { self.sum[i] / self.weight[i] } else { Vec3::ZERO };
-                    own + self.splat[i] * inv
+                    own + self.splats(i) * inv
                 })
                 .collect(),
         }
+    }
+
+    /// Pixel `i`'s splats so far: the finished passes' and the pass in progress's.
+    fn splats(&self, i: usize) -> Vec3 {
+        self.splat[i] + self.pass_splat[i]
     }
 
     /// Mean of all pixels' means (per channel).
