@@ -142,7 +142,8 @@ impl Film {
         match self.mode {
             FilterMode::Sample => {
                 let splats = self.splat.iter_mut().zip(&mut self.pass_splat);
-                for ((s, q), (&e, (splat, p))) in self.sum.iter_mut().zip(&mut self.sum_sq).zip(estimates.iter().zip(splats))
+                for ((s, q), (&e, (splat, p))) in
+                    self.sum.iter_mut().zip(&mut self.sum_sq).zip(estimates.iter().zip(splats))
                 {
                     let e = valid(e);
                     *s += e;
@@ -424,6 +425,40 @@ pub(crate) fn atomic_write(path: &Path, write: impl FnOnce(&Path) -> std::result
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Splats of several passes reach the image whatever the mode and however a pass
+    /// ends: each pixel's mean is its splats' sum over the passes (a box filter puts
+    /// each splat on one pixel with weight 1), during a pass too, and the per-pass
+    /// variance sees each pass's own splats.
+    #[test]
+    fn every_passes_splats_reach_the_mean_and_the_variance() {
+        for mode in [FilterMode::Sample, FilterMode::Splat] {
+            for ends_with_estimates in [true, false] {
+                let mut film = Film::new(2, 1).unwrap().with_filter(Filter::Box, mode, 1);
+                let mut want = [0.0f32; 2];
+                for pass in 0..3u32 {
+                    let v = (pass + 1) as f32;
+                    film.add_splats([(Vec2::new(0.5, 0.5), Vec3::splat(v)), (Vec2::new(1.5, 0.5), Vec3::splat(2.0))]);
+                    want[0] += v;
+                    want[1] += 2.0;
+                    if pass > 0 {
+                        // The mean in progress: every splat so far over the finished passes.
+                        assert_eq!(film.mean()[0].x, want[0] / pass as f32, "{mode:?} pass {pass}: pending splats");
+                    }
+                    if ends_with_estimates {
+                        film.add_pass(pass, &[Vec3::ZERO; 2]);
+                    } else {
+                        film.end_pass();
+                    }
+                }
+                let mean = film.mean();
+                assert_eq!([mean[0].x, mean[1].x], [want[0] / 3.0, want[1] / 3.0], "{mode:?}");
+                // Pixel 0's passes gave 1, 2 and 3: sample variance 1; pixel 1's none.
+                let var = film.variance();
+                assert!((var[0].x - 1.0).abs() < 1e-5 && var[1].x.abs() < 1e-5, "{mode:?}: {var:?}");
+            }
+        }
+    }
 
     #[test]
     fn exr_metadata_round_trips_and_non_latin1_text_is_replaced() {
