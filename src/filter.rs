@@ -198,7 +198,7 @@ impl Filter {
     /// The pixels a contribution at film position `p` reaches, with their weights,
     /// passed to `add(pixel index, weight)`; nothing outside the `width × height` image.
     pub fn splat(&self, p: Vec2, width: u32, height: u32, add: impl FnMut(u32, f32)) {
-        splat_with(*self, |x| self.eval_1d(x), p, width, height, add)
+        splat_with(*self, |x| self.eval_1d(x), p, (width, height), 0..height, add)
     }
 }
 
@@ -209,8 +209,8 @@ fn splat_with(
     filter: Filter,
     eval_1d: impl Fn(f32) -> f32,
     p: Vec2,
-    width: u32,
-    height: u32,
+    (width, height): (u32, u32),
+    rows: std::ops::Range<u32>,
     mut add: impl FnMut(u32, f32),
 ) {
     match filter {
@@ -218,7 +218,9 @@ fn splat_with(
             if p.x >= 0.0 && p.y >= 0.0 && p.x <= width as f32 && p.y <= height as f32 {
                 let x = (p.x as u32).min(width - 1);
                 let y = (p.y as u32).min(height - 1);
-                add(y * width + x, 1.0);
+                if rows.contains(&y) {
+                    add(y * width + x, 1.0);
+                }
             }
         }
         Filter::Gaussian { radius, .. } => {
@@ -232,7 +234,7 @@ fn splat_with(
             for (x, w) in (x0..=x1).zip(wx.iter_mut()) {
                 *w = eval_1d(p.x - (x as f32 + 0.5));
             }
-            for y in lo(p.y)..=hi(p.y, height) {
+            for y in lo(p.y).max(rows.start as i64)..=hi(p.y, height).min(rows.end as i64 - 1) {
                 let wy = eval_1d(p.y - (y as f32 + 0.5));
                 if wy <= 0.0 {
                     continue;

@@ -32,10 +32,11 @@ impl PreparedFilter {
         self.filter
     }
 
-    /// [`Filter::splat`], from the table.
+    /// [`Filter::splat`], from the table, onto the film's rows `rows` alone (the
+    /// weights of the others are not evaluated).
     #[inline]
-    pub(crate) fn splat(&self, p: Vec2, width: u32, height: u32, add: impl FnMut(u32, f32)) {
-        splat_with(self.filter, |x| self.eval_1d(x), p, width, height, add)
+    pub(crate) fn splat_rows(&self, p: Vec2, size: (u32, u32), rows: std::ops::Range<u32>, add: impl FnMut(u32, f32)) {
+        splat_with(self.filter, |x| self.eval_1d(x), p, size, rows, add)
     }
 
     /// The weights one camera sample at film position `p` gives the pixels around it,

@@ -59,13 +59,17 @@ pub(crate) fn flush_wave(
     mut estimates: Option<&mut Vec<Vec3>>,
     mut before_close: impl FnMut(&mut crate::film::Film, u32),
 ) {
-    for (i, k) in wave.enumerate() {
-        let (estimate, splats) = resolved.sample(i);
-        film.add_splats(splats.iter().copied());
+    // The splats of each run of samples up to a pass's end go to the film in one call
+    // (the same splats in the same order, which the film may add in parallel).
+    let splats_of = |run: Range<usize>| run.flat_map(|i| resolved.sample(i).1.iter().copied());
+    let mut run_start = 0;
+    for (i, k) in wave.clone().enumerate() {
         if let Some(e) = estimates.as_deref_mut() {
-            e.push(estimate);
+            e.push(resolved.sample(i).0);
         }
         if span.ends_pass(k) {
+            film.add_splats(splats_of(run_start..i + 1));
+            run_start = i + 1;
             before_close(film, span.at(k).1);
             match estimates.as_deref_mut() {
                 Some(e) => {
@@ -76,6 +80,7 @@ pub(crate) fn flush_wave(
             }
         }
     }
+    film.add_splats(splats_of(run_start..wave.len()));
 }
 
 /// One subpath being extended: its next ray, throughput and random stream.

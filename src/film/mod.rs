@@ -53,6 +53,11 @@ pub struct Film {
     band_weights: Vec<f32>,
 }
 
+/// Rows per band when splats are added in parallel ([`Film::add_splats`]).
+const SPLAT_BAND: u32 = 16;
+/// Fewest splats added in parallel.
+const PARALLEL_SPLATS: usize = 1 << 14;
+
 /// Largest image accepted: 16384 pixels a side and 2^26 pixels (64 Mpx) in all.
 pub const MAX_SIDE: u32 = 16_384;
 /// Most pixels an image may have.
@@ -223,15 +228,59 @@ impl Film {
     /// (so that the result does not depend on thread scheduling), spread over the pixels
     /// the film's filter covers. Non-finite or negative values are dropped and counted.
     /// Call once or more per pass, before [`Film::end_pass`].
+    ///
+    /// Many splats are added by bands of rows in parallel: each band takes, in the
+    /// order given, the splats whose filter reaches it, so every pixel adds its
+    /// contributions in the same order as one thread would (the same sums, bit for bit).
     pub fn add_splats(&mut self, splats: impl IntoIterator<Item = (Vec2, Vec3)>) {
+        use rayon::prelude::*;
         let (w, h, filter) = (self.width, self.height, self.prepared_filter());
-        for (p, v) in splats {
-            if v.is_finite() && v.min_element() >= 0.0 && p.is_finite() {
-                filter.splat(p, w, h, |i, wt| self.pass_splat[i as usize] += v * wt);
-            } else {
-                self.rejected += 1;
+        let valid = |&(p, v): &(Vec2, Vec3)| v.is_finite() && v.min_element() >= 0.0 && p.is_finite();
+        let splats: Vec<(Vec2, Vec3)> = splats.into_iter().collect();
+        let n_bands = h.div_ceil(SPLAT_BAND) as usize;
+        if splats.len() < PARALLEL_SPLATS || n_bands < 2 || rayon::current_num_threads() < 2 {
+            for s @ (p, v) in splats {
+                if valid(&s) {
+                    filter.splat_rows(p, (w, h), 0..h, |i, wt| self.pass_splat[i as usize] += v * wt);
+                } else {
+                    self.rejected += 1;
+                }
             }
+            return;
         }
+        // The bands each splat's filter reaches (its rows k above and below its own),
+        // listed per band in the given order: per chunk of splats, then chunk after chunk.
+        let k = self.filter.splat_reach() as f32;
+        let band_of = |y: f32| ((y.max(0.0) as u32).min(h - 1) / SPLAT_BAND) as usize;
+        let chunk = splats.len().div_ceil(4 * rayon::current_num_threads());
+        let lists: Vec<(Vec<Vec<u32>>, u64)> = splats
+            .par_chunks(chunk)
+            .enumerate()
+            .map(|(c, part)| {
+                let (mut bands, mut rejected) = (vec![Vec::new(); n_bands], 0);
+                for (j, s) in part.iter().enumerate() {
+                    if !valid(s) {
+                        rejected += 1;
+                        continue;
+                    }
+                    let y = s.0.y.floor();
+                    for b in band_of(y - k)..=band_of(y + k) {
+                        bands[b].push((c * chunk + j) as u32);
+                    }
+                }
+                (bands, rejected)
+            })
+            .collect();
+        self.rejected += lists.iter().map(|l| l.1).sum::<u64>();
+        let band_pixels = (SPLAT_BAND * w) as usize;
+        self.pass_splat.par_chunks_mut(band_pixels).enumerate().for_each(|(b, out)| {
+            let rows = b as u32 * SPLAT_BAND..((b as u32 + 1) * SPLAT_BAND).min(h);
+            let first = b * band_pixels;
+            for &i in lists.iter().flat_map(|l| &l.0[b]) {
+                let (p, v) = splats[i as usize];
+                filter.splat_rows(p, (w, h), rows.clone(), |i, wt| out[i as usize - first] += v * wt);
+            }
+        });
     }
 
     /// Ends a pass that added only splats.
@@ -423,60 +472,4 @@ pub(crate) fn atomic_write(path: &Path, write: impl FnOnce(&Path) -> std::result
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Splats of several passes reach the image whatever the mode and however a pass
-    /// ends: each pixel's mean is its splats' sum over the passes (a box filter puts
-    /// each splat on one pixel with weight 1), during a pass too, and the per-pass
-    /// variance sees each pass's own splats.
-    #[test]
-    fn every_passes_splats_reach_the_mean_and_the_variance() {
-        for mode in [FilterMode::Sample, FilterMode::Splat] {
-            for ends_with_estimates in [true, false] {
-                let mut film = Film::new(2, 1).unwrap().with_filter(Filter::Box, mode, 1);
-                let mut want = [0.0f32; 2];
-                for pass in 0..3u32 {
-                    let v = (pass + 1) as f32;
-                    film.add_splats([(Vec2::new(0.5, 0.5), Vec3::splat(v)), (Vec2::new(1.5, 0.5), Vec3::splat(2.0))]);
-                    want[0] += v;
-                    want[1] += 2.0;
-                    if pass > 0 {
-                        // The mean in progress: every splat so far over the finished passes.
-                        assert_eq!(film.mean()[0].x, want[0] / pass as f32, "{mode:?} pass {pass}: pending splats");
-                    }
-                    if ends_with_estimates {
-                        film.add_pass(pass, &[Vec3::ZERO; 2]);
-                    } else {
-                        film.end_pass();
-                    }
-                }
-                let mean = film.mean();
-                assert_eq!([mean[0].x, mean[1].x], [want[0] / 3.0, want[1] / 3.0], "{mode:?}");
-                // Pixel 0's passes gave 1, 2 and 3: sample variance 1; pixel 1's none.
-                let var = film.variance();
-                assert!((var[0].x - 1.0).abs() < 1e-5 && var[1].x.abs() < 1e-5, "{mode:?}: {var:?}");
-            }
-        }
-    }
-
-    #[test]
-    fn exr_metadata_round_trips_and_non_latin1_text_is_replaced() {
-        let dir = std::env::temp_dir().join(format!("warpray-film-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("m.exr");
-        let mut film = Film::new(3, 2).unwrap();
-        film.add_pass(0, &[Vec3::ONE; 6]);
-        film.add_splats([(Vec2::new(2.5, 1.5), Vec3::ONE)]);
-        film.write_with(&path, 1.0, &[("spp", "1".into()), ("scene", "Ünïcode ∞ scene".into())]).unwrap();
-        let m = read_exr_metadata(&path).unwrap();
-        assert_eq!(m, vec![("scene".to_string(), "Ünïcode ? scene".to_string()), ("spp".to_string(), "1".to_string())]);
-        // Without metadata there is none, and a non-EXR is an error naming the file.
-        film.write(&path, 1.0).unwrap();
-        assert!(read_exr_metadata(&path).unwrap().is_empty());
-        std::fs::write(&path, b"not an exr").unwrap();
-        let e = read_exr_metadata(&path).unwrap_err().to_string();
-        assert!(e.contains("m.exr"), "{e}");
-        std::fs::remove_dir_all(&dir).ok();
-    }
-}
+mod tests;
