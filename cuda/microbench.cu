@@ -152,6 +152,18 @@ __global__ void fence_many(uint32_t* a, int iters) {
         __threadfence();
     }
 }
+// Fences after scattered stores: each lane stores three 8-byte values, each in a sector
+// of its own (lanes 192 bytes apart), then fences: 96 sectors outstanding per warp
+// fence. One warp alone (the latency), and every SM full (the rate).
+__device__ void scattered_then_fence(uint2* a, int iters) {
+    uint32_t t = blockIdx.x * blockDim.x + threadIdx.x;
+    for (int k = 0; k < iters; ++k) {
+        for (int j = 0; j < 3; ++j) a[(t * 3 + j) * 8] = make_uint2(k, j);
+        __threadfence();
+    }
+}
+__global__ void fence_scattered_warp(uint2* a, int iters) { scattered_then_fence(a, iters); }
+__global__ void fence_scattered_many(uint2* a, int iters) { scattered_then_fence(a, iters); }
 __global__ void fence_alone(uint32_t* a, int iters) {
     uint32_t x = 0;
     for (int k = 0; k < iters; ++k) {
@@ -213,8 +225,10 @@ static std::vector<uint32_t> chain(size_t n, size_t stride) {
 // fences`) to add these quantities to a profile calibrated from an earlier full run.
 static int atomic_and_fence_probes(int sms) {
     uint32_t *buf, *out, *words;
+    uint2* scattered;
     const int full_grid = sms * 8, threads = 256, many_iters = 256;
     CHECK(cudaMalloc(&words, (size_t)full_grid * threads * 4));
+    CHECK(cudaMalloc(&scattered, (size_t)full_grid * threads * 24 * sizeof(uint2)));
     CHECK(cudaMalloc(&buf, 8 << 10));
     CHECK(cudaMalloc(&out, 64));
     const int hops = 200000, iters = 100000;
@@ -228,12 +242,17 @@ static int atomic_and_fence_probes(int sms) {
         micro::fence_store<<<1, 1>>>(buf, iters);  // 2,048 words, as it indexes
         micro::fence_alone<<<1, 1>>>(out, iters);
         micro::fence_many<<<full_grid, threads>>>(words, many_iters);
+        micro::fence_scattered_warp<<<1, 32>>>(scattered, iters / 10);
+        micro::fence_scattered_many<<<full_grid, threads>>>(scattered, many_iters);
     }
     CHECK(cudaDeviceSynchronize());
     printf("probe\tchase_atomic\thops\t%d\n", hops);
     printf("probe\tfence_store\tfences\t%d\n", iters);
     printf("probe\tfence_alone\tfences\t%d\n", iters);
     printf("probe\tfence_many\twarp_fences\t%lld\n", (long long)full_grid * (threads / 32) * many_iters);
+    printf("probe\tfence_scattered_warp\tfences\t%d\n", iters / 10);
+    printf("probe\tfence_scattered_many\twarp_fences\t%lld\n", (long long)full_grid * (threads / 32) * many_iters);
+    cudaFree(scattered);
     cudaFree(words);
     cudaFree(buf);
     cudaFree(out);

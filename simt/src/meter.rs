@@ -78,6 +78,9 @@ pub struct WarpChain {
     pub atomic_rounds: u64,
     /// Memory fences (`__threadfence`), each waited for.
     pub fences: u64,
+    /// The sectors the warp had stored or updated atomically, not yet fenced, at each of
+    /// its fences, summed: what its fences waited to see written.
+    pub fenced_sectors: u64,
 }
 
 impl WarpChain {
@@ -87,6 +90,7 @@ impl WarpChain {
         self.load_rounds += o.load_rounds;
         self.atomic_rounds += o.atomic_rounds;
         self.fences += o.fences;
+        self.fenced_sectors += o.fenced_sectors;
     }
 }
 
@@ -276,6 +280,10 @@ pub(crate) struct Meter {
     block_sampled: Vec<u64>,
     /// Per warp of the current block: its chain.
     warp_chain: Vec<WarpChain>,
+    /// Per warp of the current block: sectors it wrote since its last fence.
+    unfenced: Vec<u64>,
+    /// Sectors written per slot of the closing warp phase (scratch).
+    written: Vec<u64>,
     /// The group of loads issued together that the current lane is in (`NO_GROUP`).
     group: u32,
     /// The groups of a closing warp phase's loads (scratch).
@@ -514,6 +522,7 @@ impl Meter {
         for c in self.warp_chain.drain(..) {
             self.totals.longest_warp = self.totals.longest_warp.max(c);
         }
+        self.unfenced.clear();
     }
 
     /// The launch's counters from this worker, its last block closed.
@@ -716,14 +725,42 @@ impl Meter {
                 let (slot, sector) = self.sectors[i];
                 self.sample(sector, self.slots[slot as usize].kind != Kind::Load);
             }
+            if self.predicting {
+                self.written.clear();
+                self.written.resize(self.slots.len(), 0);
+            }
             for &(slot, _) in &self.sectors {
                 match self.slots[slot as usize].kind {
                     Kind::Load => self.totals.loads.sectors += 1,
                     Kind::Store => self.totals.stores.sectors += 1,
                     _ => self.totals.atomics.sectors += 1,
                 }
+                if self.predicting && self.slots[slot as usize].kind != Kind::Load {
+                    self.written[slot as usize] += 1;
+                }
             }
             self.sectors.clear();
+        } else if self.predicting {
+            self.written.clear();
+            self.written.resize(self.slots.len(), 0);
+        }
+        if self.predicting {
+            // Each fence waits for the sectors the warp wrote before it (slots are in the
+            // order the warp's first lanes reached them), since its previous fence.
+            let warp = (self.now.thread / WARP_SIZE) as usize;
+            if self.unfenced.len() <= warp {
+                self.unfenced.resize(warp + 1, 0);
+            }
+            let mut pending = self.unfenced[warp];
+            for (s, &w) in self.slots.iter().zip(&self.written) {
+                if s.kind == Kind::Fence {
+                    phase.fenced_sectors += pending;
+                    pending = 0;
+                } else {
+                    pending += w;
+                }
+            }
+            self.unfenced[warp] = pending;
         }
         for &id in &self.warp_touched {
             self.slot_of[id as usize].clear();

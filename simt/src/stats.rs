@@ -280,12 +280,16 @@ pub fn format_table(rows: &[KernelSummary]) -> String {
 }
 
 /// The columns of [`records_to_tsv`].
-const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences";
+const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors";
 
-/// Columns of [`RECORD_HEADER`] that files written before them lack, oldest last:
-/// the atomics and fences waited for (read as none), and load rounds (read as one per
-/// load request).
-const LATER_COLUMNS: &[&str] = &["\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences", "\tload_rounds"];
+/// Columns of [`RECORD_HEADER`] that files written before them lack, newest first: the
+/// sectors fences waited for, the atomics and fences waited for (read as none), and
+/// load rounds (read as one per load request).
+const LATER_COLUMNS: &[&str] = &[
+    "\tlongest_fenced_sectors\tfenced_sectors",
+    "\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences",
+    "\tload_rounds",
+];
 
 /// Launch records as tab-separated lines, one per launch, to keep a measured run and
 /// predict from it later ([`crate::timing::predict`]). Declared regions are summed into
@@ -298,7 +302,7 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
         let t = |x: &Traffic| format!("{}\t{}\t{}", x.requests, x.sectors, x.lanes);
         let _ = writeln!(
             s,
-            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
             r.name,
             r.grid,
             r.block,
@@ -322,7 +326,9 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
             r.longest_warp.atomic_rounds,
             r.longest_warp.fences,
             r.waits.atomic_rounds,
-            r.waits.fences
+            r.waits.fences,
+            r.longest_warp.fenced_sectors,
+            r.waits.fenced_sectors
         );
     }
     s
@@ -383,12 +389,14 @@ pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
                 load_rounds: n(24)?,
                 atomic_rounds: if columns.len() > 26 { n(26)? } else { 0 },
                 fences: if columns.len() > 26 { n(27)? } else { 0 },
+                fenced_sectors: if columns.len() > 30 { n(30)? } else { 0 },
             },
             waits: WarpChain {
                 instructions: n(7)? + n(9)?,
                 load_rounds: if columns.len() > 25 { n(25)? } else { n(11)? },
                 atomic_rounds: if columns.len() > 26 { n(28)? } else { 0 },
                 fences: if columns.len() > 26 { n(29)? } else { 0 },
+                fenced_sectors: if columns.len() > 30 { n(31)? } else { 0 },
             },
         });
     }
@@ -434,8 +442,14 @@ mod tests {
             barriers: 4,
             footprint_sectors: 9,
             block_sectors: 8,
-            longest_warp: WarpChain { instructions: 20, load_rounds: 3, atomic_rounds: 2, fences: 1 },
-            waits: WarpChain { instructions: 100, load_rounds: 12, atomic_rounds: 7, fences: 5 },
+            longest_warp: WarpChain {
+                instructions: 20,
+                load_rounds: 3,
+                atomic_rounds: 2,
+                fences: 1,
+                fenced_sectors: 9,
+            },
+            waits: WarpChain { instructions: 100, load_rounds: 12, atomic_rounds: 7, fences: 5, fenced_sectors: 40 },
         }
     }
 
@@ -445,18 +459,22 @@ mod tests {
         let back = &records_from_tsv(&text).unwrap()[0];
         assert_eq!((back.longest_warp, back.waits), (record().longest_warp, record().waits));
         assert_eq!((back.loads, back.atomics, back.block_sectors), (record().loads, record().atomics, 8));
-        // Cut the later columns off, newest first: atomics and fences are then none, and
-        // then load rounds are one per load request.
+        // Cut the later columns off, newest first: fenced sectors are then none, then
+        // atomics and fences, and then load rounds are one per load request.
         let cut = |text: &str, columns: usize| -> String {
             text.lines().map(|l| l.split('\t').take(columns).collect::<Vec<_>>().join("\t") + "\n").collect()
         };
+        let before_fenced = &records_from_tsv(&cut(&text, 30)).unwrap()[0];
+        assert_eq!(before_fenced.longest_warp, WarpChain { fenced_sectors: 0, ..record().longest_warp });
+        assert_eq!(before_fenced.waits, WarpChain { fenced_sectors: 0, ..record().waits });
         let before_atomics = &records_from_tsv(&cut(&text, 26)).unwrap()[0];
-        assert_eq!(before_atomics.longest_warp, WarpChain { atomic_rounds: 0, fences: 0, ..record().longest_warp });
-        assert_eq!(before_atomics.waits, WarpChain { atomic_rounds: 0, fences: 0, ..record().waits });
+        let none = WarpChain { atomic_rounds: 0, fences: 0, fenced_sectors: 0, ..WarpChain::default() };
+        assert_eq!(before_atomics.longest_warp, WarpChain { instructions: 20, load_rounds: 3, ..none });
+        assert_eq!(before_atomics.waits, WarpChain { instructions: 100, load_rounds: 12, ..none });
         let before_rounds = &records_from_tsv(&cut(&text, 25)).unwrap()[0];
         assert_eq!(before_rounds.waits.load_rounds, 5);
         // Any other header is refused.
-        for columns in [24, 27] {
+        for columns in [24, 27, 31] {
             assert!(records_from_tsv(&cut(&text, columns)).unwrap_err().contains("header differs"));
         }
     }

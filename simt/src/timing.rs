@@ -51,10 +51,16 @@ pub struct GpuProfile {
     pub hbm_latency_s: f64,
     /// Latency of an atomic whose old value is waited for, served by L2, seconds.
     pub atomic_latency_s: f64,
-    /// Latency of a memory fence (`__threadfence`), seconds.
+    /// Latency of a memory fence (`__threadfence`) after one stored sector, seconds.
     pub fence_latency_s: f64,
-    /// Warp fences the whole GPU completes per second with every SM fencing.
+    /// What each further sector the fence waits for adds to its latency, seconds.
+    pub fenced_sector_latency_s: f64,
+    /// Warp fences the whole GPU completes per second with every SM fencing, not
+    /// counting the sectors they wait for.
     pub fences_per_s: f64,
+    /// Sectors written before a fence that the whole GPU's fences see through per
+    /// second, every SM fencing (what a fence waits for costs beside the fence).
+    pub fenced_sectors_per_s: f64,
     /// Atomic lane operations per second on distinct words.
     pub atomics_per_s: f64,
     /// Atomic lane operations per second on one word.
@@ -88,7 +94,9 @@ const KEYS: &[&str] = &[
     "hbm_latency_ns",
     "atomic_latency_ns",
     "fence_latency_ns",
+    "fenced_sector_latency_ns",
     "fences_per_ns",
+    "fenced_sectors_per_ns",
     "atomics_per_ns",
     "same_address_atomics_per_ns",
     "barriers_per_us_per_sm",
@@ -164,7 +172,9 @@ impl GpuProfile {
             hbm_latency_s: get("hbm_latency_ns")? * 1e-9,
             atomic_latency_s: get("atomic_latency_ns")? * 1e-9,
             fence_latency_s: get("fence_latency_ns")? * 1e-9,
+            fenced_sector_latency_s: get("fenced_sector_latency_ns")? * 1e-9,
             fences_per_s: get("fences_per_ns")? * 1e9,
+            fenced_sectors_per_s: get("fenced_sectors_per_ns")? * 1e9,
             atomics_per_s: get("atomics_per_ns")? * 1e9,
             same_address_atomics_per_s: get("same_address_atomics_per_ns")? * 1e9,
             barriers_per_s_per_sm: get("barriers_per_us_per_sm")? * 1e6,
@@ -198,7 +208,9 @@ impl GpuProfile {
             self.hbm_latency_s * 1e9,
             self.atomic_latency_s * 1e9,
             self.fence_latency_s * 1e9,
+            self.fenced_sector_latency_s * 1e9,
             self.fences_per_s / 1e9,
+            self.fenced_sectors_per_s / 1e9,
             self.atomics_per_s / 1e9,
             self.same_address_atomics_per_s / 1e9,
             self.barriers_per_s_per_sm / 1e6,
@@ -236,7 +248,8 @@ pub struct Prediction {
     pub hbm: f64,
     /// Atomic lanes over the atomic units' rates.
     pub atomics: f64,
-    /// Warp fences over the GPU's fence rate.
+    /// Warp fences over the GPU's fence rate, and the sectors they waited for over
+    /// its rate of those.
     pub fences: f64,
     /// Barriers over the SMs' barrier rate.
     pub barriers: f64,
@@ -319,7 +332,8 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
     // One warp's dependent chain: each instruction waits on the one before, each round
     // of loads waits for its data (from HBM for first touches, else L2; a round is one
     // load request, or loads the kernel issues together), each atomic whose value it
-    // uses for L2's answer (and HBM's for first touches), each fence for its own.
+    // uses for L2's answer (and HBM's for first touches), each fence for its own and
+    // for the sectors beyond one that the warp wrote before it.
     let miss = if sectors > 0.0 { (footprint / sectors).min(1.0) } else { 0.0 };
     let mem_latency = miss * p.hbm_latency_s + (1.0 - miss) * p.l2_latency_s;
     let atomic_latency = p.atomic_latency_s + miss * (p.hbm_latency_s - p.l2_latency_s).max(0.0);
@@ -327,7 +341,8 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
         (c.instructions as f64 * p.alu_latency_cycles * cycle
             + c.load_rounds as f64 * mem_latency
             + c.atomic_rounds as f64 * atomic_latency
-            + c.fences as f64 * p.fence_latency_s)
+            + c.fences as f64 * p.fence_latency_s
+            + (c.fenced_sectors as f64 - c.fences as f64).max(0.0) * p.fenced_sector_latency_s)
             / over
     };
     let average = chain(&WarpChain { instructions: r.all_regions().issued, ..r.waits }, warps);
@@ -343,7 +358,7 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
         l2: l2_sectors * SECTOR_BYTES as f64 / p.l2_bytes_per_s,
         hbm: footprint * SECTOR_BYTES as f64 / p.hbm_bytes_per_s,
         atomics: distinct / p.atomics_per_s + same / p.same_address_atomics_per_s,
-        fences: r.waits.fences as f64 / p.fences_per_s,
+        fences: r.waits.fences as f64 / p.fences_per_s + r.waits.fenced_sectors as f64 / p.fenced_sectors_per_s,
         barriers: r.barriers as f64 / (p.barriers_per_s_per_sm * sms),
         dispatch: grid / sms * p.block_dispatch_s,
         latency: (waves * average).max(longest),
@@ -457,25 +472,32 @@ mod tests {
     #[test]
     fn waited_atomics_and_fences_lengthen_the_chain_and_fences_have_their_own_bound() {
         let p = profile();
-        // One warp: its chain gains each waited atomic's and fence's latency.
+        // One warp: its chain gains each waited atomic's and fence's latency, and each
+        // fenced sector's beyond one per fence.
         let mut r = launch(1, 100, 10, 80, 0);
         let base = predict(&r, &p).unwrap().latency;
         r.longest_warp.atomic_rounds = 3;
         r.longest_warp.fences = 2;
+        r.longest_warp.fenced_sectors = 50;
         r.waits.atomic_rounds = 3;
         r.waits.fences = 2;
+        r.waits.fenced_sectors = 50;
         let t = predict(&r, &p).unwrap();
-        let added = 3.0 * p.atomic_latency_s + 2.0 * p.fence_latency_s;
+        let added = 3.0 * p.atomic_latency_s + 2.0 * p.fence_latency_s + 48.0 * p.fenced_sector_latency_s;
         assert!((t.latency - base - added).abs() < 1e-12, "{t:?}");
-        // A full machine fencing with little else: bound by the fence rate, which a
-        // planted error moves alone.
+        // A full machine fencing with little else: bound by the fences' rate and that of
+        // the sectors they wait for, which planted errors move alone.
         let mut r = launch(p.sms as u32 * 64, 4, 0, 0, 0);
         r.waits.fences = 50_000_000;
+        r.waits.fenced_sectors = 800_000_000;
         let t = predict(&r, &p).unwrap();
         assert_eq!(t.bound(), "fences");
-        assert!((t.fences - 5e7 / p.fences_per_s).abs() < 1e-12);
+        assert!((t.fences - (5e7 / p.fences_per_s + 8e8 / p.fenced_sectors_per_s)).abs() < 1e-12);
         let slow = predict(&r, &GpuProfile { fences_per_s: p.fences_per_s / 2.0, ..p.clone() }).unwrap();
-        assert!((slow.fences - 2.0 * t.fences).abs() < 1e-12 && slow.issue == t.issue);
+        assert!((slow.fences - t.fences - 5e7 / p.fences_per_s).abs() < 1e-12 && slow.issue == t.issue);
+        let slow =
+            predict(&r, &GpuProfile { fenced_sectors_per_s: p.fenced_sectors_per_s / 2.0, ..p.clone() }).unwrap();
+        assert!((slow.fences - t.fences - 8e8 / p.fenced_sectors_per_s).abs() < 1e-12 && slow.issue == t.issue);
     }
 
     #[test]

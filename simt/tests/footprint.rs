@@ -147,6 +147,17 @@ fn a_warp_waits_for_atomics_whose_value_it_uses_and_for_fences_not_for_reduction
     let (a, b) = (simt::timing::predict(&used, &p).unwrap(), simt::timing::predict(&ignored, &p).unwrap());
     assert!(a.latency > b.latency + p.atomic_latency_s + p.fence_latency_s - 1e-12, "{a:?} {b:?}");
     assert_eq!(a.atomics, b.atomics);
+    // A fence waits for the sectors its warp wrote since its last fence: a warp's 32
+    // consecutive words are 4 sectors, waited for by the first fence, not the second.
+    let mut out = dev.alloc::<u32>(n);
+    let ov = out.view_mut();
+    let fenced = dev.for_each("fenced", n, |t, i| {
+        t.store(&ov, i, 1);
+        t.thread_fence();
+        t.thread_fence();
+    });
+    assert_eq!((fenced.longest_warp.fences, fenced.longest_warp.fenced_sectors), (2, 4));
+    assert_eq!(fenced.waits.fenced_sectors, 4 * warps);
 }
 
 #[test]

@@ -90,6 +90,11 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
                         sectors: k.loads.sectors / n as u64,
                         lanes: 0,
                     },
+                    stores: simt::Traffic {
+                        requests: k.stores.requests / n as u64,
+                        sectors: k.stores.sectors / n as u64,
+                        lanes: 0,
+                    },
                     ..k
                 }
             })
@@ -115,6 +120,8 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
     let fence_store = probe("fence_store")?;
     let fence_alone = probe("fence_alone")?;
     let fence_many = probe("fence_many")?;
+    let scattered_many = probe("fence_scattered_many")?;
+    let scattered_warp = probe("fence_scattered_warp")?;
     let at = probe("atomic_distinct")?;
     let at_same = probe("atomic_same")?;
     let barrier = probe("barrier")?;
@@ -125,6 +132,34 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
     // hops are charged at the HBM latency.
     let l2_misses = (chase_l2.dram_bytes / 32.0).min(amount("chase_l2")? - 1.0);
     let l2_latency = (busy(&chase_l2) - l2_misses * hbm_latency) / (amount("chase_l2")? - l2_misses);
+    // Every SM fencing, a warp fence costs the GPU `fence_time + sectors * sector_time`:
+    // solved from the fences after one coalesced store (its sectors per warp fence from
+    // the store counters) and after three scattered ones.
+    let per_fence = |k: &GpuKernel, fences: f64| (busy(k) / fences, k.stores.sectors as f64 / fences);
+    let (t1, s1) = per_fence(&fence_many, amount("fence_many")?);
+    let (t2, s2) = per_fence(&scattered_many, amount("fence_scattered_many")?);
+    if s2 <= s1 || t2 <= t1 {
+        return Err(format!(
+            "fence probes: {s2:.1} sectors in {t2:e} s per fence after scattered stores against {s1:.1} in {t1:e} s after coalesced ones"
+        ));
+    }
+    let sector_time = (t2 - t1) / (s2 - s1);
+    let fence_time = t1 - s1 * sector_time;
+    if fence_time <= 0.0 {
+        return Err(format!("fence probes: a fence's own cost comes out {fence_time:e} s"));
+    }
+    // One warp alone, a fence waits `fence_latency + (sectors - 1) * sector_latency`:
+    // from one thread's fence after one stored sector and one warp's after scattered
+    // stores (its sectors per fence from the store counters).
+    let (w1, w2) =
+        (per_fence(&fence_store, amount("fence_store")?), per_fence(&scattered_warp, amount("fence_scattered_warp")?));
+    if w2.1 <= w1.1 || w2.0 <= w1.0 {
+        return Err(format!(
+            "fence probes: one warp's fence after {:.1} sectors takes {:e} s against {:e} s after {:.1}",
+            w2.1, w2.0, w1.0, w1.1
+        ));
+    }
+    let sector_latency = (w2.0 - w1.0) / (w2.1 - w1.1);
     // The atomic chase runs over the L2 chase's 8 KiB, and its first pass misses alike.
     let atomic_misses = (chase_atomic.dram_bytes / 32.0).min(amount("chase_atomic")? - 1.0);
     let atomic_latency =
@@ -146,8 +181,10 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         l2_latency_s: l2_latency,
         hbm_latency_s: hbm_latency,
         atomic_latency_s: atomic_latency,
-        fence_latency_s: busy(&fence_store) / amount("fence_store")?,
-        fences_per_s: amount("fence_many")? / busy(&fence_many),
+        fence_latency_s: w1.0,
+        fenced_sector_latency_s: sector_latency,
+        fences_per_s: 1.0 / fence_time,
+        fenced_sectors_per_s: 1.0 / sector_time,
         atomics_per_s: amount("atomic_distinct")? / busy(&at),
         same_address_atomics_per_s: amount("atomic_same")? / busy(&at_same),
         barriers_per_s_per_sm: amount("barrier")? / (busy(&barrier) * sms),
@@ -185,7 +222,27 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
             ),
         ),
         ("fence_latency_ns", probe_of("fence_store", "one thread: a store, then __threadfence(), repeated")),
-        ("fences_per_ns", probe_of("fence_many", "warp __threadfence()s after a store each, every SM full / time")),
+        (
+            "fenced_sector_latency_ns",
+            probe_of(
+                "fence_store, fence_scattered_warp",
+                "one warp's fence wait per stored sector beyond the first (two-probe solve)",
+            ),
+        ),
+        (
+            "fences_per_ns",
+            probe_of(
+                "fence_many, fence_scattered_many",
+                "warp __threadfence()s per ns every SM fencing, less the sectors they wait for",
+            ),
+        ),
+        (
+            "fenced_sectors_per_ns",
+            probe_of(
+                "fence_many, fence_scattered_many",
+                "stored sectors fences wait for per ns, every SM fencing (two-probe solve)",
+            ),
+        ),
         ("atomics_per_ns", probe_of("atomic_distinct", "atomicAdd lanes to distinct words / time")),
         ("same_address_atomics_per_ns", probe_of("atomic_same", "atomicAdd lanes to one word / time")),
         ("barriers_per_us_per_sm", probe_of("barrier", "block barriers / time / SMs")),

@@ -72,9 +72,10 @@ fn meets_bars(runs: &[CheckedRun], p: &GpuProfile) -> Result<(), String> {
 
 #[test]
 fn the_shipped_h200_profile_is_the_microbenchmarks_calibration_and_nothing_else() {
-    // The full run, then the later one that added the atomic-latency and fence probes.
-    let probes = [text("microbenchmark-probes.tsv"), text("microbenchmark-probes-atomics-fences.tsv")];
-    let csvs = [text("ncu-microbenchmarks.csv.gz"), text("ncu-microbenchmarks-atomics-fences.csv.gz")];
+    // The full run, then the later one of the atomic-latency and fence probes (with the
+    // fences after scattered stores).
+    let probes = [text("microbenchmark-probes.tsv"), text("microbenchmark-probes-fences-scattered-stores.tsv")];
+    let csvs = [text("ncu-microbenchmarks.csv.gz"), text("ncu-microbenchmarks-fences-scattered-stores.csv.gz")];
     let c = calibrate(&[&probes[0], &probes[1]], &[&csvs[0], &csvs[1]]).unwrap();
     let shipped = GpuProfile::named("h200").unwrap();
     // The shipped file holds four significant digits of each value.
