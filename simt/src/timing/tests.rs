@@ -1,0 +1,144 @@
+//! The time model's unit tests: each bound its quantity over its rate, planted rate errors,
+//! the chain's waits, occupancy, profiles read and written.
+
+use super::*;
+use crate::stats::{RegionStats, Traffic};
+
+fn profile() -> GpuProfile {
+    GpuProfile::named("h200").unwrap()
+}
+
+/// A measured launch of `grid` blocks of 256 threads whose every warp issues
+/// `issued` instructions, `loads` of them loads, touching `sectors` sectors in all.
+fn launch(grid: u32, issued: u64, loads: u64, sectors: u64, footprint: u64) -> LaunchRecord {
+    let warps = grid as u64 * 8;
+    LaunchRecord {
+        name: "test::kernel",
+        grid,
+        block: 256,
+        shared_bytes: 0,
+        registers: 0,
+        seconds: 0.0,
+        measured: true,
+        threads: warps * 32,
+        ops: RegionStats { name: "ops", issued: warps * issued, active: warps * issued * 32 },
+        regions: Vec::new(),
+        loads: Traffic { requests: warps * loads, sectors, lanes: warps * loads * 32 },
+        stores: Traffic::default(),
+        atomics: Traffic::default(),
+        barriers: 0,
+        footprint_sectors: footprint,
+        block_sectors: sectors,
+        longest_warp: WarpChain { instructions: issued, load_rounds: loads, ..WarpChain::default() },
+        waits: WarpChain { instructions: warps * issued, load_rounds: warps * loads, ..WarpChain::default() },
+    }
+}
+
+#[test]
+fn every_shipped_profile_reads_and_writes_back_the_same() {
+    for (name, _) in PROFILES {
+        let p = GpuProfile::named(name).unwrap();
+        let again = GpuProfile::parse(&p.to_text("header", |_| "src".into())).unwrap();
+        for (a, b) in [(p.sms, again.sms), (p.hbm_bytes_per_s, again.hbm_bytes_per_s), (p.launch_s, again.launch_s)] {
+            assert!((a - b).abs() <= 1e-3 * a, "{name}: {a} != {b}");
+        }
+    }
+    assert!(GpuProfile::named("h100x").unwrap_err().contains("known: h200"));
+}
+
+#[test]
+fn bad_profiles_name_the_line_and_key() {
+    let text = GpuProfile::named("h200").unwrap().to_text("", |_| String::new());
+    let e = GpuProfile::parse(&text.replace("hbm_gb_per_s = ", "hbm_gb_per_s = -")).unwrap_err();
+    assert!(e.contains("hbm_gb_per_s") && e.contains("positive") && e.starts_with("line "), "{e}");
+    let e = GpuProfile::parse(&text.replace("l2_bytes = ", "l2_bytez = ")).unwrap_err();
+    assert!(e.contains("unknown key 'l2_bytez'"), "{e}");
+    let without: String = text.lines().filter(|l| !l.starts_with("launch_us")).map(|l| format!("{l}\n")).collect();
+    assert!(GpuProfile::parse(&without).unwrap_err().contains("missing key 'launch_us'"));
+    let twice = format!("{text}sms = 1\n");
+    assert!(GpuProfile::parse(&twice).unwrap_err().contains("given twice"));
+    assert!(GpuProfile::parse(&text.replace("sms = ", "sms = nan # ")).is_err());
+}
+
+#[test]
+fn each_bound_is_the_quantity_over_its_rate() {
+    let p = profile();
+    // Streaming: 1 GiB of first touches is HBM-bound.
+    let sectors = (1u64 << 30) / 32;
+    let t = predict(&launch(p.sms as u32 * 64, 40, 4, sectors, sectors), &p).unwrap();
+    assert_eq!(t.bound(), "hbm");
+    let hbm = (1u64 << 30) as f64 / p.hbm_bytes_per_s;
+    assert!((t.seconds - p.launch_s - hbm).abs() < 1e-12 * hbm.max(1.0), "{t:?}");
+    // The same traffic again, resident in L2 (no first touches): L2-bound.
+    let t = predict(&launch(p.sms as u32 * 64, 40, 4, sectors, 0), &p).unwrap();
+    assert_eq!(t.bound(), "l2");
+    // Arithmetic only, a full machine: issue-bound, instructions over the rate.
+    let r = launch(p.sms as u32 * 64, 100_000, 0, 0, 0);
+    let t = predict(&r, &p).unwrap();
+    let issue = r.ops.issued as f64 / (p.issue_per_cycle_per_sm * p.sms * p.clock_hz);
+    assert_eq!(t.bound(), "issue");
+    assert!((t.issue - issue).abs() < 1e-9 * issue);
+    // One small block: a single warp's dependent chain.
+    let t = predict(&launch(1, 1000, 10, 80, 80), &p).unwrap();
+    assert_eq!(t.bound(), "latency");
+    // Unmeasured launches have no prediction.
+    assert!(predict(&LaunchRecord { measured: false, ..launch(1, 1, 1, 1, 1) }, &p).is_none());
+}
+
+#[test]
+fn a_planted_error_in_one_rate_moves_only_its_bound() {
+    let p = profile();
+    let sectors = (1u64 << 30) / 32;
+    let r = launch(p.sms as u32 * 64, 40, 4, sectors, sectors);
+    let base = predict(&r, &p).unwrap();
+    let planted = GpuProfile { hbm_bytes_per_s: p.hbm_bytes_per_s * 2.0, ..p.clone() };
+    let t = predict(&r, &planted).unwrap();
+    assert!((t.hbm * 2.0 - base.hbm).abs() < 1e-12, "{t:?}");
+    assert_eq!((t.issue, t.l2, t.latency), (base.issue, base.l2, base.latency));
+    assert!(t.seconds < base.seconds * 0.9);
+}
+
+#[test]
+fn waited_atomics_and_fences_lengthen_the_chain_and_fences_have_their_own_bound() {
+    let p = profile();
+    // One warp: its chain gains each waited atomic's and fence's latency, and each
+    // fenced sector's beyond one per fence.
+    let mut r = launch(1, 100, 10, 80, 0);
+    let base = predict(&r, &p).unwrap().latency;
+    r.longest_warp.atomic_rounds = 3;
+    r.longest_warp.fences = 2;
+    r.longest_warp.fenced_sectors = 50;
+    r.waits.atomic_rounds = 3;
+    r.waits.fences = 2;
+    r.waits.fenced_sectors = 50;
+    let t = predict(&r, &p).unwrap();
+    let added = 3.0 * p.atomic_latency_s + 2.0 * p.fence_latency_s + 48.0 * p.fenced_sector_latency_s;
+    assert!((t.latency - base - added).abs() < 1e-12, "{t:?}");
+    // A full machine fencing with little else: bound by the fences' rate and that of
+    // the sectors they wait for, which planted errors move alone.
+    let mut r = launch(p.sms as u32 * 64, 4, 0, 0, 0);
+    r.waits.fences = 50_000_000;
+    r.waits.fenced_sectors = 800_000_000;
+    let t = predict(&r, &p).unwrap();
+    assert_eq!(t.bound(), "fences");
+    assert!((t.fences - (5e7 / p.fences_per_s + 8e8 / p.fenced_sectors_per_s)).abs() < 1e-12);
+    let slow = predict(&r, &GpuProfile { fences_per_s: p.fences_per_s / 2.0, ..p.clone() }).unwrap();
+    assert!((slow.fences - t.fences - 5e7 / p.fences_per_s).abs() < 1e-12 && slow.issue == t.issue);
+    let slow = predict(&r, &GpuProfile { fenced_sectors_per_s: p.fenced_sectors_per_s / 2.0, ..p.clone() }).unwrap();
+    assert!((slow.fences - t.fences - 8e8 / p.fenced_sectors_per_s).abs() < 1e-12 && slow.issue == t.issue);
+}
+
+#[test]
+fn occupancy_follows_block_size_and_shared_memory() {
+    let p = profile();
+    assert_eq!(blocks_per_sm(&p, 256, 0, 0), (p.max_warps_per_sm / 8.0).floor());
+    assert_eq!(blocks_per_sm(&p, 32, 0, 0), p.max_blocks_per_sm);
+    assert_eq!(blocks_per_sm(&p, 128, 100_000, 0), (p.shared_per_sm_bytes / 100_000.0).floor());
+    assert_eq!(blocks_per_sm(&p, 1024, 1 << 30, 0), 1.0);
+    // 167 registers are allocated as 168: 5,376 per warp, 12 warps of 65,536, three
+    // blocks of 128 threads; 32 registers leave the warp limit binding.
+    assert_eq!(p.registers_per_sm, 65536.0);
+    assert_eq!(blocks_per_sm(&p, 128, 0, 167), 3.0);
+    assert_eq!(blocks_per_sm(&p, 256, 0, 32), (p.max_warps_per_sm / 8.0).floor());
+    assert_eq!(blocks_per_sm(&p, 256, 0, 255), 1.0);
+}
