@@ -716,6 +716,10 @@ impl Meter {
                 }
             }
         }
+        if self.predicting {
+            self.written.clear();
+            self.written.resize(self.slots.len(), 0);
+        }
         if !self.sectors.is_empty() {
             if !self.sectors.is_sorted() {
                 self.sectors.sort_unstable();
@@ -724,10 +728,6 @@ impl Meter {
             for i in 0..self.sectors.len() {
                 let (slot, sector) = self.sectors[i];
                 self.sample(sector, self.slots[slot as usize].kind != Kind::Load);
-            }
-            if self.predicting {
-                self.written.clear();
-                self.written.resize(self.slots.len(), 0);
             }
             for &(slot, _) in &self.sectors {
                 match self.slots[slot as usize].kind {
@@ -740,9 +740,6 @@ impl Meter {
                 }
             }
             self.sectors.clear();
-        } else if self.predicting {
-            self.written.clear();
-            self.written.resize(self.slots.len(), 0);
         }
         if self.predicting {
             // Each fence waits for the sectors the warp wrote before it (slots are in the

@@ -53,6 +53,17 @@ pub struct Film {
     band_weights: Vec<f32>,
 }
 
+/// Ends a pass at one pixel: the pass's pending splats join the running total `splat`,
+/// and the pass's estimate there (its own estimate `own` plus those splats) adds its
+/// square to `sum_sq` (every way a pass ends goes through here).
+#[inline]
+fn close_pass(own: Vec3, pending: &mut Vec3, splat: &mut Vec3, sum_sq: &mut Vec3) {
+    let p = std::mem::take(pending);
+    *splat += p;
+    let x = own + p;
+    *sum_sq += x * x;
+}
+
 /// Rows per band when splats are added in parallel ([`Film::add_splats`]).
 const SPLAT_BAND: u32 = 16;
 /// Fewest splats added in parallel.
@@ -152,10 +163,7 @@ impl Film {
                 {
                     let e = valid(e);
                     *s += e;
-                    let p = std::mem::take(p);
-                    *splat += p;
-                    let x = e + p;
-                    *q += x * x;
+                    close_pass(e, p, splat, q);
                 }
             }
             FilterMode::Splat => {
@@ -214,10 +222,7 @@ impl Film {
                     sum[x] += num;
                     weight[x] += den;
                     let own = if den > 0.0 { num / den } else { Vec3::ZERO };
-                    let p = std::mem::take(&mut pass_splat[x]);
-                    splat[x] += p;
-                    let v = own + p;
-                    sum_sq[x] += v * v;
+                    close_pass(own, &mut pass_splat[x], &mut splat[x], &mut sum_sq[x]);
                 }
             });
         }
@@ -286,9 +291,7 @@ impl Film {
     /// Ends a pass that added only splats.
     pub fn end_pass(&mut self) {
         for ((q, p), s) in self.sum_sq.iter_mut().zip(&mut self.pass_splat).zip(&mut self.splat) {
-            let x = std::mem::take(p);
-            *s += x;
-            *q += x * x;
+            close_pass(Vec3::ZERO, p, s, q);
         }
         self.passes += 1;
     }

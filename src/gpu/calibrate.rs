@@ -132,34 +132,25 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
     // hops are charged at the HBM latency.
     let l2_misses = (chase_l2.dram_bytes / 32.0).min(amount("chase_l2")? - 1.0);
     let l2_latency = (busy(&chase_l2) - l2_misses * hbm_latency) / (amount("chase_l2")? - l2_misses);
-    // Every SM fencing, a warp fence costs the GPU `fence_time + sectors * sector_time`:
-    // solved from the fences after one coalesced store (its sectors per warp fence from
-    // the store counters) and after three scattered ones.
-    let per_fence = |k: &GpuKernel, fences: f64| (busy(k) / fences, k.stores.sectors as f64 / fences);
-    let (t1, s1) = per_fence(&fence_many, amount("fence_many")?);
-    let (t2, s2) = per_fence(&scattered_many, amount("fence_scattered_many")?);
-    if s2 <= s1 || t2 <= t1 {
-        return Err(format!(
-            "fence probes: {s2:.1} sectors in {t2:e} s per fence after scattered stores against {s1:.1} in {t1:e} s after coalesced ones"
-        ));
-    }
-    let sector_time = (t2 - t1) / (s2 - s1);
-    let fence_time = t1 - s1 * sector_time;
-    if fence_time <= 0.0 {
-        return Err(format!("fence probes: a fence's own cost comes out {fence_time:e} s"));
-    }
-    // One warp alone, a fence waits `fence_latency + (sectors - 1) * sector_latency`:
-    // from one thread's fence after one stored sector and one warp's after scattered
-    // stores (its sectors per fence from the store counters).
-    let (w1, w2) =
-        (per_fence(&fence_store, amount("fence_store")?), per_fence(&scattered_warp, amount("fence_scattered_warp")?));
-    if w2.1 <= w1.1 || w2.0 <= w1.0 {
-        return Err(format!(
-            "fence probes: one warp's fence after {:.1} sectors takes {:e} s against {:e} s after {:.1}",
-            w2.1, w2.0, w1.0, w1.1
-        ));
-    }
-    let sector_latency = (w2.0 - w1.0) / (w2.1 - w1.1);
+    // A fence's cost is a line in the sectors it waits for, `own + sectors * per_sector`,
+    // through two probes' (sectors, seconds) per fence, the sectors from their store
+    // counters. Every SM fencing: after one coalesced store and after three scattered
+    // ones (the GPU's rates); one warp alone: one thread after one stored sector and a
+    // warp after scattered stores (the latency).
+    let per_fence = |p: &str, k: &GpuKernel| -> Result<(f64, f64), String> {
+        let fences = amount(p)?;
+        Ok((k.stores.sectors as f64 / fences, busy(k) / fences))
+    };
+    let (sector_time, fence_time) = fence_line(
+        "every SM fencing",
+        per_fence("fence_many", &fence_many)?,
+        per_fence("fence_scattered_many", &scattered_many)?,
+    )?;
+    let (sector_latency, latency_at_0) = fence_line(
+        "one warp",
+        per_fence("fence_store", &fence_store)?,
+        per_fence("fence_scattered_warp", &scattered_warp)?,
+    )?;
     // The atomic chase runs over the L2 chase's 8 KiB, and its first pass misses alike.
     let atomic_misses = (chase_atomic.dram_bytes / 32.0).min(amount("chase_atomic")? - 1.0);
     let atomic_latency =
@@ -181,7 +172,7 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         l2_latency_s: l2_latency,
         hbm_latency_s: hbm_latency,
         atomic_latency_s: atomic_latency,
-        fence_latency_s: w1.0,
+        fence_latency_s: latency_at_0 + sector_latency,
         fenced_sector_latency_s: sector_latency,
         fences_per_s: 1.0 / fence_time,
         fenced_sectors_per_s: 1.0 / sector_time,
@@ -269,6 +260,21 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         ),
     ];
     Ok(Calibration { profile, sources, notes })
+}
+
+/// The line `own + sectors * per_sector` through two probes' (sectors, seconds) per
+/// fence, as (per_sector, own); an error when the second probe does not wait for more
+/// sectors for longer, or the fence's own cost is not positive.
+fn fence_line(what: &str, (s1, t1): (f64, f64), (s2, t2): (f64, f64)) -> Result<(f64, f64), String> {
+    if s2 <= s1 || t2 <= t1 {
+        return Err(format!("fence probes, {what}: {s2:.1} sectors take {t2:e} s a fence against {s1:.1} in {t1:e} s"));
+    }
+    let per_sector = (t2 - t1) / (s2 - s1);
+    let own = t1 - s1 * per_sector;
+    if own <= 0.0 {
+        return Err(format!("fence probes, {what}: a fence's own cost comes out {own:e} s"));
+    }
+    Ok((per_sector, own))
 }
 
 impl Calibration {

@@ -54,29 +54,31 @@ impl Context<'_> {
     }
 }
 
-/// What a unit test's [`Context`] borrows besides the scene and the options: the
-/// scene's lights, a BVH caster and the unit normals.
+/// What a unit test's [`Context`] borrows besides the options: the scene, its lights, a
+/// BVH caster and its unit normals.
 #[cfg(test)]
-pub(crate) struct TestSetup {
+pub(crate) struct TestSetup<'a> {
+    scene: &'a Scene,
     lights: Lights,
     caster: crate::cast::BvhCaster,
     normals: Vec<glam::Vec3>,
 }
 
 #[cfg(test)]
-impl TestSetup {
+impl<'a> TestSetup<'a> {
     /// The set-up for `scene`.
-    pub fn new(scene: &Scene) -> TestSetup {
+    pub fn new(scene: &'a Scene) -> TestSetup<'a> {
         TestSetup {
+            scene,
             lights: Lights::new(scene),
             caster: crate::cast::BvhCaster::new(scene),
             normals: scene.unit_normals(),
         }
     }
 
-    /// A context for `scene` (the one this was made for) and `opts`.
-    pub fn ctx<'a>(&'a self, scene: &'a Scene, opts: &'a RenderOptions) -> Context<'a> {
-        Context { scene, lights: &self.lights, caster: &self.caster, opts, normals: &self.normals }
+    /// A context for the scene and `opts`.
+    pub fn ctx<'b>(&'b self, opts: &'b RenderOptions) -> Context<'b> {
+        Context { scene: self.scene, lights: &self.lights, caster: &self.caster, opts, normals: &self.normals }
     }
 }
 

@@ -292,7 +292,7 @@ mod tests {
         let scene = cornell_box();
         let opts = RenderOptions { width: 64, height: 64, ..Default::default() };
         let setup = TestSetup::new(&scene);
-        let ctx = setup.ctx(&scene, &opts);
+        let ctx = setup.ctx(&opts);
         let path = sample_path(&scene, false);
         let weights: Vec<f32> = (0..path.len()).map(|s| mis_weight(&ctx, &path, s, Known::default())).collect();
         let sum: f32 = weights.iter().sum();
@@ -380,7 +380,7 @@ mod tests {
         }
         let opts = RenderOptions { width: 64, height: 64, ..Default::default() };
         let setup = TestSetup::new(&scene);
-        let ctx = setup.ctx(&scene, &opts);
+        let ctx = setup.ctx(&opts);
         let light_tri = (0..n as u32).find(|&t| scene.emission_of(t).max_element() > 0.0).unwrap();
         let [a, b, c] = scene.vertices(light_tri);
         let light_at = |u: f32| {

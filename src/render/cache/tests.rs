@@ -23,7 +23,7 @@ fn the_prefetched_entries_are_the_ones_the_connections_read() {
     scene.material_of[2] = mirror;
     let opts = RenderOptions { width: 16, height: 16, max_depth: 6, ..Default::default() };
     let setup = TestSetup::new(&scene);
-    let ctx = setup.ctx(&scene, &opts);
+    let ctx = setup.ctx(&opts);
     let light_tri = (0..scene.triangle_count() as u32).find(|&t| scene.emission_of(t).max_element() > 0.0).unwrap();
     // A vertex at the centre of triangle `tri`, of `kind`, with the triangle's emission.
     let at_centre = |kind: VertexKind, tri: u32| {

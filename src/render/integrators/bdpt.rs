@@ -141,7 +141,7 @@ mod tests {
         for integrator in [IntegratorKind::Light, IntegratorKind::Bdpt, IntegratorKind::Lvc] {
             let opts =
                 RenderOptions { width: size, height: size, integrator, seed: 5, max_depth: 5, ..Default::default() };
-            check_grouping(&TestSetup::new(&scene).ctx(&scene, &opts), integrator, size, passes);
+            check_grouping(&TestSetup::new(&scene).ctx(&opts), integrator, size, passes);
         }
     }
 
@@ -203,7 +203,7 @@ mod tests {
             scene.emission.iter_mut().for_each(|e| *e *= brightness);
             let opts = RenderOptions { width: 64, height: 64, max_depth: 12, ..Default::default() };
             let setup = TestSetup::new(&scene);
-            let ctx = &setup.ctx(&scene, &opts);
+            let ctx = &setup.ctx(&opts);
             let (mut subpaths, mut walkers) = (Subpaths::default(), Vec::new());
             let walk = start_light_wave(
                 ctx,

@@ -180,7 +180,7 @@ mod tests {
         let scene = cornell_box();
         let opts = RenderOptions { width: 32, height: 24, seed: 11, max_depth: 6, ..Default::default() };
         let setup = TestSetup::new(&scene);
-        let ctx = setup.ctx(&scene, &opts);
+        let ctx = setup.ctx(&opts);
         let n_light = 32 * 24;
         let (mut host, _) = build_caches(&ctx, Passes { first: 2, count: 1, per_pass: n_light }, 3, WAVE);
         let LightPass { cache: host, counts: host_counts, splats: host_splats } = host.pop().expect("one pass");
