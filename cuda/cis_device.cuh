@@ -155,18 +155,24 @@ HD Frame from_normal(V3 n) {
 HD V3 to_local(const Frame& f, V3 v) { return v3(dot(v, f.s), dot(v, f.t), dot(v, f.n)); }
 HD V3 to_world(const Frame& f, V3 v) { return f.s * v.x + f.t * v.y + f.n * v.z; }
 
+// sampling.rs `sin_cos_quarter`: sine and cosine on [-pi/4, pi/4], the same
+// polynomials in the same order.
+HD V2 sin_cos_quarter(float x) {
+    float z = x * x;
+    float s = ((-1.9515296e-4f * z + 8.3321609e-3f) * z - 1.6666655e-1f) * z * x + x;
+    float c = ((2.4433157e-5f * z - 1.3887316e-3f) * z + 4.1666646e-2f) * z * z - 0.5f * z + 1.0f;
+    return {s, c};
+}
 HD V2 concentric_disk(V2 u) {
     V2 o = {2.0f * u.x - 1.0f, 2.0f * u.y - 1.0f};
     if (o.x == 0.0f && o.y == 0.0f) return {0.0f, 0.0f};
-    float r, theta;
     if (fabsf(o.x) > fabsf(o.y)) {
-        r = o.x;
-        theta = FRAC_PI_4 * (o.y / o.x);
-    } else {
-        r = o.y;
-        theta = FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y);
+        V2 sc = sin_cos_quarter(FRAC_PI_4 * (o.y / o.x));
+        return {sc.y * o.x, sc.x * o.x};
     }
-    return {cosf(theta) * r, sinf(theta) * r};
+    // At pi/2 - t: the cosine is t's sine and the sine its cosine.
+    V2 sc = sin_cos_quarter(FRAC_PI_4 * (o.x / o.y));
+    return {sc.x * o.y, sc.y * o.y};
 }
 HD V3 cosine_hemisphere(V2 u) {
     V2 d = concentric_disk(u);
