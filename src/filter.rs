@@ -198,16 +198,19 @@ impl Filter {
     /// The pixels a contribution at film position `p` reaches, with their weights,
     /// passed to `add(pixel index, weight)`; nothing outside the `width × height` image.
     pub fn splat(&self, p: Vec2, width: u32, height: u32, add: impl FnMut(u32, f32)) {
-        splat_with(*self, |x| self.eval_1d(x), p, (width, height), 0..height, add)
+        let centres = |p, first, out: &mut [f32]| centres_each(|x| self.eval_1d(x), p, first, out);
+        splat_with(*self, centres, p, (width, height), 0..height, add)
     }
 }
 
-/// [`Filter::splat`] with the 1-D filter evaluated by `eval_1d` (the filter's own or
-/// its table's, [`PreparedFilter`]).
+/// [`Filter::splat`] with the 1-D filter's values at pixel centres given by
+/// `centres(p, first, out)`: into `out[j]`, the value at offset `p − (first + j + 0.5)`
+/// (the filter's own or its table's, or the exact Gaussian's recurrence:
+/// [`PreparedFilter`]).
 #[inline]
 fn splat_with(
     filter: Filter,
-    eval_1d: impl Fn(f32) -> f32,
+    centres: impl Fn(f32, i64, &mut [f32]),
     p: Vec2,
     (width, height): (u32, u32),
     rows: std::ops::Range<u32>,
@@ -227,26 +230,40 @@ fn splat_with(
             // Pixel centres c = i + 0.5 with |p − c| < r.
             let lo = |v: f32| (v - radius - 0.5).ceil().max(0.0) as i64;
             let hi = |v: f32, n: u32| ((v + radius - 0.5).floor() as i64).min(n as i64 - 1);
-            // The column weights once, not once per row (the same values: the same
-            // function of the same offsets). At most 2·MAX_RADIUS + 1 columns.
-            let (x0, x1) = (lo(p.x), hi(p.x, width));
-            let mut wx = [0.0f32; 2 * MAX_RADIUS as usize + 2];
-            for (x, w) in (x0..=x1).zip(wx.iter_mut()) {
-                *w = eval_1d(p.x - (x as f32 + 0.5));
+            // The column and row weights once each, not once per pixel. At most
+            // 2·MAX_RADIUS + 1 of each. The rows' weights are those of every row the
+            // filter reaches, whichever of them `rows` keeps, so that a row's weight
+            // does not depend on the band it is added in.
+            let (x0, x1, y0, y1) = (lo(p.x), hi(p.x, width), lo(p.y), hi(p.y, height));
+            if x1 < x0 || y1 < y0 {
+                return;
             }
-            for y in lo(p.y).max(rows.start as i64)..=hi(p.y, height).min(rows.end as i64 - 1) {
-                let wy = eval_1d(p.y - (y as f32 + 0.5));
-                if wy <= 0.0 {
+            let (mut wx, mut wy) = ([0.0f32; 2 * MAX_RADIUS as usize + 2], [0.0f32; 2 * MAX_RADIUS as usize + 2]);
+            let (wx, wy) = (&mut wx[..(x1 - x0 + 1) as usize], &mut wy[..(y1 - y0 + 1) as usize]);
+            centres(p.x, x0, wx);
+            centres(p.y, y0, wy);
+            let kept = |&(y, _): &(i64, &f32)| y >= rows.start as i64 && y < rows.end as i64;
+            for (y, &w_y) in (y0..=y1).zip(wy.iter()).filter(kept) {
+                if w_y <= 0.0 {
                     continue;
                 }
-                for (x, &w_x) in (x0..=x1).zip(&wx) {
-                    let w = wy * w_x;
+                for (x, &w_x) in (x0..=x1).zip(wx.iter()) {
+                    let w = w_y * w_x;
                     if w > 0.0 {
                         add(y as u32 * width + x as u32, w);
                     }
                 }
             }
         }
+    }
+}
+
+/// The 1-D filter `eval_1d`'s values at pixel centres `first + j + 0.5`, offsets from
+/// `p`, into `out`: [`splat_with`]'s `centres`, value by value.
+#[inline]
+fn centres_each(eval_1d: impl Fn(f32) -> f32, p: f32, first: i64, out: &mut [f32]) {
+    for (j, o) in out.iter_mut().enumerate() {
+        *o = eval_1d(p - ((first + j as i64) as f32 + 0.5));
     }
 }
 
