@@ -22,7 +22,7 @@ use crate::cost::{BRANCH, DIV, DOT, NORMALIZE, SIN_COS, SQRT, V3, V3_DIV, VERTEX
 use crate::geometry::{Ray, offset_ray_origin};
 use crate::lights::LightSample;
 use crate::sampling::Rng;
-use crate::scene::Camera;
+use crate::scene::{Camera, Projection};
 use glam::{Vec2, Vec3};
 
 /// The part of the code this module's declared arithmetic counts as ([`crate::cost::Part`]).
@@ -151,7 +151,7 @@ impl<T: Copy, const N: usize> std::ops::DerefMut for StackList<T, N> {
 /// and the pdf are normalised over the image itself, as the camera samples it.
 #[inline]
 #[track_caller]
-pub fn camera_importance(cam: &Camera, w: Vec3, width: u32, height: u32, margin: f32) -> Option<(f32, f32, Vec2)> {
+pub fn camera_importance(cam: &Camera, proj: &Projection, w: Vec3, margin: f32) -> Option<(f32, f32, Vec2)> {
     let _inlined = crate::cost::scope();
     declare!(DOT + BRANCH);
     let cos = w.dot(cam.forward);
@@ -161,8 +161,8 @@ pub fn camera_importance(cam: &Camera, w: Vec3, width: u32, height: u32, margin:
     // The half-angle's tangent (a sine, a cosine and their quotient), the projection
     // onto the film and its bounds test, the two densities.
     declare!(2 * SIN_COS + 5 * DIV + V3_DIV + 2 * DOT + 4 * BRANCH + 22);
-    let tan_half = (cam.vfov_deg.to_radians() * 0.5).tan();
-    let aspect = width as f32 / height as f32;
+    // (The tangent and the aspect ratio come worked out once per render: `proj`.)
+    let Projection { tan_half, aspect, width, height } = *proj;
     let p = w / cos;
     let (sx, sy) = (p.dot(cam.right) / (tan_half * aspect), p.dot(cam.up) / tan_half);
     let film = Vec2::new((sx + 1.0) * 0.5 * width as f32, (1.0 - sy) * 0.5 * height as f32);
@@ -274,8 +274,7 @@ pub(crate) fn connect_to_camera(
     let d = v.p - cam_v.p;
     let d2 = d.length_squared();
     let w = d / d2.sqrt();
-    let (we, _, film) =
-        camera_importance(&ctx.scene.camera, w, ctx.opts.width, ctx.opts.height, ctx.opts.filter.margin())?;
+    let (we, _, film) = camera_importance(&ctx.scene.camera, &ctx.projection, w, ctx.opts.filter.margin())?;
     let cos_cam = w.dot(cam_v.n);
     let prev = if s >= 2 { light.get(s - 2) } else { None };
     let f = vertex_f(ctx, v, prev, cam_v.p, TransportMode::Importance);

@@ -4,7 +4,7 @@
 use super::options::RenderOptions;
 use crate::cast::RayCaster;
 use crate::lights::Lights;
-use crate::scene::Scene;
+use crate::scene::{Projection, Scene};
 use std::ops::Range;
 
 /// Everything one pass needs.
@@ -19,6 +19,8 @@ pub(crate) struct Context<'a> {
     pub opts: &'a RenderOptions,
     /// Every triangle's unit geometric normal ([`Scene::unit_normals`]), read at hits.
     pub normals: &'a [glam::Vec3],
+    /// The camera's projection of the image (`scene.camera.projection(width, height)`).
+    pub projection: Projection,
 }
 
 impl Context<'_> {
@@ -78,7 +80,15 @@ impl<'a> TestSetup<'a> {
 
     /// A context for the scene and `opts`.
     pub fn ctx<'b>(&'b self, opts: &'b RenderOptions) -> Context<'b> {
-        Context { scene: self.scene, lights: &self.lights, caster: &self.caster, opts, normals: &self.normals }
+        let projection = self.scene.camera.projection(opts.width, opts.height);
+        Context {
+            scene: self.scene,
+            lights: &self.lights,
+            caster: &self.caster,
+            opts,
+            normals: &self.normals,
+            projection,
+        }
     }
 }
 

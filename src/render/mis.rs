@@ -34,10 +34,8 @@ fn pdf_area_inlined(ctx: &Context, prev: Option<&Vertex>, cur: &Vertex, next: &V
     declare!(SQRT + V3_DIV + 2 * BRANCH);
     let w = d / d2.sqrt();
     let pdf_dir = match cur.kind {
-        VertexKind::Camera => {
-            camera_importance(&ctx.scene.camera, w, ctx.opts.width, ctx.opts.height, ctx.opts.filter.margin())
-                .map_or(0.0, |(_, pdf, _)| pdf)
-        }
+        VertexKind::Camera => camera_importance(&ctx.scene.camera, &ctx.projection, w, ctx.opts.filter.margin())
+            .map_or(0.0, |(_, pdf, _)| pdf),
         VertexKind::Light if cur.n == Vec3::ZERO => 1.0 / (4.0 * PI),
         VertexKind::Light => {
             declare!(DOT + 2);

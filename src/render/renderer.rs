@@ -88,7 +88,9 @@ impl<'a> Renderer<'a> {
         }
         let lights = Lights::new(scene);
         let normals = scene.unit_normals();
-        let integrator = Integrator::new(&Context { scene, lights: &lights, caster, opts, normals: &normals });
+        let projection = scene.camera.projection(opts.width, opts.height);
+        let integrator =
+            Integrator::new(&Context { scene, lights: &lights, caster, opts, normals: &normals, projection });
         let r = Renderer {
             scene,
             caster,
@@ -151,6 +153,7 @@ impl<'a> Renderer<'a> {
             caster: &counter,
             opts: &self.opts,
             normals: &self.normals,
+            projection: self.scene.camera.projection(self.opts.width, self.opts.height),
         };
         let (group, per_pass) = (self.pass_group(), self.opts.width * self.opts.height);
         let integrator = &mut self.integrator;

@@ -164,7 +164,6 @@ pub(crate) fn start_camera_wave<'a>(
     subpaths: &'a mut Subpaths,
     walkers: &'a mut Vec<Walker>,
 ) -> Walk<'a> {
-    let (w, h) = (ctx.opts.width, ctx.opts.height);
     let camera = &ctx.scene.camera;
     let max_vertices = ctx.opts.max_depth as usize + 2;
     subpaths.reset(wave.len(), max_vertices);
@@ -177,7 +176,7 @@ pub(crate) fn start_camera_wave<'a>(
             *len = 1;
             let rng = Rng::for_sample(ctx.opts.seed, pixel as u64, pass as u64);
             let (film_pos, weight) = ctx.camera_sample(pixel, pass);
-            Walker::new(camera.generate_ray(film_pos, w, h, Vec2::ZERO), Vec3::splat(weight), rng)
+            Walker::new(camera.ray(&ctx.projection, film_pos, Vec2::ZERO), Vec3::splat(weight), rng)
         })
         .collect_into_vec(walkers);
     Walk { walkers, subpaths, mode: TransportMode::Radiance, max_vertices }

@@ -76,11 +76,27 @@ impl Camera {
         Ok(())
     }
 
+    /// The pinhole projection's constants for a `width × height` image.
+    pub fn projection(&self, width: u32, height: u32) -> Projection {
+        Projection {
+            tan_half: (self.vfov_deg.to_radians() * 0.5).tan(),
+            aspect: width as f32 / height as f32,
+            width,
+            height,
+        }
+    }
+
     /// The primary ray through film position `film` (pixels, y down) of a
     /// `width × height` image, with `lens` a uniform sample of `[0,1)²`.
     pub fn generate_ray(&self, film: Vec2, width: u32, height: u32, lens: Vec2) -> Ray {
-        let tan_half = (self.vfov_deg.to_radians() * 0.5).tan();
-        let aspect = width as f32 / height as f32;
+        self.ray(&self.projection(width, height), film, lens)
+    }
+
+    /// [`Camera::generate_ray`] with the projection of the image worked out once (the
+    /// same ray, bit for bit).
+    #[inline]
+    pub fn ray(&self, proj: &Projection, film: Vec2, lens: Vec2) -> Ray {
+        let Projection { tan_half, aspect, width, height } = *proj;
         let sx = (2.0 * film.x / width as f32 - 1.0) * tan_half * aspect;
         let sy = (1.0 - 2.0 * film.y / height as f32) * tan_half;
         let dir = (self.forward + self.right * sx + self.up * sy).normalize();
@@ -93,6 +109,21 @@ impl Camera {
         let origin = self.position + self.right * d.x + self.up * d.y;
         Ray::new(origin, (focus - origin).normalize())
     }
+}
+
+/// What a pinhole projection of one image size needs besides the camera's frame: the
+/// tangent of half the vertical field of view, the image's aspect ratio and its size
+/// in pixels. A render works it out once ([`Camera::projection`]) rather than per ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Projection {
+    /// tan(vfov / 2).
+    pub tan_half: f32,
+    /// Width over height.
+    pub aspect: f32,
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
 }
 
 #[cfg(test)]

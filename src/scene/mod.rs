@@ -15,7 +15,7 @@ mod mitsuba;
 mod obj;
 mod ply;
 
-pub use camera::Camera;
+pub use camera::{Camera, Projection};
 pub use cornell::cornell_box;
 pub use data::{PointLight, Scene, find_model, models_dir};
 pub use desc::{RenderSettings, SceneDesc};

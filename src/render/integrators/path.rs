@@ -120,9 +120,7 @@ impl Wavefront {
     /// Traces the paths of pixels `first..first + estimates.len()` of pass `pass` to
     /// their ends, writing each pixel's estimate.
     fn trace(&mut self, ctx: &Context, pass: u32, first: u32, estimates: &mut [Vec3]) -> CastStats {
-        let w = ctx.opts.width;
-        let h = ctx.opts.height;
-        let cam = &ctx.scene.camera;
+        let (cam, proj) = (&ctx.scene.camera, &ctx.projection);
         let seed = ctx.opts.seed;
         (first..first + estimates.len() as u32)
             .into_par_iter()
@@ -130,7 +128,7 @@ impl Wavefront {
             .map(|pixel| {
                 let mut rng = Rng::for_sample(seed, pixel as u64, pass as u64);
                 let (film_pos, weight) = ctx.camera_sample(pixel, pass);
-                let ray = cam.generate_ray(film_pos, w, h, rng.uniform2());
+                let ray = cam.ray(proj, film_pos, rng.uniform2());
                 PathState {
                     pixel,
                     rng,

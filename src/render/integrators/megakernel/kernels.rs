@@ -118,13 +118,12 @@ pub fn camera_path(
     cache: &CacheRead,
     estimates: &GlobalMut<[f32; 3]>,
 ) {
-    let (w, h) = (ctx.opts.width, ctx.opts.height);
     let camera = &ctx.scene.camera;
     let mut cam = VertexList::default();
     cam.push(camera_vertex(camera));
     let rng = Rng::for_sample(ctx.opts.seed, pixel as u64, pass as u64);
     let (film_pos, weight) = ctx.camera_sample(pixel, pass);
-    let mut walker = Walker::new(camera.generate_ray(film_pos, w, h, Vec2::ZERO), Vec3::splat(weight), rng);
+    let mut walker = Walker::new(camera.ray(&ctx.projection, film_pos, Vec2::ZERO), Vec3::splat(weight), rng);
     walk(t, ctx, &mut walker, &mut cam, TransportMode::Radiance, ctx.opts.max_depth as usize + 2);
     let mut rng = walker.rng;
     let (mut path, mut estimate) = (VertexList::default(), Vec3::ZERO);
