@@ -21,6 +21,13 @@ pub(crate) fn compact_into<T, U>(
     T: Sync,
     U: Copy + Send,
 {
+    if input.len() <= CHUNK {
+        // One chunk: the same items, in one pass on this thread (a path-tracing chunk's
+        // wavefront, compacted three times a bounce, is never larger).
+        out.clear();
+        out.extend(input.iter().enumerate().filter(|(_, x)| keep(x)).map(|(i, x)| map(i, x)));
+        return;
+    }
     let counts: Vec<usize> = input.par_chunks(CHUNK).map(|c| c.iter().filter(|x| keep(x)).count()).collect();
     let total: usize = counts.iter().sum();
     out.clear();

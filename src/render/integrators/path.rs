@@ -153,14 +153,12 @@ impl Wavefront {
             self.hits.resize(self.rays.len(), Hit::MISS);
             stats = stats.merge(ctx.caster.closest(&self.rays, &mut self.hits));
 
-            self.shadows.clear();
-            self.shadows.resize(self.paths.len(), None);
             self.paths
                 .par_iter_mut()
                 .zip(&self.hits)
-                .zip(&mut self.shadows)
                 .with_min_len(SERIAL)
-                .for_each(|((p, hit), shadow)| *shadow = shade(ctx, depth, p, hit));
+                .map(|(p, hit)| shade(ctx, depth, p, hit))
+                .collect_into_vec(&mut self.shadows);
 
             // Shadow rays of this bounce, as one batch (in path order).
             compact_into(&self.shadows, &mut self.shadow_owner, |s| s.is_some(), |i, _| i as u32);
