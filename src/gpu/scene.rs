@@ -185,7 +185,7 @@ impl SceneTables {
             light_of_tri: self.light_of_tri.as_ptr(),
             n_lights: self.lights.len() as u64,
             cam: [cam.position, cam.forward, cam.right, cam.up].map(|v| v.to_array()),
-            tan_half: (cam.vfov_deg.to_radians() * 0.5).tan(),
+            tan_half: cam.projection(opts.width, opts.height).tan_half,
             margin: opts.filter.margin(),
             width: opts.width,
             height: opts.height,

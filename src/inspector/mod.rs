@@ -292,8 +292,7 @@ impl Inspector {
 /// The 2D pixel bounding rectangle of a box seen by a pinhole camera (corners behind the
 /// camera make it `None`).
 pub fn project_box(cam: &crate::scene::Camera, b: &Aabb, width: u32, height: u32) -> Option<(Vec2, Vec2)> {
-    let tan_half = (cam.vfov_deg.to_radians() * 0.5).tan();
-    let aspect = width as f32 / height as f32;
+    let crate::scene::Projection { tan_half, aspect, .. } = cam.projection(width, height);
     let (mut lo, mut hi) = (Vec2::splat(f32::MAX), Vec2::splat(f32::MIN));
     for i in 0..8 {
         let c = Vec3::new(
