@@ -12,6 +12,7 @@
 //   nvcc -std=c++17 -O3 -arch=sm_90 -o target/cuda/microbench cuda/microbench.cu
 //   target/cuda/microbench          every probe
 //   target/cuda/microbench fences   the atomic-latency and fence probes alone
+//   target/cuda/microbench rounds   rounds of loads issued together, alone
 #include <cstdint>
 #include <cstdio>
 #include <string>
@@ -211,6 +212,44 @@ __global__ void barrier(float* out, int iters) {
     if (acc == 12345.0f) out[threadIdx.x] = acc;
 }
 
+
+// Rounds of loads issued together: each thread follows its own chain through records
+// of 9 words (36 bytes, a triangle's size), loading `W` words of the current record
+// back to back (one load instruction each, none waiting for another) and summing them
+// into the next record's index. `cg` keeps the loads out of L1, as in the L2 chase;
+// the records (4,096, 144 KiB) stay in L2. The chase's cycles are read with clock64
+// after `warm` steps, so the first touches (from HBM) are left out. One thread
+// (`W` requests of one sector), one warp of scattered lanes (`W` requests of about 32
+// sectors each), and 8 or 64 such warps on every SM.
+template <int W, uint32_t MASK = 4095u>
+__device__ uint32_t round_chase(const uint32_t* a, int warm, int steps, long long* cycles) {
+    uint32_t t = blockIdx.x * blockDim.x + threadIdx.x;
+    uint32_t r = (t * 2654435761u) & MASK;
+    long long t0 = 0;
+    for (int s = 0; s < warm + steps; ++s) {
+        if (s == warm) t0 = clock64();
+        const uint32_t* p = a + r * 9;
+        uint32_t v[W];
+#pragma unroll
+        for (int w = 0; w < W; ++w) v[w] = __ldcg(&p[w]);
+        uint32_t sum = 0;
+#pragma unroll
+        for (int w = 0; w < W; ++w) sum ^= v[w];
+        r = (r * 1664525u + sum) & MASK;
+    }
+    if (t == 0) cycles[0] = clock64() - t0;
+    return r;
+}
+__global__ void round_lane_1(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + threadIdx.x] = round_chase<1>(a, warm, steps, c); }
+__global__ void round_lane_9(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + threadIdx.x] = round_chase<9>(a, warm, steps, c); }
+__global__ void round_warp_1(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + threadIdx.x] = round_chase<1>(a, warm, steps, c); }
+__global__ void round_warp_9(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + threadIdx.x] = round_chase<9>(a, warm, steps, c); }
+__global__ void round_sm_9(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + (threadIdx.x & 255)] = round_chase<9>(a, warm, steps, c); }
+__global__ void round_full_9(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + (threadIdx.x & 255)] = round_chase<9>(a, warm, steps, c); }
+__global__ void round_sm_9_wide(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + (threadIdx.x & 255)] = round_chase<9, (1u << 20) - 1>(a, warm, steps, c); }
+__global__ void round_full_9_wide(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + (threadIdx.x & 255)] = round_chase<9, (1u << 20) - 1>(a, warm, steps, c); }
+__global__ void round_sm_1_wide(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + (threadIdx.x & 255)] = round_chase<1, (1u << 20) - 1>(a, warm, steps, c); }
+__global__ void round_full_1_wide(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + (threadIdx.x & 255)] = round_chase<1, (1u << 20) - 1>(a, warm, steps, c); }
 }  // namespace micro
 
 // A chain over `n` words whose next index is `stride` words on (mod n): every hop
@@ -259,12 +298,68 @@ static int atomic_and_fence_probes(int sms) {
     return 0;
 }
 
+// The rounds probes (`microbench rounds`): what a round of loads issued together costs
+// one warp, by the loads and sectors in it, alone and with its SM full. Prints each
+// probe's steps and the cycles of its chase (clock64 of thread 0, after warm-up).
+static int round_probes(int sms) {
+    uint32_t *recs, *out;
+    long long* cycles;
+    CHECK(cudaMalloc(&recs, (size_t(1) << 20) * 9 * 4));
+    CHECK(cudaMalloc(&out, 4096 * 4));
+    CHECK(cudaMalloc(&cycles, 8 * 16));
+    std::vector<uint32_t> v((size_t(1) << 20) * 9);
+    uint32_t h = 12345;
+    for (auto& x : v) x = (h = h * 1664525u + 1013904223u) >> 7;
+    CHECK(cudaMemcpy(recs, v.data(), v.size() * 4, cudaMemcpyHostToDevice));
+    const int warm = 4000, steps = 20000, many = 2000;
+    struct Round {
+        const char* name;
+        int grid, block, warm, steps;
+    } rounds[] = {{"round_lane_1", 1, 1, warm, steps},         {"round_lane_9", 1, 1, warm, steps},
+                  {"round_warp_1", 1, 32, warm, steps},        {"round_warp_9", 1, 32, warm, steps},
+                  {"round_sm_9", sms, 256, 200, many},          {"round_full_9", sms * 8, 256, 200, many},
+                  {"round_sm_9_wide", sms, 256, 200, many},     {"round_full_9_wide", sms * 8, 256, 200, many},
+                  {"round_sm_1_wide", sms, 256, 200, many},     {"round_full_1_wide", sms * 8, 256, 200, many}};
+    int k = 0;
+    for (auto& r : rounds) {
+        std::vector<long long> c(PROBE_LAUNCHES);
+        for (int l = 0; l < PROBE_LAUNCHES; ++l) {
+            switch (k) {
+            case 0: micro::round_lane_1<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            case 1: micro::round_lane_9<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            case 2: micro::round_warp_1<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            case 3: micro::round_warp_9<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            case 4: micro::round_sm_9<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            case 5: micro::round_full_9<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            case 6: micro::round_sm_9_wide<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            case 7: micro::round_full_9_wide<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            case 8: micro::round_sm_1_wide<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            default: micro::round_full_1_wide<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            }
+        }
+        CHECK(cudaDeviceSynchronize());
+        CHECK(cudaMemcpy(c.data(), cycles, PROBE_LAUNCHES * 8, cudaMemcpyDeviceToHost));
+        printf("probe\t%s\tsteps\t%d\n", r.name, r.warm + r.steps);
+        for (int l = 0; l < PROBE_LAUNCHES; ++l)
+            printf("timed\t%s\tcycles_per_step\t%.2f\n", r.name, (double)c[l] / r.steps);
+        ++k;
+    }
+    cudaFree(recs);
+    cudaFree(out);
+    cudaFree(cycles);
+    return 0;
+}
+
 int main(int argc, char** argv) {
     cudaDeviceProp p;
     CHECK(cudaGetDeviceProperties(&p, 0));
     if (argc > 1 && std::string(argv[1]) == "fences") {
         printf("device\tname\t%s\n", p.name);
         return atomic_and_fence_probes(p.multiProcessorCount);
+    }
+    if (argc > 1 && std::string(argv[1]) == "rounds") {
+        printf("device\tname\t%s\n", p.name);
+        return round_probes(p.multiProcessorCount);
     }
     const int sms = p.multiProcessorCount;
     int clock_khz = 0, mem_khz = 0, bus_bits = 0;

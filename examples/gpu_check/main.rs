@@ -173,6 +173,9 @@ enum Cmd {
         /// Also print how the check moves when each profile value alone is scaled.
         #[arg(long)]
         sensitivity: bool,
+        /// Also print each kernel's model terms (µs), to see which bound sets it.
+        #[arg(long)]
+        terms: bool,
     },
     /// Join a `simt` TSV and an ncu CSV into the comparison table.
     Report {
@@ -268,8 +271,8 @@ fn run(a: Args) -> Result<(), String> {
                 .map_err(|e| format!("{} / {}: {e}", names(&probes), names(&csv)))?;
             print!("{}", c.to_text(&header));
         }
-        Cmd::Time { records, ncu: csv, ncu_all, gpu_profile, sensitivity } => {
-            time_run(&records, &csv, &ncu_all, &gpu_profile, sensitivity)?
+        Cmd::Time { records, ncu: csv, ncu_all, gpu_profile, sensitivity, terms } => {
+            time_run(&records, &csv, &ncu_all, &gpu_profile, sensitivity, terms)?
         }
         Cmd::Report { simt, ncu: csv } => {
             let simt = tsv::read(&read(&simt)?).map_err(|e| format!("{}: {e}", simt.display()))?;
@@ -313,6 +316,7 @@ fn time_run(
     all: &[std::path::PathBuf],
     profile: &str,
     sensitivity: bool,
+    terms: bool,
 ) -> Result<(), String> {
     use warpray::gpu::time_check;
     let p = simt::GpuProfile::load(profile)?;
@@ -325,6 +329,12 @@ fn time_run(
             let gpu = ncu::parse_csv(&read(c)?).map_err(|e| format!("{}: {e}", c.display()))?;
             let rows = time_check::kernel_times(&recs, &gpu, &p);
             println!("{} against {}:\n\n{}", path.display(), c.display(), time_check::table(&rows));
+            if terms {
+                println!(
+                    "Model terms, µs (the prediction is launch + the largest):\n\n{}",
+                    time_check::terms_table(&rows)
+                );
+            }
             every.extend(rows);
             run.kernels = gpu;
         }

@@ -122,6 +122,23 @@ pub fn table(rows: &[KernelTime]) -> String {
     s
 }
 
+/// Each kernel's model terms (summed over its launches, µs) beside its measured time:
+/// which bound sets the prediction and how far the others are below it.
+pub fn terms_table(rows: &[KernelTime]) -> String {
+    let mut s = String::from(
+        "| kernel | measured µs | predicted | latency | issue | L1 | L2 | HBM | atomics | fences | barriers | dispatch | launch |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        let t = &r.terms;
+        let _ = write!(s, "| {} | {:.1} | {:.1} |", r.name, r.measured * 1e6, r.predicted * 1e6);
+        for v in [t.latency, t.issue, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch, t.launch] {
+            let _ = write!(s, " {:.1} |", v * 1e6);
+        }
+        s.push('\n');
+    }
+    s
+}
+
 /// One checked run: the emulator's launch records, ncu's per-kernel counters of the same
 /// launches, and (for a pipeline) ncu's total over every kernel it launched.
 pub struct CheckedRun {

@@ -284,3 +284,27 @@ mod heavy {
         }
     }
 }
+
+/// `gpu_check time --terms`: each kernel's row holds its measured time, its prediction
+/// and the terms it came from, summed over its launches; the prediction less the launch
+/// costs is the sum of each launch's largest bound, so it lies between the largest
+/// summed bound and the sum of them all.
+#[test]
+fn the_terms_table_shows_what_each_prediction_is_made_of() {
+    let runs = runs();
+    let p = GpuProfile::named("h200").unwrap();
+    let (rows, _) = check(&runs, &p);
+    let table = warpray::gpu::time_check::terms_table(&rows);
+    for r in &rows {
+        let t = &r.terms;
+        let bounds = [t.latency, t.issue, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch];
+        let largest = bounds.iter().cloned().fold(0.0, f64::max);
+        // Each launch adds its own largest bound: the sum lies between the largest summed
+        // bound and the sum of all of them.
+        let over = r.predicted - t.launch;
+        assert!(over >= largest * (1.0 - 1e-9) && over <= bounds.iter().sum::<f64>() * (1.0 + 1e-9), "{}", r.name);
+        let row =
+            format!("| {} | {:.1} | {:.1} | {:.1} |", r.name, r.measured * 1e6, r.predicted * 1e6, t.latency * 1e6);
+        assert!(table.contains(&row), "{row} not in the table");
+    }
+}
