@@ -13,6 +13,7 @@
 //   target/cuda/microbench          every probe
 //   target/cuda/microbench fences   the atomic-latency and fence probes alone
 //   target/cuda/microbench rounds   rounds of loads issued together, alone
+//   target/cuda/microbench start    the start of a short kernel: stores, parameters, cold code
 #include <cstdint>
 #include <cstdio>
 #include <string>
@@ -221,7 +222,7 @@ __global__ void barrier(float* out, int iters) {
 // after `warm` steps, so the first touches (from HBM) are left out. One thread
 // (`W` requests of one sector), one warp of scattered lanes (`W` requests of about 32
 // sectors each), and 8 or 64 such warps on every SM.
-template <int W, uint32_t MASK = 4095u>
+template <int W, uint32_t MASK = 4095u, bool CG = true>
 __device__ uint32_t round_chase(const uint32_t* a, int warm, int steps, long long* cycles) {
     uint32_t t = blockIdx.x * blockDim.x + threadIdx.x;
     uint32_t r = (t * 2654435761u) & MASK;
@@ -231,7 +232,7 @@ __device__ uint32_t round_chase(const uint32_t* a, int warm, int steps, long lon
         const uint32_t* p = a + r * 9;
         uint32_t v[W];
 #pragma unroll
-        for (int w = 0; w < W; ++w) v[w] = __ldcg(&p[w]);
+        for (int w = 0; w < W; ++w) v[w] = CG ? __ldcg(&p[w]) : p[w];
         uint32_t sum = 0;
 #pragma unroll
         for (int w = 0; w < W; ++w) sum ^= v[w];
@@ -249,7 +250,61 @@ __global__ void round_full_9(const uint32_t* a, int warm, int steps, long long* 
 __global__ void round_sm_9_wide(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + (threadIdx.x & 255)] = round_chase<9, (1u << 20) - 1>(a, warm, steps, c); }
 __global__ void round_full_9_wide(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + (threadIdx.x & 255)] = round_chase<9, (1u << 20) - 1>(a, warm, steps, c); }
 __global__ void round_sm_1_wide(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + (threadIdx.x & 255)] = round_chase<1, (1u << 20) - 1>(a, warm, steps, c); }
+// One thread chasing a chain that steps 33 words (a new 128-byte line each hop) over
+// 2 MiB: past L1, within L2. With the kernels' default caching (`ca`: each load misses
+// L1, which allocates) and with `cg`, timed with clock64 after a warm-up pass.
+template <bool CG>
+__device__ uint32_t chase_timed(const uint32_t* a, int warm, int hops, long long* cycles) {
+    uint32_t i = 0;
+    long long t0 = 0;
+    for (int h = 0; h < warm + hops; ++h) {
+        if (h == warm) t0 = clock64();
+        i = CG ? __ldcg(&a[i]) : a[i];
+    }
+    cycles[0] = clock64() - t0;
+    return i;
+}
+__global__ void chase_l2_ca(const uint32_t* a, int warm, int hops, long long* c, uint32_t* out) { out[0] = chase_timed<false>(a, warm, hops, c); }
+__global__ void chase_l2_cg(const uint32_t* a, int warm, int hops, long long* c, uint32_t* out) { out[0] = chase_timed<true>(a, warm, hops, c); }
+
+// The same with the kernels' default caching (L1 allocates): 65,536 records (2.4 MB,
+// past L1, in L2) for one thread and for one warp.
+__global__ void round_lane_1_ca(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + threadIdx.x] = round_chase<1, 65535u, false>(a, warm, steps, c); }
+__global__ void round_lane_9_ca(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + threadIdx.x] = round_chase<9, 65535u, false>(a, warm, steps, c); }
+__global__ void round_warp_9_ca(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + threadIdx.x] = round_chase<9, 65535u, false>(a, warm, steps, c); }
+__global__ void round_lane_1_cg(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + threadIdx.x] = round_chase<1, 65535u, true>(a, warm, steps, c); }
 __global__ void round_full_1_wide(const uint32_t* a, int warm, int steps, long long* c, uint32_t* out) { out[1 + (threadIdx.x & 255)] = round_chase<1, (1u << 20) - 1>(a, warm, steps, c); }
+
+// The start of a short kernel (`microbench start`): what a launch costs beyond the empty
+// kernel's when it stores, reads its parameters, or runs code the SM has not cached.
+// One warp each. `start_store`: every lane stores a word (the store drains before the
+// kernel ends). `start_params`: eight pointer parameters read (constant-bank loads, cold
+// after the previous kernel), one word stored. `start_code<N>`: a dependent chain of N
+// multiply-adds in straight-line code (N·16 bytes of instructions, each fetched once),
+// against `start_loop`: the same N in a loop of 64 (the loop's body fetched once).
+__global__ void start_store(uint32_t* a) { a[threadIdx.x] = threadIdx.x; }
+__global__ void start_params(uint32_t* a, const uint32_t* p1, const uint32_t* p2, const uint32_t* p3,
+                             const uint32_t* p4, const uint32_t* p5, const uint32_t* p6, const uint32_t* p7) {
+    uintptr_t x = (uintptr_t)p1 ^ (uintptr_t)p2 ^ (uintptr_t)p3 ^ (uintptr_t)p4 ^ (uintptr_t)p5 ^ (uintptr_t)p6 ^
+                  (uintptr_t)p7;
+    a[threadIdx.x] = (uint32_t)x;
+}
+template <int N>
+__global__ void start_code(float* out, float m, float b) {
+    float x = threadIdx.x;
+#pragma unroll
+    for (int i = 0; i < N; ++i) x = x * m + b;
+    out[threadIdx.x] = x;
+}
+template <int N>
+__global__ void start_loop(float* out, float m, float b) {
+    float x = threadIdx.x;
+    for (int i = 0; i < N / 64; ++i) {
+#pragma unroll
+        for (int k = 0; k < 64; ++k) x = x * m + b;
+    }
+    out[threadIdx.x] = x;
+}
 }  // namespace micro
 
 // A chain over `n` words whose next index is `stride` words on (mod n): every hop
@@ -298,6 +353,35 @@ static int atomic_and_fence_probes(int sms) {
     return 0;
 }
 
+// The start probes (`microbench start`), each launched PROBE_LAUNCHES times between
+// empty kernels; ncu's durations are what they measure.
+static int start_probes() {
+    uint32_t* a;
+    float* f;
+    CHECK(cudaMalloc(&a, 4096));
+    CHECK(cudaMalloc(&f, 4096));
+    for (int r = 0; r < PROBE_LAUNCHES; ++r) {
+        micro::empty<<<1, 32>>>();
+        micro::start_store<<<1, 32>>>(a);
+        micro::start_params<<<1, 32>>>(a, a + 1, a + 2, a + 3, a + 4, a + 5, a + 6, a + 7);
+        micro::start_code<256><<<1, 32>>>(f, 1.0001f, 0.5f);
+        micro::start_loop<256><<<1, 32>>>(f, 1.0001f, 0.5f);
+        micro::start_code<2048><<<1, 32>>>(f, 1.0001f, 0.5f);
+        micro::start_loop<2048><<<1, 32>>>(f, 1.0001f, 0.5f);
+        micro::start_code<8192><<<1, 32>>>(f, 1.0001f, 0.5f);
+        micro::start_loop<8192><<<1, 32>>>(f, 1.0001f, 0.5f);
+    }
+    CHECK(cudaDeviceSynchronize());
+    for (const char* n : {"empty", "start_store", "start_params"}) printf("probe\t%s\tblocks\t1\n", n);
+    for (int n : {256, 2048, 8192}) {
+        printf("probe\tstart_code<%d>\tdependent_fma\t%d\n", n, n);
+        printf("probe\tstart_loop<%d>\tdependent_fma\t%d\n", n, n);
+    }
+    cudaFree(a);
+    cudaFree(f);
+    return 0;
+}
+
 // The rounds probes (`microbench rounds`): what a round of loads issued together costs
 // one warp, by the loads and sectors in it, alone and with its SM full. Prints each
 // probe's steps and the cycles of its chase (clock64 of thread 0, after warm-up).
@@ -319,7 +403,9 @@ static int round_probes(int sms) {
                   {"round_warp_1", 1, 32, warm, steps},        {"round_warp_9", 1, 32, warm, steps},
                   {"round_sm_9", sms, 256, 200, many},          {"round_full_9", sms * 8, 256, 200, many},
                   {"round_sm_9_wide", sms, 256, 200, many},     {"round_full_9_wide", sms * 8, 256, 200, many},
-                  {"round_sm_1_wide", sms, 256, 200, many},     {"round_full_1_wide", sms * 8, 256, 200, many}};
+                  {"round_sm_1_wide", sms, 256, 200, many},     {"round_full_1_wide", sms * 8, 256, 200, many},
+                  {"round_lane_1_ca", 1, 1, 200000, steps},    {"round_lane_9_ca", 1, 1, 200000, steps},
+                  {"round_warp_9_ca", 1, 32, 20000, steps},    {"round_lane_1_cg", 1, 1, 200000, steps}};
     int k = 0;
     for (auto& r : rounds) {
         std::vector<long long> c(PROBE_LAUNCHES);
@@ -334,7 +420,11 @@ static int round_probes(int sms) {
             case 6: micro::round_sm_9_wide<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
             case 7: micro::round_full_9_wide<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
             case 8: micro::round_sm_1_wide<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            default: micro::round_full_1_wide<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            case 9: micro::round_full_1_wide<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            case 10: micro::round_lane_1_ca<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            case 11: micro::round_lane_9_ca<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            case 12: micro::round_warp_9_ca<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
+            default: micro::round_lane_1_cg<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
             }
         }
         CHECK(cudaDeviceSynchronize());
@@ -344,6 +434,42 @@ static int round_probes(int sms) {
             printf("timed\t%s\tcycles_per_step\t%.2f\n", r.name, (double)c[l] / r.steps);
         ++k;
     }
+    {
+        // The chases past L1: 2^19 words, each naming the one 33 on.
+        uint32_t* chain_buf;
+        const size_t words = (size_t)1 << 19;
+        CHECK(cudaMalloc(&chain_buf, words * 4));
+        auto v = chain(words, 33);
+        CHECK(cudaMemcpy(chain_buf, v.data(), words * 4, cudaMemcpyHostToDevice));
+        for (int ca = 1; ca >= 0; --ca) {
+            std::vector<long long> c(PROBE_LAUNCHES);
+            for (int l = 0; l < PROBE_LAUNCHES; ++l) {
+                if (ca) micro::chase_l2_ca<<<1, 1>>>(chain_buf, 40000, steps, cycles + l, out);
+                else micro::chase_l2_cg<<<1, 1>>>(chain_buf, 40000, steps, cycles + l, out);
+            }
+            CHECK(cudaDeviceSynchronize());
+            CHECK(cudaMemcpy(c.data(), cycles, PROBE_LAUNCHES * 8, cudaMemcpyDeviceToHost));
+            const char* name = ca ? "chase_l2_ca" : "chase_l2_cg";
+            printf("probe\t%s\thops\t%d\n", name, 40000 + steps);
+            for (int l = 0; l < PROBE_LAUNCHES; ++l) printf("timed\t%s\tcycles_per_step\t%.2f\n", name, (double)c[l] / steps);
+        }
+        cudaFree(chain_buf);
+    }
+    // The wait of a round against the warps waiting beside it: one block a SM of 1 to
+    // 32 warps, each lane chasing nine (or one) scattered loads a step over 37.7 MB.
+    for (int nine = 0; nine < 2; ++nine)
+        for (int warps = 1; warps <= 32; warps *= 2) {
+            std::vector<long long> c(PROBE_LAUNCHES);
+            for (int l = 0; l < PROBE_LAUNCHES; ++l) {
+                if (nine) micro::round_sm_9_wide<<<sms, 32 * warps>>>(recs, 200, many, cycles + l, out);
+                else micro::round_sm_1_wide<<<sms, 32 * warps>>>(recs, 200, many, cycles + l, out);
+            }
+            CHECK(cudaDeviceSynchronize());
+            CHECK(cudaMemcpy(c.data(), cycles, PROBE_LAUNCHES * 8, cudaMemcpyDeviceToHost));
+            printf("probe\tround_sweep_%d_w%d\tsteps\t%d\n", nine ? 9 : 1, warps, 200 + many);
+            for (int l = 0; l < PROBE_LAUNCHES; ++l)
+                printf("timed\tround_sweep_%d_w%d\tcycles_per_step\t%.2f\n", nine ? 9 : 1, warps, (double)c[l] / many);
+        }
     cudaFree(recs);
     cudaFree(out);
     cudaFree(cycles);
@@ -356,6 +482,10 @@ int main(int argc, char** argv) {
     if (argc > 1 && std::string(argv[1]) == "fences") {
         printf("device\tname\t%s\n", p.name);
         return atomic_and_fence_probes(p.multiProcessorCount);
+    }
+    if (argc > 1 && std::string(argv[1]) == "start") {
+        printf("device\tname\t%s\n", p.name);
+        return start_probes();
     }
     if (argc > 1 && std::string(argv[1]) == "rounds") {
         printf("device\tname\t%s\n", p.name);

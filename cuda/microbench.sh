@@ -10,7 +10,8 @@
 # MODE=fences runs the atomic-latency and fence probes alone (files micro_fences_*),
 # which `gpu_check calibrate` takes as a second --probes/--ncu pair.
 # MODE=rounds runs the rounds-of-loads probes alone: their cycles per step are printed
-# (lines `timed`), not read by `gpu_check calibrate` (docs/simt.md, "Rounds of loads").
+# (lines `timed`), not read by `gpu_check calibrate` (docs/simt.md, "PDACRT's rounds").
+# MODE=start runs the start-of-a-kernel probes alone (stores, parameters, cold code).
 #
 # ncu runs with --clock-control none (the GPU's own clocks, as in cuda/check.sh) and its
 # default --cache-control all (caches flushed before each kernel), as the checked

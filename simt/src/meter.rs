@@ -21,7 +21,7 @@
 //! sectors touched (the launch's and each block's distinct ones) and each warp's chain
 //! of instructions and loads.
 //!
-//! About 760 lines on purpose: the matching of lanes into warp instructions, the
+//! About 820 lines on purpose: the matching of lanes into warp instructions, the
 //! memory traffic, the footprints and the race check share the per-lane and per-warp
 //! state kept private here.
 
@@ -81,6 +81,10 @@ pub struct WarpChain {
     /// The sectors the warp had stored or updated atomically, not yet fenced, at each of
     /// its fences, summed: what its fences waited to see written.
     pub fenced_sectors: u64,
+    /// Sectors a load requested that an earlier load of its round (loads issued
+    /// together) had requested: a round waits once for a sector, so the share of its
+    /// waits that go to HBM is taken over the sectors less these.
+    pub round_repeats: u64,
 }
 
 impl WarpChain {
@@ -91,6 +95,7 @@ impl WarpChain {
         self.atomic_rounds += o.atomic_rounds;
         self.fences += o.fences;
         self.fenced_sectors += o.fenced_sectors;
+        self.round_repeats += o.round_repeats;
     }
 }
 
@@ -288,6 +293,8 @@ pub(crate) struct Meter {
     group: u32,
     /// The groups of a closing warp phase's loads (scratch).
     groups: Vec<u32>,
+    /// The (group, sector) pairs of a closing warp phase's grouped loads (scratch).
+    round_pairs: Vec<(u32, u64)>,
     /// Instructions and load requests counted at once (`global_lanes`) in the current
     /// warp phase, added to its warp's chain when the phase closes.
     phase_chain: WarpChain,
@@ -725,6 +732,22 @@ impl Meter {
                 self.sectors.sort_unstable();
             }
             self.sectors.dedup();
+            if self.predicting {
+                // A sector requested by several loads of one round is waited for once.
+                for &(slot, sector) in &self.sectors {
+                    let s = &self.slots[slot as usize];
+                    if s.kind == Kind::Load && s.group != NO_GROUP {
+                        self.round_pairs.push((s.group, sector));
+                    }
+                }
+                if !self.round_pairs.is_empty() {
+                    let all = self.round_pairs.len();
+                    self.round_pairs.sort_unstable();
+                    self.round_pairs.dedup();
+                    phase.round_repeats += (all - self.round_pairs.len()) as u64;
+                    self.round_pairs.clear();
+                }
+            }
             for i in 0..self.sectors.len() {
                 let (slot, sector) = self.sectors[i];
                 self.sample(sector, self.slots[slot as usize].kind != Kind::Load);

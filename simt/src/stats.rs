@@ -280,12 +280,13 @@ pub fn format_table(rows: &[KernelSummary]) -> String {
 }
 
 /// The columns of [`records_to_tsv`].
-const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors";
+const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors\tround_repeats";
 
 /// Columns of [`RECORD_HEADER`] that files written before them lack, newest first: the
-/// sectors fences waited for, the atomics and fences waited for (read as none), and
+/// sectors repeated within rounds of loads (read as none), the sectors fences waited for, the atomics and fences waited for (read as none), and
 /// load rounds (read as one per load request).
 const LATER_COLUMNS: &[&str] = &[
+    "\tround_repeats",
     "\tlongest_fenced_sectors\tfenced_sectors",
     "\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences",
     "\tload_rounds",
@@ -302,7 +303,7 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
         let t = |x: &Traffic| format!("{}\t{}\t{}", x.requests, x.sectors, x.lanes);
         let _ = writeln!(
             s,
-            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
             r.name,
             r.grid,
             r.block,
@@ -328,7 +329,8 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
             r.waits.atomic_rounds,
             r.waits.fences,
             r.longest_warp.fenced_sectors,
-            r.waits.fenced_sectors
+            r.waits.fenced_sectors,
+            r.waits.round_repeats
         );
     }
     s
@@ -390,6 +392,7 @@ pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
                 atomic_rounds: if columns.len() > 26 { n(26)? } else { 0 },
                 fences: if columns.len() > 26 { n(27)? } else { 0 },
                 fenced_sectors: if columns.len() > 30 { n(30)? } else { 0 },
+                round_repeats: 0,
             },
             waits: WarpChain {
                 instructions: n(7)? + n(9)?,
@@ -397,6 +400,7 @@ pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
                 atomic_rounds: if columns.len() > 26 { n(28)? } else { 0 },
                 fences: if columns.len() > 26 { n(29)? } else { 0 },
                 fenced_sectors: if columns.len() > 30 { n(31)? } else { 0 },
+                round_repeats: if columns.len() > 32 { n(32)? } else { 0 },
             },
         });
     }
@@ -448,8 +452,16 @@ mod tests {
                 atomic_rounds: 2,
                 fences: 1,
                 fenced_sectors: 9,
+                round_repeats: 0,
             },
-            waits: WarpChain { instructions: 100, load_rounds: 12, atomic_rounds: 7, fences: 5, fenced_sectors: 40 },
+            waits: WarpChain {
+                instructions: 100,
+                load_rounds: 12,
+                atomic_rounds: 7,
+                fences: 5,
+                fenced_sectors: 40,
+                round_repeats: 11,
+            },
         }
     }
 
@@ -459,14 +471,17 @@ mod tests {
         let back = &records_from_tsv(&text).unwrap()[0];
         assert_eq!((back.longest_warp, back.waits), (record().longest_warp, record().waits));
         assert_eq!((back.loads, back.atomics, back.block_sectors), (record().loads, record().atomics, 8));
-        // Cut the later columns off, newest first: fenced sectors are then none, then
-        // atomics and fences, and then load rounds are one per load request.
+        // Cut the later columns off, newest first: round repeats are then none, then
+        // fenced sectors, then atomics and fences, and then load rounds are one per load
+        // request.
         let cut = |text: &str, columns: usize| -> String {
             text.lines().map(|l| l.split('\t').take(columns).collect::<Vec<_>>().join("\t") + "\n").collect()
         };
+        let before_repeats = &records_from_tsv(&cut(&text, 32)).unwrap()[0];
+        assert_eq!(before_repeats.waits, WarpChain { round_repeats: 0, ..record().waits });
         let before_fenced = &records_from_tsv(&cut(&text, 30)).unwrap()[0];
         assert_eq!(before_fenced.longest_warp, WarpChain { fenced_sectors: 0, ..record().longest_warp });
-        assert_eq!(before_fenced.waits, WarpChain { fenced_sectors: 0, ..record().waits });
+        assert_eq!(before_fenced.waits, WarpChain { fenced_sectors: 0, round_repeats: 0, ..record().waits });
         let before_atomics = &records_from_tsv(&cut(&text, 26)).unwrap()[0];
         let none = WarpChain { atomic_rounds: 0, fences: 0, fenced_sectors: 0, ..WarpChain::default() };
         assert_eq!(before_atomics.longest_warp, WarpChain { instructions: 20, load_rounds: 3, ..none });

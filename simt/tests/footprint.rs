@@ -97,9 +97,12 @@ fn loads_issued_together_are_one_round_of_the_chain_and_the_same_traffic() {
     let warps = n as u64 / 32;
     assert_eq!(apart.longest_warp, chain(6, 5));
     assert_eq!(apart.waits.load_rounds, 5 * warps);
-    // Together: the four are one round, the dependent load another.
-    assert_eq!(together.longest_warp, chain(6, 2));
+    // Together: the four are one round, the dependent load another; the four requests
+    // of a warp's round touch the same 16 sectors (128 words), so 48 of their 64 sector
+    // requests repeat the round's and are waited for once.
+    assert_eq!(together.longest_warp, simt::WarpChain { round_repeats: 48, ..chain(6, 2) });
     assert_eq!(together.waits.load_rounds, 2 * warps);
+    assert_eq!((apart.waits.round_repeats, together.waits.round_repeats), (0, 48 * warps));
     // A warp whose lanes take the group on a branch only some of them reach counts
     // it once; a lane outside any group counts its own.
     let rec = dev.for_each("branch", n, |t, i| {

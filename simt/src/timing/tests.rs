@@ -142,3 +142,22 @@ fn occupancy_follows_block_size_and_shared_memory() {
     assert_eq!(blocks_per_sm(&p, 256, 0, 32), (p.max_warps_per_sm / 8.0).floor());
     assert_eq!(blocks_per_sm(&p, 256, 0, 255), 1.0);
 }
+
+#[test]
+fn a_sector_repeated_within_a_round_is_waited_for_once() {
+    // One block of 8 warps, each one round of four loads whose 16 sectors are the same
+    // (48 repeats a warp): 128 distinct sectors, all first touches. Counted over every
+    // sector request (512) only a quarter of the waits would go to HBM; the round waits
+    // for its sectors once, so all of them do.
+    let p = profile();
+    let mut r = launch(1, 4, 1, 512, 128);
+    r.waits.round_repeats = 8 * 48;
+    let chain = |t: &Prediction| t.latency;
+    let once = chain(&predict(&r, &p).unwrap());
+    let hbm_round = p.hbm_latency_s + 4.0 * p.alu_latency_cycles / p.clock_hz;
+    assert!((once - hbm_round).abs() <= 1e-3 * hbm_round, "{once} against {hbm_round}");
+    r.waits.round_repeats = 0;
+    let diluted = chain(&predict(&r, &p).unwrap());
+    let mixed = 0.25 * p.hbm_latency_s + 0.75 * p.l2_latency_s + 4.0 * p.alu_latency_cycles / p.clock_hz;
+    assert!((diluted - mixed).abs() <= 1e-3 * mixed, "{diluted} against {mixed}");
+}
