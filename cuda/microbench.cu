@@ -384,7 +384,9 @@ static int start_probes() {
 
 // The rounds probes (`microbench rounds`): what a round of loads issued together costs
 // one warp, by the loads and sectors in it, alone and with its SM full. Prints each
-// probe's steps and the cycles of its chase (clock64 of thread 0, after warm-up).
+// probe's steps and the cycles of its chase (clock64 of thread 0, after warm-up): the
+// chase's time for one thread, one warp or one block a SM; for a grid of several blocks
+// a SM, thread 0 may finish first, so Nsight's kernel time over the steps is the one.
 static int round_probes(int sms) {
     uint32_t *recs, *out;
     long long* cycles;
