@@ -14,6 +14,7 @@
 //   target/cuda/microbench fences   the atomic-latency and fence probes alone
 //   target/cuda/microbench rounds   rounds of loads issued together, alone
 //   target/cuda/microbench start    the start of a short kernel: stores, parameters, cold code
+//   target/cuda/microbench hbm      HBM read at random, a sector at a time
 #include <cstdint>
 #include <cstdio>
 #include <string>
@@ -305,6 +306,29 @@ __global__ void start_loop(float* out, float m, float b) {
     }
     out[threadIdx.x] = x;
 }
+
+// HBM read at random (`microbench hbm`): every thread of a full grid reads 32-byte
+// records (one sector each, 8 words, loaded word by word as PDACRT loads a ray) at
+// random over 1 GiB, caches cold: the DRAM bandwidth of scattered sectors, against
+// `hbm_read`'s streaming one. `hbm_random_word`: one 4-byte word per random sector.
+__global__ void hbm_random_sector(const uint32_t* __restrict__ a, uint32_t mask, int iters, uint32_t* out) {
+    uint32_t h = (blockIdx.x * blockDim.x + threadIdx.x) * 2654435761u + 12345u, s = 0;
+    for (int i = 0; i < iters; ++i) {
+        h = h * 1664525u + 1013904223u;
+        const uint32_t* p = a + (size_t)((h >> 2) & mask) * 8;
+#pragma unroll
+        for (int w = 0; w < 8; ++w) s += p[w];
+    }
+    if (s == 12345u) out[0] = s;
+}
+__global__ void hbm_random_word(const uint32_t* __restrict__ a, uint32_t mask, int iters, uint32_t* out) {
+    uint32_t h = (blockIdx.x * blockDim.x + threadIdx.x) * 2654435761u + 12345u, s = 0;
+    for (int i = 0; i < iters; ++i) {
+        h = h * 1664525u + 1013904223u;
+        s += a[(size_t)((h >> 2) & mask) * 8];
+    }
+    if (s == 12345u) out[0] = s;
+}
 }  // namespace micro
 
 // A chain over `n` words whose next index is `stride` words on (mod n): every hop
@@ -349,6 +373,28 @@ static int atomic_and_fence_probes(int sms) {
     cudaFree(scattered);
     cudaFree(words);
     cudaFree(buf);
+    cudaFree(out);
+    return 0;
+}
+
+// The random HBM probes (`microbench hbm`): each touches 2^22 random sectors of a 1 GiB
+// buffer per launch (about 1 in 8 of them twice), caches cold under Nsight.
+static int hbm_probes(int sms) {
+    uint32_t *a, *out;
+    const size_t bytes = (size_t)1 << 30;
+    CHECK(cudaMalloc(&a, bytes));
+    CHECK(cudaMemset(a, 1, bytes));
+    CHECK(cudaMalloc(&out, 64));
+    const uint32_t mask = (uint32_t)(bytes / 32 - 1);
+    const int threads = 256, grid = sms * 8, iters = 16;
+    for (int r = 0; r < PROBE_LAUNCHES; ++r) {
+        micro::hbm_random_sector<<<grid, threads>>>(a, mask, iters, out);
+        micro::hbm_random_word<<<grid, threads>>>(a, mask, iters, out);
+    }
+    CHECK(cudaDeviceSynchronize());
+    printf("probe\thbm_random_sector\tsectors\t%lld\n", (long long)grid * threads * iters);
+    printf("probe\thbm_random_word\tsectors\t%lld\n", (long long)grid * threads * iters);
+    cudaFree(a);
     cudaFree(out);
     return 0;
 }
@@ -484,6 +530,10 @@ int main(int argc, char** argv) {
     if (argc > 1 && std::string(argv[1]) == "fences") {
         printf("device\tname\t%s\n", p.name);
         return atomic_and_fence_probes(p.multiProcessorCount);
+    }
+    if (argc > 1 && std::string(argv[1]) == "hbm") {
+        printf("device\tname\t%s\n", p.name);
+        return hbm_probes(p.multiProcessorCount);
     }
     if (argc > 1 && std::string(argv[1]) == "start") {
         printf("device\tname\t%s\n", p.name);

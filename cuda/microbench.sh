@@ -12,6 +12,7 @@
 # MODE=rounds runs the rounds-of-loads probes alone: their cycles per step are printed
 # (lines `timed`), not read by `gpu_check calibrate` (docs/simt.md, "PDACRT's rounds").
 # MODE=start runs the start-of-a-kernel probes alone (stores, parameters, cold code).
+# MODE=hbm runs the random HBM reads alone (a sector at a time over 1 GiB).
 #
 # ncu runs with --clock-control none (the GPU's own clocks, as in cuda/check.sh) and its
 # default --cache-control all (caches flushed before each kernel), as the checked
