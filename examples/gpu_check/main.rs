@@ -176,6 +176,9 @@ enum Cmd {
         /// Also print each kernel's model terms (µs), to see which bound sets it.
         #[arg(long)]
         terms: bool,
+        /// Also print this kernel launch by launch (predicted against measured).
+        #[arg(long)]
+        launches_of: Option<String>,
     },
     /// Join a `simt` TSV and an ncu CSV into the comparison table.
     Report {
@@ -271,8 +274,8 @@ fn run(a: Args) -> Result<(), String> {
                 .map_err(|e| format!("{} / {}: {e}", names(&probes), names(&csv)))?;
             print!("{}", c.to_text(&header));
         }
-        Cmd::Time { records, ncu: csv, ncu_all, gpu_profile, sensitivity, terms } => {
-            time_run(&records, &csv, &ncu_all, &gpu_profile, sensitivity, terms)?
+        Cmd::Time { records, ncu: csv, ncu_all, gpu_profile, sensitivity, terms, launches_of } => {
+            time_run(&records, &csv, &ncu_all, &gpu_profile, sensitivity, terms, launches_of.as_deref())?
         }
         Cmd::Report { simt, ncu: csv } => {
             let simt = tsv::read(&read(&simt)?).map_err(|e| format!("{}: {e}", simt.display()))?;
@@ -317,6 +320,7 @@ fn time_run(
     profile: &str,
     sensitivity: bool,
     terms: bool,
+    launches_of: Option<&str>,
 ) -> Result<(), String> {
     use warpray::gpu::time_check;
     let p = simt::GpuProfile::load(profile)?;
@@ -334,6 +338,13 @@ fn time_run(
                     "Model terms, µs (the prediction is launch + the largest):\n\n{}",
                     time_check::terms_table(&rows)
                 );
+            }
+            if let Some(k) = launches_of {
+                let each = ncu::parse_launches(&read(c)?).map_err(|e| format!("{}: {e}", c.display()))?;
+                match time_check::launch_table(&recs, &each, &p, k) {
+                    Some(t) => println!("{k}, launch by launch:\n\n{t}"),
+                    None => println!("{k}: not launched the same number of times in both files\n"),
+                }
             }
             every.extend(rows);
             run.kernels = gpu;

@@ -139,6 +139,37 @@ pub fn terms_table(rows: &[KernelTime]) -> String {
     s
 }
 
+/// One kernel launch by launch: the records of `kernel` (matched by the name without
+/// its namespace) beside the GPU's launches of it, in launch order, each predicted with
+/// the GPU launch's registers; `None` when the counts differ.
+pub fn launch_table(records: &[LaunchRecord], gpu: &[GpuKernel], p: &GpuProfile, kernel: &str) -> Option<String> {
+    let mine: Vec<&LaunchRecord> = records.iter().filter(|r| base_name(r.name) == base_name(kernel)).collect();
+    let theirs: Vec<&GpuKernel> = gpu.iter().filter(|g| base_name(&g.name) == base_name(kernel)).collect();
+    if mine.is_empty() || mine.len() != theirs.len() {
+        return None;
+    }
+    let mut s = String::from(
+        "| launch | grid | predicted µs | measured µs | Δ | bound | latency | L1 | L2 | HBM |\n|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|\n",
+    );
+    for (i, (r, g)) in mine.iter().zip(&theirs).enumerate() {
+        let t = predict(&with_registers(r, g.registers), p)?;
+        let _ = writeln!(
+            s,
+            "| {i} | {} | {:.1} | {:.1} | {:+.0} % | {} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            r.grid,
+            t.seconds * 1e6,
+            g.seconds * 1e6,
+            (t.seconds - g.seconds) / g.seconds * 100.0,
+            t.bound(),
+            t.latency * 1e6,
+            t.l1 * 1e6,
+            t.l2 * 1e6,
+            t.hbm * 1e6
+        );
+    }
+    Some(s)
+}
+
 /// One checked run: the emulator's launch records, ncu's per-kernel counters of the same
 /// launches, and (for a pipeline) ncu's total over every kernel it launched.
 pub struct CheckedRun {

@@ -308,3 +308,30 @@ fn the_terms_table_shows_what_each_prediction_is_made_of() {
         assert!(table.contains(&row), "{row} not in the table");
     }
 }
+
+/// `gpu_check time --launches-of`: one row per launch, in order, whose predictions sum to
+/// the kernel's row; a kernel launched a different number of times in the two files has
+/// no table.
+#[test]
+fn the_launch_table_adds_up_to_the_kernels_row() {
+    let p = GpuProfile::named("h200").unwrap();
+    let records = simt::records_from_tsv(&text("simt-records-pdacrt-bunny-1024-primary-shadow.tsv.gz")).unwrap();
+    let csv = text("ncu-pdacrt-bunny-1024-primary-shadow.csv.gz");
+    let launches = warpray::gpu::ncu::parse_launches(&csv).unwrap();
+    let rows = warpray::gpu::time_check::kernel_times(&records, &parse_csv(&csv).unwrap(), &p);
+    let row = rows.iter().find(|r| r.name.ends_with("filter_rays")).unwrap();
+    let table = warpray::gpu::time_check::launch_table(&records, &launches, &p, "pdacrt::filter_rays").unwrap();
+    let cells: Vec<Vec<&str>> =
+        table.lines().skip(2).map(|l| l.split('|').map(str::trim).filter(|c| !c.is_empty()).collect()).collect();
+    assert_eq!(cells.len() as u64, row.launches.1);
+    let predicted: f64 = cells.iter().map(|c| c[2].parse::<f64>().unwrap()).sum();
+    assert!(
+        (predicted - row.predicted * 1e6).abs() <= 0.05 * cells.len() as f64,
+        "{predicted} against {}",
+        row.predicted * 1e6
+    );
+    assert!(cells.iter().enumerate().all(|(i, c)| c[0] == i.to_string()));
+    let first = launches.iter().position(|l| l.name.contains("filter_rays")).unwrap();
+    let fewer: Vec<_> = launches.iter().enumerate().filter(|&(i, _)| i != first).map(|(_, l)| l.clone()).collect();
+    assert!(warpray::gpu::time_check::launch_table(&records, &fewer, &p, "pdacrt::filter_rays").is_none());
+}
