@@ -283,8 +283,9 @@ pub fn format_table(rows: &[KernelSummary]) -> String {
 const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors\tround_repeats";
 
 /// Columns of [`RECORD_HEADER`] that files written before them lack, newest first: the
-/// sectors repeated within rounds of loads (read as none), the sectors fences waited for, the atomics and fences waited for (read as none), and
-/// load rounds (read as one per load request).
+/// sectors repeated within rounds of loads, the sectors fences waited for, the atomics
+/// and fences waited for (all read as none), and load rounds (read as one per load
+/// request).
 const LATER_COLUMNS: &[&str] = &[
     "\tround_repeats",
     "\tlongest_fenced_sectors\tfenced_sectors",
