@@ -168,6 +168,7 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         alu_latency_cycles: busy(&chain) * clock / amount("alu_chain")?,
         l1_sectors_per_cycle_per_sm: l1.loads.sectors as f64 / (busy(&l1) * clock * sms),
         l2_bytes_per_s: l2.loads.sectors as f64 * 32.0 / busy(&l2),
+        l2_scattered_bytes_per_s: l2_scatter.loads.sectors as f64 * 32.0 / busy(&l2_scatter),
         hbm_bytes_per_s: hbm.dram_bytes / busy(&hbm),
         l2_latency_s: l2_latency,
         hbm_latency_s: hbm_latency,
@@ -202,6 +203,10 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         ("alu_latency_cycles", probe_of("alu_chain", "cycles per dependent FMA, one warp")),
         ("l1_sectors_per_cycle_per_sm", probe_of("l1_read", "L1-hit load sectors / SM cycles")),
         ("l2_gb_per_s", probe_of("l2_read", "ld.global.cg sectors x 32 B / time")),
+        (
+            "l2_scattered_gb_per_s",
+            probe_of("l2_scatter", "ld.global.cg of one 4-byte word a sector, sectors x 32 B / time"),
+        ),
         ("hbm_gb_per_s", probe_of("hbm_read", "dram__bytes_read / time")),
         ("l2_latency_ns", probe_of("chase_l2", "one-thread pointer chase, first-pass misses at HBM latency")),
         ("hbm_latency_ns", probe_of("chase_hbm", "one-thread pointer chase, 8,212-byte steps")),
@@ -244,11 +249,6 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         format!(
             "hbm_write: {:.0} GB/s written (dram__bytes_write / time)",
             hbm_write.dram_bytes / busy(&hbm_write) / 1e9
-        ),
-        format!(
-            "l2_scatter: {:.0} GB/s of 32-byte sectors, one per lane ({:.0} % of the coalesced l2_read)",
-            l2_scatter.loads.sectors as f64 * 32.0 / busy(&l2_scatter) / 1e9,
-            100.0 * l2_scatter.loads.sectors as f64 / busy(&l2_scatter) / (l2.loads.sectors as f64 / busy(&l2))
         ),
         format!(
             "shared_rw: {:.2} warp instructions per SM cycle with shared loads and stores",

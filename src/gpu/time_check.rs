@@ -199,13 +199,14 @@ pub fn check(runs: &[CheckedRun], p: &GpuProfile) -> (Vec<KernelTime>, Vec<f64>)
 /// as a markdown table (`docs/simt.md`, "What the check can see").
 pub fn sensitivity(runs: &[CheckedRun], p: &GpuProfile) -> String {
     type Scale = fn(&mut GpuProfile, f64);
-    let values: [(&str, Scale); 7] = [
+    let values: [(&str, Scale); 8] = [
         ("HBM latency", |q, k| q.hbm_latency_s *= k),
         ("L2 latency", |q, k| q.l2_latency_s *= k),
         ("arithmetic latency", |q, k| q.alu_latency_cycles *= k),
         ("launch cost", |q, k| q.launch_s *= k),
         ("HBM bandwidth", |q, k| q.hbm_bytes_per_s *= k),
         ("L2 bandwidth", |q, k| q.l2_bytes_per_s *= k),
+        ("scattered L2 bandwidth", |q, k| q.l2_scattered_bytes_per_s *= k),
         ("issue rate", |q, k| q.issue_per_cycle_per_sm *= k),
     ];
     let scales = [0.5, 0.95, 1.05, 2.0];

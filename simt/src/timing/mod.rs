@@ -41,8 +41,11 @@ pub struct GpuProfile {
     pub alu_latency_cycles: f64,
     /// Global-memory sectors one SM's L1 serves per cycle.
     pub l1_sectors_per_cycle_per_sm: f64,
-    /// L2 bandwidth, bytes per second.
+    /// L2 bandwidth, bytes per second, for sectors read whole (coalesced requests).
     pub l2_bytes_per_s: f64,
+    /// L2 bandwidth for sectors each request touches one word of (scattered 4-byte
+    /// lanes), counted as whole sectors: bytes per second.
+    pub l2_scattered_bytes_per_s: f64,
     /// HBM bandwidth, bytes per second.
     pub hbm_bytes_per_s: f64,
     /// Latency of a load served by L2, seconds.
@@ -89,6 +92,7 @@ const KEYS: &[&str] = &[
     "alu_latency_cycles",
     "l1_sectors_per_cycle_per_sm",
     "l2_gb_per_s",
+    "l2_scattered_gb_per_s",
     "hbm_gb_per_s",
     "l2_latency_ns",
     "hbm_latency_ns",
@@ -167,6 +171,7 @@ impl GpuProfile {
             alu_latency_cycles: get("alu_latency_cycles")?,
             l1_sectors_per_cycle_per_sm: get("l1_sectors_per_cycle_per_sm")?,
             l2_bytes_per_s: get("l2_gb_per_s")? * 1e9,
+            l2_scattered_bytes_per_s: get("l2_scattered_gb_per_s")? * 1e9,
             hbm_bytes_per_s: get("hbm_gb_per_s")? * 1e9,
             l2_latency_s: get("l2_latency_ns")? * 1e-9,
             hbm_latency_s: get("hbm_latency_ns")? * 1e-9,
@@ -203,6 +208,7 @@ impl GpuProfile {
             self.alu_latency_cycles,
             self.l1_sectors_per_cycle_per_sm,
             self.l2_bytes_per_s / 1e9,
+            self.l2_scattered_bytes_per_s / 1e9,
             self.hbm_bytes_per_s / 1e9,
             self.l2_latency_s * 1e9,
             self.hbm_latency_s * 1e9,
@@ -309,6 +315,17 @@ pub fn blocks_per_sm(p: &GpuProfile, block: u32, shared_bytes: usize, registers:
     n.max(1.0)
 }
 
+/// The L2 bandwidth a launch's sectors see: `l2_read`'s for sectors its requests fill
+/// (eight 4-byte lanes a sector), `l2_scatter`'s for sectors a request touches one word
+/// of, and in between by the share of the sectors' words the requests fill, from the
+/// launch's lanes per sector (each lane counted as one 4-byte word, as most are).
+fn l2_rate(r: &LaunchRecord, sectors: f64, p: &GpuProfile) -> f64 {
+    let lanes = (r.loads.lanes + r.stores.lanes + r.atomics.lanes) as f64;
+    let filled = if sectors > 0.0 { (lanes / sectors / 8.0).min(1.0) } else { 1.0 };
+    let scattered = ((1.0 - filled) / (1.0 - 1.0 / 8.0)).clamp(0.0, 1.0);
+    1.0 / ((1.0 - scattered) / p.l2_bytes_per_s + scattered / p.l2_scattered_bytes_per_s)
+}
+
 /// The predicted GPU time of a measured launch on `p` (an unmeasured record has no
 /// counters: `None`).
 pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
@@ -358,7 +375,7 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
         launch: p.launch_s,
         issue: issued / (p.issue_per_cycle_per_sm * sms) * cycle,
         l1: sectors / (p.l1_sectors_per_cycle_per_sm * sms) * cycle,
-        l2: l2_sectors * SECTOR_BYTES as f64 / p.l2_bytes_per_s,
+        l2: l2_sectors * SECTOR_BYTES as f64 / l2_rate(r, sectors, p),
         hbm: footprint * SECTOR_BYTES as f64 / p.hbm_bytes_per_s,
         atomics: distinct / p.atomics_per_s + same / p.same_address_atomics_per_s,
         fences: r.waits.fences as f64 / p.fences_per_s + r.waits.fenced_sectors as f64 / p.fenced_sectors_per_s,

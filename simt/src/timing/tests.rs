@@ -161,3 +161,21 @@ fn a_sector_repeated_within_a_round_is_waited_for_once() {
     let mixed = 0.25 * p.hbm_latency_s + 0.75 * p.l2_latency_s + 4.0 * p.alu_latency_cycles / p.clock_hz;
     assert!((diluted - mixed).abs() <= 1e-3 * mixed, "{diluted} against {mixed}");
 }
+
+#[test]
+fn sectors_a_request_touches_one_word_of_cross_l2_at_the_scattered_rate() {
+    // One warp's loads of 32 lanes: one sector a lane (scattered), eight lanes a sector
+    // (coalesced 4-byte words), and in between by the words filled.
+    let p = profile();
+    let l2 = |lanes_per_sector: f64| {
+        let r = launch(1, 4, 4, (8.0 * 4.0 * 32.0 / lanes_per_sector) as u64, 0);
+        let t = predict(&r, &p).unwrap();
+        t.l2 / (r.block_sectors as f64 * SECTOR_BYTES as f64)
+    };
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b;
+    assert!(close(l2(1.0), 1.0 / p.l2_scattered_bytes_per_s));
+    assert!(close(l2(8.0), 1.0 / p.l2_bytes_per_s));
+    // Four lanes a sector fill half its words: 4/7 of the way from coalesced to scattered.
+    assert!(close(l2(4.0), 4.0 / 7.0 / p.l2_scattered_bytes_per_s + 3.0 / 7.0 / p.l2_bytes_per_s));
+    assert!(l2(1.0) > 1.4 * l2(8.0), "the H200's scattered L2 rate is two thirds of the coalesced one");
+}
