@@ -444,44 +444,39 @@ static int round_probes(int sms) {
     for (auto& x : v) x = (h = h * 1664525u + 1013904223u) >> 7;
     CHECK(cudaMemcpy(recs, v.data(), v.size() * 4, cudaMemcpyHostToDevice));
     const int warm = 4000, steps = 20000, many = 2000;
-    struct Round {
-        const char* name;
-        int grid, block, warm, steps;
-    } rounds[] = {{"round_lane_1", 1, 1, warm, steps},         {"round_lane_9", 1, 1, warm, steps},
-                  {"round_warp_1", 1, 32, warm, steps},        {"round_warp_9", 1, 32, warm, steps},
-                  {"round_sm_9", sms, 256, 200, many},          {"round_full_9", sms * 8, 256, 200, many},
-                  {"round_sm_9_wide", sms, 256, 200, many},     {"round_full_9_wide", sms * 8, 256, 200, many},
-                  {"round_sm_1_wide", sms, 256, 200, many},     {"round_full_1_wide", sms * 8, 256, 200, many},
-                  {"round_lane_1_ca", 1, 1, 200000, steps},    {"round_lane_9_ca", 1, 1, 200000, steps},
-                  {"round_warp_9_ca", 1, 32, 20000, steps},    {"round_lane_1_cg", 1, 1, 200000, steps}};
-    int k = 0;
-    for (auto& r : rounds) {
+    using RoundKernel = void (*)(const uint32_t*, int, int, long long*, uint32_t*);
+    // Launches `kernel` over `data` PROBE_LAUNCHES times; prints its steps (`unit`) and
+    // each launch's cycles a timed step.
+    auto timed = [&](const char* name, const char* unit, RoundKernel kernel, const uint32_t* data, int grid,
+                     int block, int warm, int steps) -> int {
         std::vector<long long> c(PROBE_LAUNCHES);
-        for (int l = 0; l < PROBE_LAUNCHES; ++l) {
-            switch (k) {
-            case 0: micro::round_lane_1<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            case 1: micro::round_lane_9<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            case 2: micro::round_warp_1<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            case 3: micro::round_warp_9<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            case 4: micro::round_sm_9<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            case 5: micro::round_full_9<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            case 6: micro::round_sm_9_wide<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            case 7: micro::round_full_9_wide<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            case 8: micro::round_sm_1_wide<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            case 9: micro::round_full_1_wide<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            case 10: micro::round_lane_1_ca<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            case 11: micro::round_lane_9_ca<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            case 12: micro::round_warp_9_ca<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            default: micro::round_lane_1_cg<<<r.grid, r.block>>>(recs, r.warm, r.steps, cycles + l, out); break;
-            }
-        }
+        for (int l = 0; l < PROBE_LAUNCHES; ++l) kernel<<<grid, block>>>(data, warm, steps, cycles + l, out);
         CHECK(cudaDeviceSynchronize());
         CHECK(cudaMemcpy(c.data(), cycles, PROBE_LAUNCHES * 8, cudaMemcpyDeviceToHost));
-        printf("probe\t%s\tsteps\t%d\n", r.name, r.warm + r.steps);
-        for (int l = 0; l < PROBE_LAUNCHES; ++l)
-            printf("timed\t%s\tcycles_per_step\t%.2f\n", r.name, (double)c[l] / r.steps);
-        ++k;
-    }
+        printf("probe\t%s\t%s\t%d\n", name, unit, warm + steps);
+        for (int l = 0; l < PROBE_LAUNCHES; ++l) printf("timed\t%s\tcycles_per_step\t%.2f\n", name, (double)c[l] / steps);
+        return 0;
+    };
+    struct Round {
+        const char* name;
+        RoundKernel kernel;
+        int grid, block, warm, steps;
+    } rounds[] = {{"round_lane_1", micro::round_lane_1, 1, 1, warm, steps},
+                  {"round_lane_9", micro::round_lane_9, 1, 1, warm, steps},
+                  {"round_warp_1", micro::round_warp_1, 1, 32, warm, steps},
+                  {"round_warp_9", micro::round_warp_9, 1, 32, warm, steps},
+                  {"round_sm_9", micro::round_sm_9, sms, 256, 200, many},
+                  {"round_full_9", micro::round_full_9, sms * 8, 256, 200, many},
+                  {"round_sm_9_wide", micro::round_sm_9_wide, sms, 256, 200, many},
+                  {"round_full_9_wide", micro::round_full_9_wide, sms * 8, 256, 200, many},
+                  {"round_sm_1_wide", micro::round_sm_1_wide, sms, 256, 200, many},
+                  {"round_full_1_wide", micro::round_full_1_wide, sms * 8, 256, 200, many},
+                  {"round_lane_1_ca", micro::round_lane_1_ca, 1, 1, 200000, steps},
+                  {"round_lane_9_ca", micro::round_lane_9_ca, 1, 1, 200000, steps},
+                  {"round_warp_9_ca", micro::round_warp_9_ca, 1, 32, 20000, steps},
+                  {"round_lane_1_cg", micro::round_lane_1_cg, 1, 1, 200000, steps}};
+    for (auto& r : rounds)
+        if (timed(r.name, "steps", r.kernel, recs, r.grid, r.block, r.warm, r.steps)) return 1;
     {
         // The chases past L1: 2^19 words, each naming the one 33 on.
         uint32_t* chain_buf;
@@ -489,34 +484,18 @@ static int round_probes(int sms) {
         CHECK(cudaMalloc(&chain_buf, words * 4));
         auto v = chain(words, 33);
         CHECK(cudaMemcpy(chain_buf, v.data(), words * 4, cudaMemcpyHostToDevice));
-        for (int ca = 1; ca >= 0; --ca) {
-            std::vector<long long> c(PROBE_LAUNCHES);
-            for (int l = 0; l < PROBE_LAUNCHES; ++l) {
-                if (ca) micro::chase_l2_ca<<<1, 1>>>(chain_buf, 40000, steps, cycles + l, out);
-                else micro::chase_l2_cg<<<1, 1>>>(chain_buf, 40000, steps, cycles + l, out);
-            }
-            CHECK(cudaDeviceSynchronize());
-            CHECK(cudaMemcpy(c.data(), cycles, PROBE_LAUNCHES * 8, cudaMemcpyDeviceToHost));
-            const char* name = ca ? "chase_l2_ca" : "chase_l2_cg";
-            printf("probe\t%s\thops\t%d\n", name, 40000 + steps);
-            for (int l = 0; l < PROBE_LAUNCHES; ++l) printf("timed\t%s\tcycles_per_step\t%.2f\n", name, (double)c[l] / steps);
-        }
+        if (timed("chase_l2_ca", "hops", micro::chase_l2_ca, chain_buf, 1, 1, 40000, steps)) return 1;
+        if (timed("chase_l2_cg", "hops", micro::chase_l2_cg, chain_buf, 1, 1, 40000, steps)) return 1;
         cudaFree(chain_buf);
     }
     // The wait of a round against the warps waiting beside it: one block a SM of 1 to
     // 32 warps, each lane chasing nine (or one) scattered loads a step over 37.7 MB.
     for (int nine = 0; nine < 2; ++nine)
         for (int warps = 1; warps <= 32; warps *= 2) {
-            std::vector<long long> c(PROBE_LAUNCHES);
-            for (int l = 0; l < PROBE_LAUNCHES; ++l) {
-                if (nine) micro::round_sm_9_wide<<<sms, 32 * warps>>>(recs, 200, many, cycles + l, out);
-                else micro::round_sm_1_wide<<<sms, 32 * warps>>>(recs, 200, many, cycles + l, out);
-            }
-            CHECK(cudaDeviceSynchronize());
-            CHECK(cudaMemcpy(c.data(), cycles, PROBE_LAUNCHES * 8, cudaMemcpyDeviceToHost));
-            printf("probe\tround_sweep_%d_w%d\tsteps\t%d\n", nine ? 9 : 1, warps, 200 + many);
-            for (int l = 0; l < PROBE_LAUNCHES; ++l)
-                printf("timed\tround_sweep_%d_w%d\tcycles_per_step\t%.2f\n", nine ? 9 : 1, warps, (double)c[l] / many);
+            char name[32];
+            snprintf(name, sizeof name, "round_sweep_%d_w%d", nine ? 9 : 1, warps);
+            RoundKernel k = nine ? micro::round_sm_9_wide : micro::round_sm_1_wide;
+            if (timed(name, "steps", k, recs, sms, 32 * warps, 200, many)) return 1;
         }
     cudaFree(recs);
     cudaFree(out);
