@@ -9,7 +9,7 @@ use crate::render::cache::kernels::{CacheRead, known_densities};
 use crate::render::context::Context;
 use crate::render::walk::SHADE_REGION;
 use crate::sampling::{Frame, Rng};
-use crate::scene::Camera;
+use crate::scene::{Camera, Projection};
 use glam::{Vec2, Vec3};
 use simt::{DeviceCopy, Global, GlobalMut, Thread};
 
@@ -78,15 +78,16 @@ pub fn generate(
     pass: u32,
     seed: u64,
     (cam, filter, mode): (&Camera, Filter, FilterMode),
-    (width, height): (u32, u32),
+    proj: &Projection,
     slots: &GlobalMut<Slot>,
     vertices: &GlobalMut<Vertex>,
 ) {
     let slot = t.load(free, i) as usize;
     let pixel = first_pixel + i as u32;
     let rng = Rng::for_sample(seed, pixel as u64, pass as u64);
+    let width = proj.width;
     let (film, weight) = filter.camera_sample(mode, seed, (pixel % width, pixel / width), width, pass);
-    let ray = cam.generate_ray(film, width, height, Vec2::ZERO);
+    let ray = cam.ray(proj, film, Vec2::ZERO);
     let v0 = Vertex::new(VertexKind::Camera, cam.position, cam.forward, u32::MAX, Vec3::ONE, false, Vec3::ZERO);
     t.store(vertices, slot * MAX_CAMERA_VERTICES, v0);
     t.store(

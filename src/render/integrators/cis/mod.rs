@@ -231,9 +231,9 @@ impl<'d> CameraPool<'d> {
             return 0;
         }
         let (fv, sv, vv) = (free.view(), self.slots.view_mut(), self.vertices.view_mut());
-        let (o, cam) = (ctx.opts, ctx.scene.camera);
+        let (o, cam, proj) = (ctx.opts, ctx.scene.camera, ctx.projection);
         dev.for_each("cis::generate", k, |t, i| {
-            generate(t, i, &fv, first, pass, o.seed, (&cam, o.filter, o.filter_mode), (o.width, o.height), &sv, &vv)
+            generate(t, i, &fv, first, pass, o.seed, (&cam, o.filter, o.filter_mode), &proj, &sv, &vv)
         });
         self.active = append_active(dev, "cis::append_active", &self.active, &free, k);
         k as u32
