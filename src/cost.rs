@@ -35,6 +35,9 @@ pub const SQRT: u32 = 10;
 pub const EXP: u32 = 10;
 /// `sinf` or `cosf` (the longer, `cosf`'s).
 pub const SIN_COS: u32 = 27;
+/// Both of `sampling::sin_cos_quarter`'s polynomials on [−π/4, π/4]: the square and
+/// their multiplies and adds.
+pub const SIN_COS_QUARTER: u32 = 17;
 /// A component-wise `Vec3` add, subtract or multiply.
 pub const V3: u32 = 3;
 /// `Vec3 / f32`: three divisions.

@@ -171,7 +171,7 @@ pub fn power_heuristic(pf: f32, pg: f32) -> f32 {
 #[track_caller]
 pub fn concentric_disk(u: Vec2) -> Vec2 {
     let _inlined = crate::cost::scope();
-    use crate::cost::{BRANCH, DIV};
+    use crate::cost::{BRANCH, DIV, SIN_COS_QUARTER};
     crate::cost::declare!(4 + 2 * BRANCH);
     let o = 2.0 * u - Vec2::ONE;
     if o == Vec2::ZERO {
@@ -188,10 +188,6 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
         Vec2::new(sin, cos) * o.y
     }
 }
-
-/// The arithmetic of [`sin_cos_quarter`] for `simt`'s model: the square and the two
-/// polynomials' multiplies and adds.
-const SIN_COS_QUARTER: u32 = 17;
 
 /// Sine and cosine of `x` in [−π/4, π/4] as polynomials in x² (the single-precision
 /// minimax coefficients of Cephes's `sinf` and `cosf` for that interval; within 6e-8 of
