@@ -18,7 +18,7 @@
 use super::context::Context;
 use crate::bsdf::TransportMode;
 use crate::cost::declare;
-use crate::cost::{BRANCH, DIV, DOT, NORMALIZE, SIN_COS, SQRT, V3, V3_DIV, VERTEX_COPY};
+use crate::cost::{BRANCH, DIV, DOT, NORMALIZE, SQRT, V3, V3_DIV, VERTEX_COPY};
 use crate::geometry::{Ray, offset_ray_origin};
 use crate::lights::LightSample;
 use crate::sampling::Rng;
@@ -158,10 +158,11 @@ pub fn camera_importance(cam: &Camera, proj: &Projection, w: Vec3, margin: f32) 
     if cos <= 0.0 {
         return None;
     }
-    // The half-angle's tangent (a sine, a cosine and their quotient), the projection
-    // onto the film and its bounds test, the two densities.
-    declare!(2 * SIN_COS + 5 * DIV + V3_DIV + 2 * DOT + 4 * BRANCH + 22);
-    // (The tangent and the aspect ratio come worked out once per render: `proj`.)
+    // The projection onto the film and its bounds test, the two densities; the
+    // half-angle's tangent comes worked out once per render (`proj`), as the GPU twin
+    // reads it from the scene's constants, and the twin's one division for the aspect
+    // ratio is counted here.
+    declare!(5 * DIV + V3_DIV + 2 * DOT + 4 * BRANCH + 22);
     let Projection { tan_half, aspect, width, height } = *proj;
     let p = w / cos;
     let (sx, sy) = (p.dot(cam.right) / (tan_half * aspect), p.dot(cam.up) / tan_half);
