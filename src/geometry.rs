@@ -267,6 +267,14 @@ pub fn inv_dir(dir: Vec3) -> Vec3 {
     Vec3::ONE / dir
 }
 
+/// The point of triangle `[a, b, c]` with barycentric weights `u` (of `b`) and `v` (of
+/// `c`): a hit's position, a point sampled on an area light. One expression, so that
+/// every caller rounds it the same way.
+#[inline(always)]
+pub fn barycentric_point([a, b, c]: [Vec3; 3], u: f32, v: f32) -> Vec3 {
+    a * (1.0 - u - v) + b * u + c * v
+}
+
 /// Geometric normal (not normalised) of a triangle, following its winding.
 #[inline]
 pub fn triangle_normal(p0: Vec3, p1: Vec3, p2: Vec3) -> Vec3 {

@@ -3,6 +3,7 @@
 //! on the chosen triangle.
 
 use crate::film::luminance;
+use crate::geometry::barycentric_point;
 use crate::sampling::uniform_triangle;
 use crate::scene::Scene;
 use glam::{Vec2, Vec3};
@@ -32,6 +33,34 @@ pub enum Light {
         /// Radiant intensity.
         intensity: Vec3,
     },
+}
+
+impl Light {
+    /// The sample of this light at `position` (its point light's position, or a point
+    /// of its triangle: [`area_point`]), chosen with probability `p_sel`.
+    #[inline(always)]
+    pub(crate) fn sample_at(&self, position: Vec3, p_sel: f32) -> LightSample {
+        match *self {
+            Light::Area { tri, area, normal, radiance } => {
+                LightSample { position, normal, emitted: radiance, pdf: p_sel / area, is_delta: false, tri }
+            }
+            Light::Point { intensity, .. } => LightSample {
+                position,
+                normal: Vec3::ZERO,
+                emitted: intensity,
+                pdf: p_sel,
+                is_delta: true,
+                tri: u32::MAX,
+            },
+        }
+    }
+}
+
+/// The point `u` places uniformly on an area light's triangle (`corners`).
+#[inline(always)]
+pub(crate) fn area_point(corners: [Vec3; 3], u: Vec2) -> Vec3 {
+    let (b1, b2) = uniform_triangle(u);
+    barycentric_point(corners, b1, b2)
 }
 
 /// A point sampled on a light.
@@ -129,6 +158,20 @@ impl Lights {
         lo.min(self.lights.len() - 1)
     }
 
+    /// The light `u_select` chooses and the probability of choosing it: the first step
+    /// of [`Lights::sample`], apart for callers that place the point themselves (the
+    /// path tracer's lanes of diffuse hits). `None` when there is no light or the
+    /// choice has no probability.
+    #[inline]
+    pub(crate) fn pick(&self, u_select: f32) -> Option<(&Light, f32)> {
+        if self.lights.is_empty() {
+            return None;
+        }
+        let i = self.select(u_select);
+        let p_sel = self.select_pdf(i);
+        if p_sel <= 0.0 { None } else { Some((&self.lights[i], p_sel)) }
+    }
+
     /// Picks a light with `u_select` and a point on it with `u`.
     #[inline(always)]
     #[track_caller]
@@ -140,34 +183,20 @@ impl Lights {
         // (`simt`'s model: the binary search's trips, the selection's difference.)
         let trips = usize::BITS - self.cdf.len().leading_zeros();
         crate::cost::declare!(6 * trips + 4 + 2 * crate::cost::BRANCH);
-        let i = self.select(u_select);
-        let p_sel = self.select_pdf(i);
-        if p_sel <= 0.0 {
-            return None;
-        }
+        let (light, p_sel) = self.pick(u_select)?;
         crate::cost::declare!(crate::cost::BRANCH);
-        let light = &self.lights[i];
-        Some(match *light {
-            Light::Area { tri, area, normal, radiance } => {
+        let position = match *light {
+            Light::Area { tri, .. } => {
                 use crate::cost::{DIV, SQRT, V3};
                 crate::cost::declare!(SQRT + 3 + 6 * V3 + DIV, reads(light, 9));
-                let [a, b, c] = scene.vertices(tri);
-                let (b1, b2) = uniform_triangle(u);
-                let position = a * (1.0 - b1 - b2) + b * b1 + c * b2;
-                LightSample { position, normal, emitted: radiance, pdf: p_sel / area, is_delta: false, tri }
+                area_point(scene.vertices(tri), u)
             }
-            Light::Point { position, intensity } => {
+            Light::Point { position, .. } => {
                 crate::cost::reads!(light, 7);
-                LightSample {
-                    position,
-                    normal: Vec3::ZERO,
-                    emitted: intensity,
-                    pdf: p_sel,
-                    is_delta: true,
-                    tri: u32::MAX,
-                }
+                position
             }
-        })
+        };
+        Some(light.sample_at(position, p_sel))
     }
 
     /// Selection probability of the point light at `position` (0 if there is none).

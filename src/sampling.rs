@@ -138,6 +138,7 @@ pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
 
 /// Uniform point on a triangle, as barycentric weights of corners 1 and 2 (Heitz 2019's
 /// low-distortion split would do too; this is the classic square-root warp).
+#[inline]
 pub fn uniform_triangle(u: Vec2) -> (f32, f32) {
     let su = u.x.sqrt();
     (su * (1.0 - u.y), su * u.y)
@@ -152,7 +153,7 @@ pub fn uniform_sphere(u: Vec2) -> Vec3 {
 }
 
 /// Power heuristic (β = 2) for two strategies with `nf` and `ng` samples.
-#[inline]
+#[inline(always)]
 pub fn power_heuristic(pf: f32, pg: f32) -> f32 {
     let (f, g) = (pf * pf, pg * pg);
     if f == 0.0 && g == 0.0 {

@@ -71,6 +71,7 @@ impl Material {
     /// The relative index a scattering from `wo` to `wi` crosses: the interior's over
     /// the exterior's for a refraction into a dielectric, its inverse out of one, 1 for
     /// every reflection (Mitsuba's `BSDFSample3f::eta`).
+    #[inline]
     pub fn eta(&self, wo: Vec3, wi: Vec3) -> f32 {
         reads!(self, 1);
         match *self {
@@ -203,6 +204,15 @@ impl Material {
     #[inline]
     #[track_caller]
     pub fn sample_f(&self, wo: Vec3, u_lobe: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
+        self.sample_f_inlined(wo, u_lobe, u, mode)
+    }
+
+    /// [`Material::sample_f`], always inlined: for a caller that knows the material's
+    /// kind, so that only its arm is left (the path tracer's lanes of diffuse hits,
+    /// whose loop the compiler then runs on SIMD lanes).
+    #[inline(always)]
+    #[track_caller]
+    pub(crate) fn sample_f_inlined(&self, wo: Vec3, u_lobe: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
         let _inlined = crate::cost::scope();
         declare!(BRANCH);
         if wo.z == 0.0 {

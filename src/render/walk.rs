@@ -17,7 +17,7 @@ use super::bidir::{Pending, Vertex, VertexKind, camera_vertex, light_vertex};
 use super::context::{Context, Passes};
 use crate::bsdf::TransportMode;
 use crate::cast::CastStats;
-use crate::geometry::{Hit, Ray, offset_ray_origin};
+use crate::geometry::{Hit, Ray, barycentric_point, offset_ray_origin};
 use crate::sampling::{Frame, Rng, cosine_hemisphere, uniform_sphere};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -302,7 +302,7 @@ pub(crate) fn step(
     if n == Vec3::ZERO {
         return None;
     }
-    let p = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+    let p = barycentric_point([a, b, c], hit.u, hit.v);
     let mut vertex = Vertex::new(VertexKind::Surface, p, n, hit.prim, w.beta, false, ctx.scene.emission_of(hit.prim));
     if len + 1 >= max_vertices {
         return Some(vertex);

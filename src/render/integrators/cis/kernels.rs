@@ -3,7 +3,7 @@
 //! host in `mod.rs` does the ray casting through the caster trait between launches.
 
 use crate::filter::{Filter, FilterMode};
-use crate::geometry::{Hit, Ray, offset_ray_origin};
+use crate::geometry::{Hit, Ray, barycentric_point, offset_ray_origin};
 use crate::render::bidir::{MAX_PATH, Pending, Vertex, VertexKind, VertexList};
 use crate::render::cache::kernels::{CacheRead, known_densities};
 use crate::render::context::Context;
@@ -202,7 +202,7 @@ fn shade_lane(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
     // The hit point, and the camera subpath copied into a vertex list with the new
     // vertex (the loads are the kernel's own).
     crate::cost::declare!(2 + 3 * V3 + 2 * V3 + (slot.depth + 1) * VERTEX_COPY);
-    let p = p0 * (1.0 - hit.u - hit.v) + p1 * hit.u + p2 * hit.v;
+    let p = barycentric_point([p0, p1, p2], hit.u, hit.v);
     let vbase = slot_id * MAX_CAMERA_VERTICES;
     let depth = slot.depth as usize;
     let mut cam = VertexList::default();

@@ -5,35 +5,23 @@
 //! chunk of the pass's pixels, or the whole pass for casters that want large batches
 //! ([`CHUNK`]).
 
-use crate::bsdf::TransportMode;
 use crate::cast::CastStats;
 use crate::film::Film;
-use crate::geometry::{Hit, Ray, offset_ray_origin};
+use crate::geometry::{Hit, Ray};
 use crate::render::compact::compact_into;
 use crate::render::context::{Context, Passes};
-use crate::sampling::{Frame, Rng, power_heuristic};
+use crate::sampling::Rng;
 use glam::Vec3;
+use lanes::Group;
 use rayon::prelude::*;
+use shade::shade;
+use state::{Bounce, PathState, Shadow};
 
-#[derive(Clone, Copy, Debug)]
-struct PathState {
-    pixel: u32,
-    rng: Rng,
-    ray: Ray,
-    throughput: Vec3,
-    radiance: Vec3,
-    /// Solid-angle pdf of the BSDF sample that made `ray` (for MIS on emitter hits).
-    prev_pdf: f32,
-    /// η² of the relative indices the path's refractions crossed (Russian roulette
-    /// undoes the 1/η² that radiance took at each).
-    eta2: f32,
-    prev_delta: bool,
-    alive: bool,
-}
-
-/// A path's light sample this bounce, waiting for its shadow ray: the ray and the
-/// radiance it brings if unblocked.
-type Shadow = Option<(Ray, Vec3)>;
+mod lanes;
+mod shade;
+mod state;
+#[cfg(test)]
+mod tests;
 
 /// Paths traced together from camera to end by one task, when the caster takes small
 /// batches well (a stored structure traversed per ray or per packet): each chunk's
@@ -153,12 +141,13 @@ impl Wavefront {
             self.hits.resize(self.rays.len(), Hit::MISS);
             stats = stats.merge(ctx.caster.closest(&self.rays, &mut self.hits));
 
+            let bounce = Bounce::new(depth, ctx.opts.max_depth, ctx.opts.rr_depth);
+            self.shadows.resize(self.paths.len(), None);
             self.paths
-                .par_iter_mut()
-                .zip(&self.hits)
-                .with_min_len(SERIAL)
-                .map(|(p, hit)| shade(ctx, depth, p, hit))
-                .collect_into_vec(&mut self.shadows);
+                .par_chunks_mut(SERIAL)
+                .zip(self.hits.par_chunks(SERIAL))
+                .zip(self.shadows.par_chunks_mut(SERIAL))
+                .for_each(|((paths, hits), shadows)| shade_all(ctx, bounce, paths, hits, shadows));
 
             // Shadow rays of this bounce, as one batch (in path order).
             compact_into(&self.shadows, &mut self.shadow_owner, |s| s.is_some(), |i, _| i as u32);
@@ -189,111 +178,20 @@ impl Wavefront {
     }
 }
 
-/// One bounce of one path: emission, light sample, BSDF sample. Returns the light
-/// sample's shadow ray and what it brings, if any.
-fn shade(ctx: &Context, depth: u32, p: &mut PathState, hit: &Hit) -> Shadow {
-    if !hit.is_hit() {
-        p.alive = false;
-        return None;
-    }
-    let scene = ctx.scene;
-    let [a, b, c] = scene.vertices(hit.prim);
-    let pos = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
-    let ng = ctx.normal(hit.prim);
-    let wo = -p.ray.dir.normalize();
-    if ng == Vec3::ZERO {
-        p.alive = false;
-        return None;
-    }
-
-    let le = scene.emission_of(hit.prim);
-    let cos_emit = ng.dot(wo);
-    if le.max_element() > 0.0 && cos_emit > 0.0 {
-        let weight = if depth == 0 || p.prev_delta {
-            1.0
-        } else {
-            let dist = hit.t * p.ray.dir.length();
-            let pdf_light = ctx.lights.pdf_area(hit.prim) * dist * dist / cos_emit;
-            power_heuristic(p.prev_pdf, pdf_light)
-        };
-        p.radiance += p.throughput * le * weight;
-    }
-    if depth >= ctx.opts.max_depth {
-        p.alive = false;
-        return None;
-    }
-
-    let frame = Frame::from_normal(ng);
-    let wo_local = frame.to_local(wo);
-    let material = scene.bsdf(hit.prim, wo_local);
-    let mode = TransportMode::Radiance;
-
-    // Next-event estimation.
-    let mut shadow = None;
-    if !material.is_delta()
-        && let Some(ls) = ctx.lights.sample(scene, p.rng.uniform(), p.rng.uniform2())
-    {
-        let to_light = ls.position - pos;
-        let dist2 = to_light.length_squared();
-        let wi = to_light / dist2.sqrt();
-        let wi_local = frame.to_local(wi);
-        let f = material.f(wo_local, wi_local, mode);
-        let cos_surf = wi_local.z.abs();
-        let contribution = if f == Vec3::ZERO || dist2 == 0.0 {
-            Vec3::ZERO
-        } else if ls.is_delta {
-            f * cos_surf * ls.emitted / (dist2 * ls.pdf)
-        } else {
-            let cos_light = ls.normal.dot(-wi);
-            if cos_light <= 0.0 {
-                Vec3::ZERO
-            } else {
-                let pdf_light = ls.pdf * dist2 / cos_light;
-                let weight = power_heuristic(pdf_light, material.pdf(wo_local, wi_local));
-                f * cos_surf * ls.emitted * weight / pdf_light
+/// One bounce of a run of paths: the hits on Lambertian surfaces through the SIMD
+/// lanes, sixteen at a time, the others one at a time. Each path's shadow goes to its
+/// slot of `shadows`.
+fn shade_all(ctx: &Context, bounce: Bounce, paths: &mut [PathState], hits: &[Hit], shadows: &mut [Shadow]) {
+    let mut group = Group::new();
+    for (k, hit) in hits.iter().enumerate() {
+        if lanes::takes(ctx, bounce, hit) {
+            group.push(ctx, bounce, k, &mut paths[k], hit);
+            if group.is_full() {
+                group.shade(bounce, paths, shadows);
             }
-        };
-        let contribution = p.throughput * contribution;
-        if contribution.max_element() > 0.0 && contribution.is_finite() {
-            let origin = offset_ray_origin(pos, if wi.dot(ng) > 0.0 { ng } else { -ng });
-            let target = if ls.is_delta { ls.position } else { offset_ray_origin(ls.position, ls.normal) };
-            shadow = Some((Ray::segment(origin, target - origin, 1.0 - 1e-4), contribution));
+        } else {
+            shadows[k] = shade(ctx, bounce, &mut paths[k], hit);
         }
     }
-
-    // Continue the path.
-    let Some(s) = material.sample_f(wo_local, p.rng.uniform(), p.rng.uniform2(), mode) else {
-        p.alive = false;
-        return shadow;
-    };
-    let wi = frame.to_world(s.wi);
-    p.throughput *= s.weight;
-    p.prev_pdf = s.pdf;
-    p.prev_delta = s.delta;
-    let eta = material.eta(wo_local, s.wi);
-    p.eta2 *= eta * eta;
-    // Russian roulette once the path has made `rr_depth` bounces (this one included).
-    if depth + 1 >= ctx.opts.rr_depth {
-        let q = (p.throughput.max_element() * p.eta2).min(0.95);
-        if p.rng.uniform() >= q {
-            p.alive = false;
-            return shadow;
-        }
-        p.throughput /= q;
-    }
-    if !p.throughput.is_finite() || p.throughput.max_element() <= 0.0 {
-        p.alive = false;
-        return shadow;
-    }
-    p.ray = Ray::new(offset_ray_origin(pos, if wi.dot(ng) > 0.0 { ng } else { -ng }), wi);
-    shadow
-}
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn a_path_state_is_88_bytes() {
-        // The figure the chunk size's comment and docs/mitsuba.md give.
-        assert_eq!(std::mem::size_of::<super::PathState>(), 88);
-    }
+    group.shade(bounce, paths, shadows);
 }
