@@ -51,7 +51,7 @@ impl Vec3s {
 /// What the lanes read: per lane one path's state, its hit and its light sample's
 /// ingredients.
 #[derive(Default)]
-struct Inputs {
+pub(super) struct Inputs {
     corners: [Vec3s; 3],
     /// The hit's barycentric weights of corners 1 and 2, and its distance.
     u: Lane,
@@ -87,7 +87,7 @@ struct Inputs {
 
 /// What the lanes write: the path's new state and its shadow ray.
 #[derive(Default)]
-struct Outputs {
+pub(super) struct Outputs {
     radiance: Vec3s,
     throughput: Vec3s,
     prev_pdf: Lane,
@@ -123,18 +123,29 @@ pub(super) struct Group {
 }
 
 /// The lanes' loop compiled for one extension: unsafe to call where the CPU lacks it.
-type Kernel = unsafe fn(&Inputs, Bounce, &mut Outputs);
+pub(super) type Kernel = unsafe fn(&Inputs, Bounce, &mut Outputs);
+
+/// The lanes' loop for every vector extension this CPU has, widest first, by name.
+pub(super) fn kernels() -> Vec<(&'static str, Kernel)> {
+    let mut kernels = Vec::with_capacity(3);
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        kernels.push(("AVX-512", shade_avx512 as Kernel));
+    }
+    if std::arch::is_x86_feature_detected!("avx2") {
+        kernels.push(("AVX2", shade_avx2 as Kernel));
+    }
+    kernels.push(("SSE2", shade_baseline as Kernel));
+    kernels
+}
 
 impl Group {
     /// An empty group, with the loop for this CPU's widest vector extension.
     pub(super) fn new() -> Group {
-        let kernel: Kernel = if std::arch::is_x86_feature_detected!("avx512f") {
-            shade_avx512
-        } else if std::arch::is_x86_feature_detected!("avx2") {
-            shade_avx2
-        } else {
-            shade_baseline
-        };
+        Group::with_kernel(kernels()[0].1)
+    }
+
+    /// An empty group whose lanes run `kernel`, one of [`kernels`].
+    pub(super) fn with_kernel(kernel: Kernel) -> Group {
         Group { inputs: Box::default(), outputs: Box::default(), paths: [0; WIDTH], len: 0, kernel }
     }
 

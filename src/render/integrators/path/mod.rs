@@ -147,7 +147,7 @@ impl Wavefront {
                 .par_chunks_mut(SERIAL)
                 .zip(self.hits.par_chunks(SERIAL))
                 .zip(self.shadows.par_chunks_mut(SERIAL))
-                .for_each(|((paths, hits), shadows)| shade_all(ctx, bounce, paths, hits, shadows));
+                .for_each(|((paths, hits), shadows)| shade_all(ctx, bounce, paths, hits, shadows, &mut Group::new()));
 
             // Shadow rays of this bounce, as one batch (in path order).
             compact_into(&self.shadows, &mut self.shadow_owner, |s| s.is_some(), |i, _| i as u32);
@@ -179,10 +179,16 @@ impl Wavefront {
 }
 
 /// One bounce of a run of paths: the hits on Lambertian surfaces through the SIMD
-/// lanes, sixteen at a time, the others one at a time. Each path's shadow goes to its
-/// slot of `shadows`.
-fn shade_all(ctx: &Context, bounce: Bounce, paths: &mut [PathState], hits: &[Hit], shadows: &mut [Shadow]) {
-    let mut group = Group::new();
+/// lanes of `group`, sixteen at a time, the others one at a time. Each path's shadow
+/// goes to its slot of `shadows`.
+fn shade_all(
+    ctx: &Context,
+    bounce: Bounce,
+    paths: &mut [PathState],
+    hits: &[Hit],
+    shadows: &mut [Shadow],
+    group: &mut Group,
+) {
     for (k, hit) in hits.iter().enumerate() {
         if lanes::takes(ctx, bounce, hit) {
             group.push(ctx, bounce, k, &mut paths[k], hit);

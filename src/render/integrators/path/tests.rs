@@ -41,7 +41,8 @@ fn paths_and_hits(setup: &TestSetup, opts: &RenderOptions, n: usize) -> (Vec<Pat
     (paths, hits)
 }
 
-/// Every bounce kind (first, middle, last; with and without roulette): the paths after
+/// Every bounce kind (first, middle, last; with and without roulette), with the lanes'
+/// loop of every vector extension this CPU has: the paths after
 /// [`shade_all`] (diffuse hits through the lanes, the rest one at a time) are those
 /// after [`shade`] alone, bit for bit, and so are their shadow rays. Planted errors,
 /// each caught (docs/mutations.md): the lanes reading the hit's second barycentric
@@ -61,33 +62,51 @@ fn lanes_shade_as_one_path_at_a_time_does() {
     let ctx = setup.ctx(&opts);
     let n = 12_000;
     let (start, hits) = paths_and_hits(&setup, &opts, n);
+    // Every loop this CPU can run; the widest is what renders use.
+    let kernels = lanes::kernels();
+    let names: Vec<&str> = kernels.iter().map(|k| k.0).collect();
+    if !names.contains(&"AVX-512") {
+        eprintln!(
+            "lanes_shade_as_one_path_at_a_time_does: no AVX-512 on this CPU; its loop is checked only where it runs"
+        );
+    }
     let mut seen = [0usize; 4]; // lanes, shadows, paths alive, one-sided lanes from behind
-    for depth in [0, 1, 3, 5] {
-        let bounce = Bounce::new(depth, opts.max_depth, opts.rr_depth);
-        let (mut one, mut lanes) = (start.clone(), start.clone());
-        let one_shadows: Vec<Shadow> = one.iter_mut().zip(&hits).map(|(p, h)| shade(&ctx, bounce, p, h)).collect();
-        let mut lane_shadows = vec![None; n];
-        // Two runs of odd lengths, so that groups end part full.
-        for range in [0..4_999, 4_999..n] {
-            shade_all(&ctx, bounce, &mut lanes[range.clone()], &hits[range.clone()], &mut lane_shadows[range]);
-        }
-        for (k, ((a, b), hit)) in one.iter().zip(&lanes).zip(&hits).enumerate() {
-            let took = lanes::takes(&ctx, bounce, hit);
-            seen[0] += took as usize;
-            assert_eq!(a.alive, b.alive, "path {k}, bounce {depth}: alive");
-            assert_eq!(
-                a.radiance.to_array().map(f32::to_bits),
-                b.radiance.to_array().map(f32::to_bits),
-                "path {k}, bounce {depth}"
-            );
-            if a.alive {
-                assert_eq!(a, b, "path {k}, bounce {depth}");
-                seen[2] += 1;
+    for (name, kernel) in kernels {
+        for depth in [0, 1, 3, 5] {
+            let bounce = Bounce::new(depth, opts.max_depth, opts.rr_depth);
+            let (mut one, mut lanes) = (start.clone(), start.clone());
+            let one_shadows: Vec<Shadow> = one.iter_mut().zip(&hits).map(|(p, h)| shade(&ctx, bounce, p, h)).collect();
+            let mut lane_shadows = vec![None; n];
+            // Two runs of odd lengths, so that groups end part full.
+            for range in [0..4_999, 4_999..n] {
+                let group = &mut lanes::Group::with_kernel(kernel);
+                shade_all(
+                    &ctx,
+                    bounce,
+                    &mut lanes[range.clone()],
+                    &hits[range.clone()],
+                    &mut lane_shadows[range],
+                    group,
+                );
             }
-            assert_eq!(one_shadows[k], lane_shadows[k], "path {k}, bounce {depth}: shadow");
-            seen[1] += one_shadows[k].is_some() as usize;
-            let m = scene.material_of[hit.prim.min(scene.triangle_count() as u32 - 1) as usize] as usize;
-            seen[3] += (took && m == white && start[k].ray.dir.dot(ctx.normal(hit.prim)) > 0.0) as usize;
+            for (k, ((a, b), hit)) in one.iter().zip(&lanes).zip(&hits).enumerate() {
+                let took = lanes::takes(&ctx, bounce, hit);
+                let at = format!("{name}, path {k}, bounce {depth}");
+                assert_eq!(a.alive, b.alive, "{at}: alive");
+                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                assert_eq!(bits(a.radiance), bits(b.radiance), "{at}");
+                if a.alive {
+                    assert_eq!(a, b, "{at}");
+                }
+                assert_eq!(one_shadows[k], lane_shadows[k], "{at}: shadow");
+                if name == names[0] {
+                    seen[0] += took as usize;
+                    seen[1] += one_shadows[k].is_some() as usize;
+                    seen[2] += a.alive as usize;
+                    let m = scene.material_of[hit.prim.min(scene.triangle_count() as u32 - 1) as usize] as usize;
+                    seen[3] += (took && m == white && start[k].ray.dir.dot(ctx.normal(hit.prim)) > 0.0) as usize;
+                }
+            }
         }
     }
     // Not vacuous: most bounces went through the lanes, in many full groups, and the
