@@ -13,7 +13,7 @@
 //! (`tests::lanes_shade_as_one_path_at_a_time_does`): the image does not depend on
 //! which hits went through the lanes, nor on the CPU.
 
-use super::shade::{brings, continue_path, next_event, with_emission};
+use super::shade::{brings, continue_path, emitter_density, next_event, with_emission};
 use super::state::{Bounce, PathState, Shadow};
 use crate::bsdf::TransportMode;
 use crate::geometry::{Hit, Ray, barycentric_point};
@@ -103,14 +103,18 @@ pub(super) struct Outputs {
     shadow_l: Vec3s,
 }
 
-/// Whether the lanes take this path's bounce: a hit on a non-degenerate triangle whose
-/// material is Lambertian, on a bounce that goes on past its emission.
+/// The albedo of this path's hit when the lanes take its bounce: a hit on a
+/// non-degenerate triangle whose material is Lambertian, on a bounce that goes on past
+/// its emission; `None` for a bounce shaded one path at a time.
 #[inline]
-pub(super) fn takes(ctx: &Context, bounce: Bounce, hit: &Hit) -> bool {
-    !bounce.last
-        && hit.is_hit()
-        && matches!(ctx.scene.material(hit.prim), Material::Diffuse { .. })
-        && ctx.normal(hit.prim) != Vec3::ZERO
+pub(super) fn diffuse_albedo(ctx: &Context, bounce: Bounce, hit: &Hit) -> Option<Vec3> {
+    if bounce.last || !hit.is_hit() || ctx.normal(hit.prim) == Vec3::ZERO {
+        return None;
+    }
+    match *ctx.scene.material(hit.prim) {
+        Material::Diffuse { albedo } => Some(albedo),
+        _ => None,
+    }
 }
 
 /// Up to [`WIDTH`] diffuse hits gathered for the lanes, by their paths' indices.
@@ -126,22 +130,21 @@ pub(super) struct Group {
 pub(super) type Kernel = unsafe fn(&Inputs, Bounce, &mut Outputs);
 
 /// The lanes' loop for every vector extension this CPU has, widest first, by name.
-pub(super) fn kernels() -> Vec<(&'static str, Kernel)> {
-    let mut kernels = Vec::with_capacity(3);
-    if std::arch::is_x86_feature_detected!("avx512f") {
-        kernels.push(("AVX-512", shade_avx512 as Kernel));
-    }
-    if std::arch::is_x86_feature_detected!("avx2") {
-        kernels.push(("AVX2", shade_avx2 as Kernel));
-    }
-    kernels.push(("SSE2", shade_baseline as Kernel));
-    kernels
+pub(super) fn kernels() -> impl Iterator<Item = (&'static str, Kernel)> {
+    let has = |extension: &str| match extension {
+        "avx512f" => std::arch::is_x86_feature_detected!("avx512f"),
+        "avx2" => std::arch::is_x86_feature_detected!("avx2"),
+        _ => true,
+    };
+    let all: [(&str, &str, Kernel); 3] =
+        [("AVX-512", "avx512f", shade_avx512), ("AVX2", "avx2", shade_avx2), ("SSE2", "sse2", shade_baseline)];
+    all.into_iter().filter(move |k| has(k.1)).map(|(name, _, kernel)| (name, kernel))
 }
 
 impl Group {
     /// An empty group, with the loop for this CPU's widest vector extension.
     pub(super) fn new() -> Group {
-        Group::with_kernel(kernels()[0].1)
+        Group::with_kernel(kernels().next().expect("SSE2 is x86-64's baseline").1)
     }
 
     /// An empty group whose lanes run `kernel`, one of [`kernels`].
@@ -154,15 +157,20 @@ impl Group {
         self.len == WIDTH
     }
 
-    /// Gathers path `index`'s bounce (which [`takes`] accepted) into the next lane:
-    /// reads the scene, draws the path's random numbers (as [`super::shade::shade`]
-    /// draws them) and picks its light.
-    pub(super) fn push(&mut self, ctx: &Context, bounce: Bounce, index: usize, p: &mut PathState, hit: &Hit) {
+    /// Gathers path `index`'s bounce into the next lane (its hit's `albedo`, from
+    /// [`diffuse_albedo`]): reads the scene, draws the path's random numbers (as
+    /// [`super::shade::shade`] draws them) and picks its light.
+    pub(super) fn push(
+        &mut self,
+        ctx: &Context,
+        bounce: Bounce,
+        index: usize,
+        p: &mut PathState,
+        hit: &Hit,
+        albedo: Vec3,
+    ) {
         let (scene, i, k) = (ctx.scene, &mut *self.inputs, self.len);
         let prim = hit.prim;
-        let Material::Diffuse { albedo } = *scene.material(prim) else {
-            unreachable!("the lanes take diffuse hits only")
-        };
         for (c, v) in i.corners.iter_mut().zip(scene.vertices(prim)) {
             c.set(k, v);
         }
@@ -172,7 +180,7 @@ impl Group {
         i.one_sided[k] = !scene.two_sided[scene.material_of[prim as usize] as usize];
         let le = scene.emission_of(prim);
         i.emitted.set(k, le);
-        i.pdf_area[k] = if le.max_element() > 0.0 { ctx.lights.pdf_area(prim) } else { 0.0 };
+        i.pdf_area[k] = emitter_density(ctx, prim, le);
         i.dir.set(k, p.ray.dir);
         i.throughput.set(k, p.throughput);
         i.radiance.set(k, p.radiance);
@@ -212,7 +220,7 @@ impl Group {
         if self.len == 0 {
             return;
         }
-        // SAFETY: the kernel was chosen for an extension this CPU has (`Group::new`).
+        // SAFETY: the kernel is one of `kernels()`, those for extensions this CPU has.
         unsafe { (self.kernel)(&self.inputs, bounce, &mut self.outputs) };
         let o = &*self.outputs;
         for (k, &index) in self.paths[..self.len].iter().enumerate() {

@@ -190,8 +190,8 @@ fn shade_all(
     group: &mut Group,
 ) {
     for (k, hit) in hits.iter().enumerate() {
-        if lanes::takes(ctx, bounce, hit) {
-            group.push(ctx, bounce, k, &mut paths[k], hit);
+        if let Some(albedo) = lanes::diffuse_albedo(ctx, bounce, hit) {
+            group.push(ctx, bounce, k, &mut paths[k], hit, albedo);
             if group.is_full() {
                 group.shade(bounce, paths, shadows);
             }

@@ -34,8 +34,7 @@ pub(super) fn shade(ctx: &Context, bounce: Bounce, p: &mut PathState, hit: &Hit)
     let pos = barycentric_point(scene.vertices(hit.prim), hit.u, hit.v);
     let wo = -p.ray.dir.normalize();
     let le = scene.emission_of(hit.prim);
-    let pdf_area = if le.max_element() > 0.0 { ctx.lights.pdf_area(hit.prim) } else { 0.0 };
-    p.radiance = with_emission(p, bounce, le, ng, wo, hit.t, pdf_area);
+    p.radiance = with_emission(p, bounce, le, ng, wo, hit.t, emitter_density(ctx, hit.prim, le));
     if bounce.last {
         p.alive = false;
         return None;
@@ -52,6 +51,13 @@ pub(super) fn shade(ctx: &Context, bounce: Bounce, p: &mut PathState, hit: &Hit)
     let u_rr = if bounce.roulette { p.rng.uniform() } else { 0.0 };
     continue_path(p, sample.map(|s| (s, material.eta(wo_local, s.wi))), &frame, pos, ng, bounce, u_rr);
     shadow
+}
+
+/// Light sampling's area density at triangle `prim`, which emits `le`: read only where
+/// the triangle emits (zero elsewhere, where [`with_emission`] does not use it).
+#[inline(always)]
+pub(super) fn emitter_density(ctx: &Context, prim: u32, le: Vec3) -> f32 {
+    if le.max_element() > 0.0 { ctx.lights.pdf_area(prim) } else { 0.0 }
 }
 
 /// The path's radiance after the hit's emission `le` (from a triangle of unit normal

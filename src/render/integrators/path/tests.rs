@@ -63,7 +63,7 @@ fn lanes_shade_as_one_path_at_a_time_does() {
     let n = 12_000;
     let (start, hits) = paths_and_hits(&setup, &opts, n);
     // Every loop this CPU can run; the widest is what renders use.
-    let kernels = lanes::kernels();
+    let kernels: Vec<_> = lanes::kernels().collect();
     let names: Vec<&str> = kernels.iter().map(|k| k.0).collect();
     if !names.contains(&"AVX-512") {
         eprintln!(
@@ -90,7 +90,7 @@ fn lanes_shade_as_one_path_at_a_time_does() {
                 );
             }
             for (k, ((a, b), hit)) in one.iter().zip(&lanes).zip(&hits).enumerate() {
-                let took = lanes::takes(&ctx, bounce, hit);
+                let took = lanes::diffuse_albedo(&ctx, bounce, hit).is_some();
                 let at = format!("{name}, path {k}, bounce {depth}");
                 assert_eq!(a.alive, b.alive, "{at}: alive");
                 let bits = |v: Vec3| v.to_array().map(f32::to_bits);
