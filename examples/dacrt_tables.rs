@@ -15,6 +15,9 @@
 //!
 //! `bvh4` traces in packets of 16 rays where the CPU has AVX-512 (8 with AVX2),
 //! `bvh4-8` in packets of 8 rays, `bvh4-single` the same tree one ray at a time.
+//! `dacrt` partitions and solves leaves on the widest SIMD lanes the CPU has (16 on
+//! AVX-512, 8 on AVX2), `dacrt-sse` on SSE alone (`DacrtParams::lanes` off): the same
+//! hits and tests, so the two columns show what the lanes are worth on this machine.
 //! `embree` is Embree's default build (medium quality) traced one ray at a time;
 //! `embree-fast` its fastest rebuild (low quality, dynamic scene) traced in 16-ray
 //! packets; both need the cargo feature `embree`. With `--rounds R` every caster is
@@ -177,8 +180,9 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
         "bvh4" => Box::new(Bvh4::new(s)),
         "bvh4-8" => Box::new(Bvh4::new(s).max_packet(8)),
         "bvh4-single" => Box::new(Bvh4::new(s).single_rays()),
-        "dacrt" => {
+        "dacrt" | "dacrt-sse" => {
             let mut d = Dacrt::new(s);
+            d.params.lanes = name == "dacrt";
             let t = TUNABLES.get().copied().unwrap_or_default();
             d.params.top_cell_triangles = t.dacrt_top_cell.unwrap_or(d.params.top_cell_triangles);
             d.params.groups_per_thread = t.dacrt_groups_per_thread.unwrap_or(d.params.groups_per_thread);
@@ -199,13 +203,12 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
             let p = EmbreeParams::by_label(name).expect("a label of EmbreeParams");
             Box::new(EmbreeCaster::from_triangles(s.triangle_vertices(), p).map_err(|e| e.to_string())?)
         }
-        other => return Err(format!("unknown caster {other} (known: {})", KNOWN.join(", "))),
+        other => return Err(format!("unknown caster {other} (known: {})", known().collect::<Vec<_>>().join(", "))),
     })
 }
 
-/// The casters this build can measure.
-#[cfg(feature = "embree")]
-const KNOWN: &[&str] = &[
+/// The casters this build can measure: warpray's own, then Embree's where it is built in.
+const OWN: &[&str] = &[
     "bvh",
     "bvh-fast",
     "bvh-very-fast",
@@ -214,13 +217,17 @@ const KNOWN: &[&str] = &[
     "bvh4-8",
     "bvh4-single",
     "dacrt",
+    "dacrt-sse",
     "pdacrt",
-    "embree",
-    "embree-fast",
 ];
+#[cfg(feature = "embree")]
+const EMBREE: &[&str] = &["embree", "embree-fast"];
 #[cfg(not(feature = "embree"))]
-const KNOWN: &[&str] =
-    &["bvh", "bvh-fast", "bvh-very-fast", "bvh-fastest", "bvh4", "bvh4-8", "bvh4-single", "dacrt", "pdacrt"];
+const EMBREE: &[&str] = &[];
+
+fn known() -> impl Iterator<Item = &'static str> {
+    OWN.iter().chain(EMBREE).copied()
+}
 
 /// One row per cell from the rounds' rows: build, trace and total each the median of
 /// its own values; the stages of the round whose trace was nearest the median.
@@ -280,7 +287,8 @@ fn measure(
             let row = Row {
                 scene: scene_name.into(),
                 batch: name,
-                caster: c.name(),
+                // The command line's label (two labels may build one caster type).
+                caster: known().find(|&k| k == caster).unwrap_or(c.name()),
                 threads,
                 rays: rays.len(),
                 build_ms: c.build_seconds() * 1e3,
@@ -405,8 +413,8 @@ fn run(a: Args) -> Result<(), String> {
     }
     let pool = pool.build().map_err(|e| e.to_string())?;
     // Check every name before any work starts.
-    if let Some(c) = a.casters.iter().find(|c| !KNOWN.contains(&c.as_str())) {
-        return Err(format!("unknown caster {c} (known: {})", KNOWN.join(", ")));
+    if let Some(c) = a.casters.iter().find(|c| !known().any(|k| k == c.as_str())) {
+        return Err(format!("unknown caster {c} (known: {})", known().collect::<Vec<_>>().join(", ")));
     }
     let machine = warpray::machine::Machine::this();
     if a.json {

@@ -136,6 +136,12 @@ pub(crate) fn cull_distance(far: f32) -> f32 {
     far * SLAB_WIDEN
 }
 
+/// [`cull_distance`] on SIMD lanes (DACRT's wide ray partition), the same product.
+#[inline(always)]
+pub(crate) fn cull_distance_lanes<L: lane_ops::Lanes>(far: L) -> L {
+    far * L::splat(SLAB_WIDEN)
+}
+
 impl Default for Aabb {
     fn default() -> Self {
         Aabb::EMPTY
@@ -197,6 +203,15 @@ impl Aabb {
     /// The common part of two boxes (empty when they do not overlap).
     pub fn intersection(self, o: Aabb) -> Aabb {
         Aabb { min: self.min.max(o.min), max: self.max.min(o.max) }
+    }
+
+    /// The boxes' coordinates, six a box in [`Aabb::as_floats`]' order (what wide lanes
+    /// load a box a lane).
+    pub(crate) fn floats(boxes: &[Aabb]) -> &[f32] {
+        // SAFETY: as in `as_floats`: each box is six `f32` with no padding, and the
+        // slice's boxes lie back to back (`size_of::<Aabb>()` is 24).
+        const _: () = assert!(std::mem::size_of::<Aabb>() == 6 * std::mem::size_of::<f32>());
+        unsafe { std::slice::from_raw_parts(boxes.as_ptr().cast::<f32>(), boxes.len() * 6) }
     }
 
     /// The six coordinates in memory order: `min.x, min.y, min.z, max.x, max.y, max.z`.

@@ -30,6 +30,8 @@ pub(crate) trait Lanes:
     fn gt(self, o: Self) -> Self::Mask;
     fn eq(self, o: Self) -> Self::Mask;
     fn ne(self, o: Self) -> Self::Mask;
+    /// `a` in the lanes where `m` is true, `b` in the others.
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self;
     /// Bit `k` set for a true lane `k`.
     fn bits(m: Self::Mask) -> u32;
 }
@@ -73,9 +75,25 @@ impl Lanes for glam::Vec4 {
         self.cmpne(o)
     }
     #[inline(always)]
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self {
+        glam::Vec4::select(m, a, b)
+    }
+    #[inline(always)]
     fn bits(m: Self::Mask) -> u32 {
         m.bitmask()
     }
+}
+
+/// A point's coordinates, each on every lane.
+#[inline(always)]
+pub(crate) fn splat3<L: Lanes>(v: glam::Vec3) -> [L; 3] {
+    [L::splat(v.x), L::splat(v.y), L::splat(v.z)]
+}
+
+/// The mask bits of the first `len` lanes.
+#[inline(always)]
+pub(crate) fn first_lanes(len: usize) -> u32 {
+    if len >= 32 { u32::MAX } else { (1 << len) - 1 }
 }
 
 /// The slab test, lane by lane: whether a ray (origin `o`, reciprocal direction `inv`,

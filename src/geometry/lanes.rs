@@ -32,6 +32,15 @@ impl RaySlab {
         RaySlab { origin_t_min: ray.origin.extend(ray.t_min), inv_t_max: inv_dir(ray.dir).extend(ray.t_max) }
     }
 
+    /// The records as floats, eight a ray in the record's order (origin x, y, z,
+    /// `t_min`, reciprocal direction x, y, z, `t_max`): what a gather reads lane by lane.
+    pub(crate) fn floats(slabs: &[RaySlab]) -> &[f32] {
+        const _: () = assert!(std::mem::size_of::<RaySlab>() == 8 * std::mem::size_of::<f32>());
+        // SAFETY: a record is `repr(C)`, two `Vec4`s of four `f32`s each and no padding
+        // (asserted above), so the slice's memory is `8 · len` initialised floats.
+        unsafe { std::slice::from_raw_parts(slabs.as_ptr().cast::<f32>(), slabs.len() * 8) }
+    }
+
     /// The ray's `t_max`.
     #[inline]
     pub fn t_max(&self) -> f32 {

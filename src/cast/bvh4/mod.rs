@@ -20,6 +20,7 @@ mod packet;
 
 use super::caster::{CastStats, RayCaster, Triangles, per_ray};
 use crate::geometry::lanes::RaySlab;
+use crate::geometry::packet_lanes::Width;
 use crate::geometry::{Hit, Ray, RayShear, cull_distance, hit_slack, magnitude};
 use crate::scene::Scene;
 use glam::Vec3;
@@ -103,9 +104,9 @@ impl Bvh4 {
     /// without outliers (which every ray must test one at a time); `None` for one ray at
     /// a time, as also for a batch smaller than one packet (a megakernel thread's ray).
     #[cfg(target_arch = "x86_64")]
-    fn packets(&self, rays: usize) -> Option<packet::Width> {
-        let fits = |w: &packet::Width| w.rays() <= self.max_packet.min(rays) && w.supported();
-        packet::Width::ALL.into_iter().find(fits).filter(|_| self.outliers.is_empty())
+    fn packets(&self, rays: usize) -> Option<Width> {
+        let fits = |w: &Width| w.rays() <= self.max_packet.min(rays) && w.supported();
+        Width::ALL.into_iter().find(fits).filter(|_| self.outliers.is_empty())
     }
 
     /// Closest hit of one (valid) ray and the triangles it tested.

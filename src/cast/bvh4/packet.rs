@@ -18,8 +18,8 @@
 use super::node::{LEAF, Leaf, leaf_of};
 use super::{Bvh4, SHALLOW_DEPTH, SHORT_STACK, STACK};
 use crate::cast::caster::{CastStats, per_packet};
-use crate::geometry::lane_ops::{LaneHits, Lanes, slab, watertight};
-use crate::geometry::packet_lanes::{F8, F16, Packed};
+use crate::geometry::lane_ops::{LaneHits, slab, splat3, watertight};
+use crate::geometry::packet_lanes::{F8, F16, Packed, Width};
 use crate::geometry::{Hit, Ray, RayShear, closer, cull_distance, inv_dir, triangle_test};
 use glam::Vec3;
 
@@ -96,12 +96,6 @@ fn on_edge<L: Packed>(h: &mut LaneHits<L>, mut edge: u32, rays: &[Ray], tri: [Ve
         }
     }
     (h.t, h.u, h.v) = (L::from_array(t), L::from_array(u), L::from_array(v));
-}
-
-/// A point's coordinates, each on every lane.
-#[inline(always)]
-fn splat3<L: Lanes>(v: Vec3) -> [L; 3] {
-    [L::splat(v.x), L::splat(v.y), L::splat(v.z)]
 }
 
 /// Rays of a batch a packet leaves to the single-ray traversal: a zero (or non-finite)
@@ -281,41 +275,10 @@ fn occluded_in<L: Packed, const N: usize>(bvh: &Bvh4, rays: &[Ray], out: &mut [b
     tests
 }
 
-/// A vector extension packets run on, and so the rays a packet holds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum Width {
-    /// Sixteen rays on AVX-512F.
-    Avx512,
-    /// Eight rays on AVX2.
-    Avx2,
-}
-
 /// A packet traversal compiled for one extension: unsafe to call where the CPU lacks it.
 type Traversal<T> = unsafe fn(&Bvh4, &[Ray], &mut [T]) -> u64;
 
 impl Width {
-    /// Every width, widest first.
-    pub(super) const ALL: [Width; 2] = [Width::Avx512, Width::Avx2];
-
-    /// Rays a packet holds.
-    pub(super) fn rays(self) -> usize {
-        match self {
-            Width::Avx512 => F16::WIDTH,
-            Width::Avx2 => F8::WIDTH,
-        }
-    }
-
-    /// Whether this CPU has the extension (checked once per width).
-    pub(super) fn supported(self) -> bool {
-        use std::sync::OnceLock;
-        static AVX512: OnceLock<bool> = OnceLock::new();
-        static AVX2: OnceLock<bool> = OnceLock::new();
-        match self {
-            Width::Avx512 => *AVX512.get_or_init(|| std::arch::is_x86_feature_detected!("avx512f")),
-            Width::Avx2 => *AVX2.get_or_init(|| std::arch::is_x86_feature_detected!("avx2")),
-        }
-    }
-
     /// The closest hits of a batch, in packets of this width.
     pub(super) fn closest(self, bvh: &Bvh4, rays: &[Ray], hits: &mut [Hit]) -> CastStats {
         self.trace(bvh, rays, hits, [closest_avx512, closest_avx2])

@@ -9,6 +9,7 @@ use crate::cast::caster::Triangles;
 use crate::geometry::Ray;
 use crate::geometry::hit_key::{self, BLOCKED, NONE};
 use crate::geometry::lanes::RaySlab;
+use crate::geometry::packet_lanes::Width;
 use crate::geometry::{Aabb, batch_slack, cull_distance};
 use rayon::prelude::*;
 use std::sync::Mutex;
@@ -46,6 +47,10 @@ pub struct DacrtParams {
     /// ray is tested on its own). Off by default: on the 16-core machine it lost on the
     /// dragon and gained on the bunny (`docs/history/dacrt-runs.md`, run K).
     pub packet_rays: usize,
+    /// Wide SIMD lanes for the ray partitions and the leaves (`lanes.rs`): sixteen on
+    /// AVX-512, eight on AVX2, whichever the CPU has, found at run time; false, or a
+    /// CPU with neither, runs the SSE steps. The answers are the same either way.
+    pub lanes: bool,
 }
 
 impl Default for DacrtParams {
@@ -60,6 +65,7 @@ impl Default for DacrtParams {
             groups_per_thread: 8,
             fork_min_rays: 4096,
             packet_rays: 0,
+            lanes: true,
         }
     }
 }
@@ -94,6 +100,10 @@ const LEAF_PAIRS_FACTOR: u64 = 4;
 pub(crate) fn leaf_pairs(leaf_rays: u64, leaf_triangles: u64) -> u64 {
     LEAF_PAIRS_FACTOR * leaf_rays * leaf_triangles
 }
+/// The most rays a trace may hold for the wide partition: a ray's record starts at
+/// float `8 · id`, which its gathers index with 32-bit words.
+pub(super) const MAX_LANE_RAYS: usize = (u32::MAX / 8) as usize;
+
 /// Rays whose directions choose which child is near (`Trace::toward_hi`).
 pub(super) const NEAR_SAMPLES: usize = 32;
 /// SAH bins per axis, and triangles sampled per SAH decision.
@@ -121,6 +131,8 @@ pub(super) struct Trace {
     /// scene and the batch's largest origin coordinate, so that no hit the watertight
     /// test reports just off a triangle is culled.
     pub(super) grow: f32,
+    /// The wide lanes the partitions (without packets) and leaves run on, if any.
+    pub(super) lanes: Option<Width>,
 }
 
 impl Trace {
@@ -131,11 +143,13 @@ impl Trace {
         packet_rays: usize,
         fork_min_rays: usize,
         magnitude: f32,
+        lanes: bool,
     ) -> Trace {
         let grow = batch_slack(magnitude, rays.par_iter().map(|r| r.origin));
         let slabs: Vec<RaySlab> = rays.par_iter().map(RaySlab::new).collect();
         let keys: Vec<AtomicU64> = (0..rays.len()).into_par_iter().map(|_| AtomicU64::new(NONE)).collect();
         let packets = Packets::new(&rays, &slabs, packet_rays);
+        let lanes = if lanes && rays.len() <= MAX_LANE_RAYS { Width::widest() } else { None };
         Trace {
             rays,
             slabs,
@@ -148,12 +162,13 @@ impl Trace {
             busy_ns: AtomicU64::new(0),
             fork_min_rays,
             grow,
+            lanes,
         }
     }
 
     /// A trace with no rays (the shared top levels choose planes from triangles alone).
     pub(super) fn empty() -> Trace {
-        Trace::new(Vec::new(), false, 0, 0, 0.0)
+        Trace::new(Vec::new(), false, 0, 0, 0.0, false)
     }
 
     pub(super) fn alloc(&self, bytes: usize) {
@@ -206,11 +221,82 @@ impl Trace {
 pub(super) fn partition(ids: &mut [u32], mut keep: impl FnMut(u32) -> bool) -> usize {
     let mut n = 0;
     for i in 0..ids.len() {
-        let (id, front) = (ids[i], ids[n]);
-        let k = keep(id);
-        ids[i] = if k { front } else { id };
-        ids[n] = if k { id } else { front };
-        n += k as usize;
+        let k = keep(ids[i]);
+        swap_front(ids, i, &mut n, k);
     }
     n
+}
+
+/// One step of [`partition`]: element `i` swapped with the front `n` (and the front
+/// moved on) when `keep`, both writes made either way.
+#[inline(always)]
+pub(super) fn swap_front(ids: &mut [u32], i: usize, n: &mut usize, keep: bool) {
+    let (id, front) = (ids[i], ids[*n]);
+    ids[i] = if keep { front } else { id };
+    ids[*n] = if keep { id } else { front };
+    *n += keep as usize;
+}
+
+/// Cases the lanes' tests share (`partition.rs`, `leaf.rs`).
+#[cfg(test)]
+pub(super) mod cases {
+    use super::Trace;
+    use crate::geometry::Ray;
+    use crate::geometry::hit_key::{BLOCKED, NONE, pack};
+    use crate::geometry::packet_lanes::Width;
+    use crate::sampling::Rng;
+    use glam::Vec3;
+    use std::sync::atomic::Ordering::Relaxed;
+
+    /// Every wide width this CPU has; says loudly when it has none (the lanes are then
+    /// not checked here, and no caster runs them).
+    pub(in crate::cast::dacrt) fn widths() -> Vec<Width> {
+        let w: Vec<Width> = Width::ALL.into_iter().filter(|w| w.supported()).collect();
+        if w.is_empty() {
+            eprintln!("WARNING: this CPU has neither AVX2 nor AVX-512: DACRT's wide lanes are not checked");
+        }
+        if !Width::Avx512.supported() {
+            eprintln!("WARNING: this CPU has no AVX-512: DACRT's 16-lane loops are not checked here");
+        }
+        w
+    }
+
+    /// Rays and triangles on a coarse grid (origins on faces, rays along faces, zero
+    /// direction components, shared edges, ties) mixed with random ones; keys set to
+    /// hits at random distances, left at `NONE`, or (any-hit) `BLOCKED`.
+    pub(in crate::cast::dacrt) fn case(rng: &mut Rng, any_hit: bool, lanes: bool) -> (Vec<[Vec3; 3]>, Trace) {
+        let point = |r: &mut Rng, coarse: bool| {
+            let v = Vec3::new(r.uniform(), r.uniform(), r.uniform()) * 4.0 - 2.0;
+            if coarse { (v * 2.0).round() * 0.5 } else { v }
+        };
+        let coarse = rng.uniform() < 0.5;
+        let tris: Vec<[Vec3; 3]> =
+            (0..40).map(|_| [point(rng, coarse), point(rng, coarse), point(rng, coarse)]).collect();
+        let rays: Vec<Ray> = (0..200)
+            .map(|_| {
+                let origin = point(rng, coarse) + Vec3::Z * 3.0;
+                let mut dir = point(rng, coarse) - origin;
+                if rng.uniform() < 0.1 {
+                    dir.x = 0.0;
+                }
+                let t_max = if rng.uniform() < 0.3 { 2.0 + rng.uniform() * 3.0 } else { f32::INFINITY };
+                Ray { origin, dir: if dir == Vec3::ZERO { Vec3::Z } else { dir }, t_min: 0.0, t_max }
+            })
+            .collect();
+        let tr = Trace::new(rays, any_hit, 0, 0, 4.0, lanes);
+        for k in &tr.keys {
+            let u = rng.uniform();
+            k.store(
+                if u < 0.4 {
+                    NONE
+                } else if any_hit {
+                    BLOCKED
+                } else {
+                    pack(u * 6.0, (u * 1e4) as u32)
+                },
+                Relaxed,
+            );
+        }
+        (tris, tr)
+    }
 }
