@@ -158,8 +158,8 @@ fn leaf_in<L: Packed>(d: &Dacrt, tr: &Trace, rays: &[u32], tris: &[u32]) {
 
 #[cfg(test)]
 mod tests {
+    use super::super::cases::{case, widths};
     use super::super::state::DacrtParams;
-    use super::super::state::cases::{case, widths};
     use super::*;
     use crate::sampling::Rng;
 

@@ -64,6 +64,8 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::Instant;
 
+#[cfg(test)]
+mod cases;
 mod fork;
 mod leaf;
 mod packets;

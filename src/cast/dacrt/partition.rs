@@ -208,7 +208,7 @@ fn partition_in<L: Packed>(tr: &Trace, ids: &mut [u32], grown: &Aabb, rejected: 
 
 #[cfg(test)]
 mod tests {
-    use super::super::state::cases::{case, widths};
+    use super::super::cases::{case, widths};
     use super::*;
     use crate::geometry::hit_key::pack;
     use crate::sampling::Rng;

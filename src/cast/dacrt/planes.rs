@@ -190,8 +190,8 @@ pub(super) fn centroid_median(boxes: &[Aabb], tris: &[u32], axis: usize) -> Opti
 
 #[cfg(test)]
 mod tests {
+    use super::super::cases::widths;
     use super::super::state::DacrtParams;
-    use super::super::state::cases::widths;
     use super::*;
     use crate::sampling::Rng;
     use glam::Vec3;
