@@ -7,7 +7,7 @@
 //! ```text
 //! cargo run --release --features embree --example animated -- [--triangles 1000000]
 //!     [--size 1024] [--frames 5] [--threads 1,2,4,8,16] [--secondary shadow|diffuse]
-//!     [--casters bvh,bvh4,dacrt,pdacrt,embree,embree-fast,embree-refit] [--json]
+//!     [--casters bvh,bvh4,dacrt,dacrt-sse,pdacrt,embree,embree-fast,embree-refit] [--json]
 //! ```
 //!
 //! Secondary rays: `shadow` (segments to a point light above the grid: coherent, the
@@ -21,7 +21,7 @@
 use clap::Parser;
 use std::time::Instant;
 use warpray::cast::batches::{primary_rays, waving_grid, waving_grid_camera, waving_grid_shadow_rays};
-use warpray::cast::{Bvh4, BvhCaster, Dacrt, RayCaster, Traversal};
+use warpray::cast::{Bvh4, BvhCaster, Dacrt, DacrtParams, RayCaster, Traversal};
 use warpray::geometry::{Hit, Ray, offset_ray_origin};
 use warpray::glam::Vec3;
 use warpray::machine::median;
@@ -82,9 +82,9 @@ struct FrameRow {
 
 /// The casters this build can measure.
 #[cfg(feature = "embree")]
-const KNOWN: &[&str] = &["bvh", "bvh4", "dacrt", "pdacrt", "embree", "embree-fast", "embree-refit"];
+const KNOWN: &[&str] = &["bvh", "bvh4", "dacrt", "dacrt-sse", "pdacrt", "embree", "embree-fast", "embree-refit"];
 #[cfg(not(feature = "embree"))]
-const KNOWN: &[&str] = &["bvh", "bvh4", "dacrt", "pdacrt"];
+const KNOWN: &[&str] = &["bvh", "bvh4", "dacrt", "dacrt-sse", "pdacrt"];
 
 /// A caster kept across frames and told each frame's triangles, or rebuilt each frame.
 enum Live {
@@ -135,6 +135,8 @@ fn build(name: &str, tris: Vec<[Vec3; 3]>) -> Result<Box<dyn RayCaster>, String>
         "bvh" => Box::new(BvhCaster::from_triangles(tris).with_traversal(Traversal::Fast)),
         "bvh4" => Box::new(Bvh4::from_triangles(tris)),
         "dacrt" => Box::new(Dacrt::from_triangles(tris, Default::default())),
+        // DACRT on SSE alone (no AVX2 or AVX-512 lanes): what the lanes are worth.
+        "dacrt-sse" => Box::new(Dacrt::from_triangles(tris, DacrtParams { lanes: false, ..Default::default() })),
         "pdacrt" => Box::new(Pdacrt::from_triangles(&tris, Default::default())),
         #[cfg(feature = "embree")]
         "embree" | "embree-fast" => {
