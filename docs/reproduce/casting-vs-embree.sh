@@ -16,14 +16,14 @@ mkdir -p "$out"
 step=${STEP:-all}
 if [ "$step" = all ] || [ "$step" = tables ]; then
     "$bin/dacrt_tables" --size 1024 --scenes bunny,conference,dragon \
-        --casters bvh,bvh4,dacrt,pdacrt,embree,embree-fast --rounds 5 --json > "$out/casting-1024-16t.jsonl"
+        --casters bvh,bvh4,dacrt,dacrt-sse,pdacrt,embree,embree-fast --rounds 5 --json > "$out/casting-1024-16t.jsonl"
     "$bin/dacrt_tables" --size 1024 --scenes dragon --casters bvh4,dacrt,embree,embree-fast --threads 16 \
         --scaling 1 --rounds 5 --json > "$out/casting-dragon-1-vs-16t.jsonl"
 fi
 if [ "$step" = all ] || [ "$step" = animated ]; then
     for s in shadow diffuse; do
         "$bin/animated" --threads 16 --frames 7 --secondary $s \
-            --casters bvh,bvh4,dacrt,pdacrt,embree,embree-fast,embree-refit --json > "$out/animated-$s-16t.jsonl"
+            --casters bvh,bvh4,dacrt,dacrt-sse,pdacrt,embree,embree-fast,embree-refit --json > "$out/animated-$s-16t.jsonl"
         "$bin/animated" --threads 1,4 --frames 3 --secondary $s \
             --casters bvh,bvh4,dacrt,pdacrt,embree,embree-fast,embree-refit --json > "$out/animated-$s-1-4t.jsonl"
     done
