@@ -1,10 +1,12 @@
-//! The packet-filtered steps of a DACRT trace: the batch's valid rays in coherence
-//! order (`Dacrt::valid_rays`) and the stable ray partition that rejects a packet's run
-//! of rays with one test (`Trace::partition_rays`), over the packet bounds of
-//! `packets.rs`.
+//! DACRT's ray steps: the batch's valid rays in coherence order (`Dacrt::valid_rays`),
+//! and the stable ray partition (`Trace::partition_rays`): on the widest SIMD lanes
+//! the CPU has (sixteen rays at once on AVX-512, eight on AVX2, their records
+//! transposed in registers; `partition_in`), one ray at a time on SSE, or with packet
+//! filtering, which rejects a packet's run of rays with one test over the bounds of
+//! `packets.rs`. Every way moves the same rays to the same places.
 
 use super::packets::{MIN_RUN, Packets, coherence_key};
-use super::state::{Dacrt, MAX_LANE_RAYS, Trace};
+use super::state::{Dacrt, Trace};
 use crate::geometry::lane_ops::{first_lanes, slab, splat3};
 use crate::geometry::lanes::RaySlab;
 use crate::geometry::packet_lanes::{F8, F16, Packed, Width};
@@ -126,7 +128,7 @@ impl Trace {
 
     /// The partition's loop on `width`'s lanes (without packets).
     fn partition_wide(&self, width: Width, ids: &mut [u32], grown: &Aabb, rejected: &mut [u32]) -> (usize, usize) {
-        assert!(width.supported() && self.rays.len() <= MAX_LANE_RAYS, "wide lanes on a CPU or a trace without them");
+        assert!(width.supported(), "wide lanes on a CPU without them");
         // SAFETY: each loop is compiled for its width's extension, which the CPU has
         // (asserted above).
         unsafe {
@@ -159,8 +161,9 @@ fn place(ids: &mut [u32], rejected: &mut [u32], r: u32, enters: bool, n: &mut us
     *m += !enters as usize;
 }
 
-/// The rays of `ids` against `grown`, `L::WIDTH` at a time: each lane gathers its ray's
-/// record from `Trace::slabs` and its interval's end from its key, and the slab test
+/// The rays of `ids` against `grown`, `L::WIDTH` at a time: each lane loads its ray's
+/// record from `Trace::slabs` (`Packed::records`) and its interval's end from its key
+/// (`Packed::from_fn`, set from registers), and the slab test
 /// of `geometry::lane_ops` answers as `RaySlab::enters` does, bit for bit (a lane whose
 /// ray has a zero direction component takes `Trace::enters` itself); the list's last
 /// rays, fewer than a block, are tested one at a time.

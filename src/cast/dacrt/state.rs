@@ -100,10 +100,6 @@ const LEAF_PAIRS_FACTOR: u64 = 4;
 pub(crate) fn leaf_pairs(leaf_rays: u64, leaf_triangles: u64) -> u64 {
     LEAF_PAIRS_FACTOR * leaf_rays * leaf_triangles
 }
-/// The most rays a trace may hold for the wide partition: a ray's record starts at
-/// float `8 · id`, which its gathers index with 32-bit words.
-pub(super) const MAX_LANE_RAYS: usize = (u32::MAX / 8) as usize;
-
 /// Rays whose directions choose which child is near (`Trace::toward_hi`).
 pub(super) const NEAR_SAMPLES: usize = 32;
 /// SAH bins per axis, and triangles sampled per SAH decision.
@@ -149,7 +145,7 @@ impl Trace {
         let slabs: Vec<RaySlab> = rays.par_iter().map(RaySlab::new).collect();
         let keys: Vec<AtomicU64> = (0..rays.len()).into_par_iter().map(|_| AtomicU64::new(NONE)).collect();
         let packets = Packets::new(&rays, &slabs, packet_rays);
-        let lanes = if lanes && rays.len() <= MAX_LANE_RAYS { Width::widest() } else { None };
+        let lanes = if lanes { Width::widest() } else { None };
         Trace {
             rays,
             slabs,
