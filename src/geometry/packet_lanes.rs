@@ -98,6 +98,14 @@ impl Width {
     pub(crate) fn widest() -> Option<Width> {
         Width::ALL.into_iter().find(|w| w.supported())
     }
+
+    /// Of `loops`, one loop compiled for each width in the order of [`Width::ALL`], the
+    /// one for this width. Panics where the CPU lacks the extension, so the loop
+    /// returned is safe to call on this CPU.
+    pub(crate) fn pick<F: Copy>(self, loops: [F; 2]) -> F {
+        assert!(self.supported(), "{self:?} lanes on a CPU without them");
+        loops[Width::ALL.iter().position(|&w| w == self).unwrap_or(0)]
+    }
 }
 
 /// Eight `f32` lanes: one AVX register.
@@ -430,5 +438,59 @@ mod avx512 {
         fn bits(m: M16) -> u32 {
             m.0 as u32
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every lane's fields of `records::<N>`, read out on the lanes' own extension.
+    fn fields<L: Packed, const N: usize>(base: &[f32], ids: &[u32]) -> Vec<Vec<f32>> {
+        L::records::<N>(base, ids).iter().map(|v| (0..L::WIDTH).map(|k| v.to_array()[k]).collect()).collect()
+    }
+
+    #[target_feature(enable = "avx2")]
+    fn fields_avx2<const N: usize>(base: &[f32], ids: &[u32]) -> Vec<Vec<f32>> {
+        fields::<F8, N>(base, ids)
+    }
+
+    #[target_feature(enable = "avx512f")]
+    fn fields_avx512<const N: usize>(base: &[f32], ids: &[u32]) -> Vec<Vec<f32>> {
+        fields::<F16, N>(base, ids)
+    }
+
+    /// Field `c` of lane `k` is float `c` of record `ids[k]` (zero past the record),
+    /// for records of 6 and 8 floats, on SSE and every wider width this CPU has.
+    fn check<const N: usize>() {
+        let base: Vec<f32> = (0..40 * N).map(|i| i as f32 * 0.5 - 3.0).collect();
+        // Records in a scattered order, the slice's last record (39) among them: a
+        // 6-float record there must not be read past.
+        let ids = [39, 0, 17, 5, 38, 22, 9, 30, 1, 14, 27, 33, 2, 11, 25, 39];
+        let mut got = vec![("SSE", fields::<glam::Vec4, N>(&base, &ids))];
+        if Width::Avx2.supported() {
+            // SAFETY: the CPU has AVX2.
+            got.push(("AVX2", unsafe { fields_avx2::<N>(&base, &ids) }));
+        }
+        if Width::Avx512.supported() {
+            // SAFETY: the CPU has AVX-512F.
+            got.push(("AVX-512", unsafe { fields_avx512::<N>(&base, &ids) }));
+        } else {
+            eprintln!("WARNING: this CPU has no AVX-512: the 16-lane transpose is not checked here");
+        }
+        for (name, f) in got {
+            for (c, lanes) in f.iter().enumerate() {
+                for (k, &v) in lanes.iter().enumerate() {
+                    let want = if c < N { base[ids[k] as usize * N + c] } else { 0.0 };
+                    assert_eq!(v, want, "{name}, records of {N}: field {c}, lane {k}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn records_load_each_lanes_record_field_by_field() {
+        check::<8>();
+        check::<6>();
     }
 }

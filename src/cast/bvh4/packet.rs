@@ -292,10 +292,9 @@ impl Width {
     /// Every packet of the batch through the traversal compiled for this width
     /// (`traversals` in the order of [`Width::ALL`]).
     fn trace<T: Send>(self, bvh: &Bvh4, rays: &[Ray], out: &mut [T], traversals: [Traversal<T>; 2]) -> CastStats {
-        assert!(self.supported(), "packets of {} rays on a CPU without their extension", self.rays());
-        let traversal = traversals[Width::ALL.iter().position(|&w| w == self).unwrap_or(0)];
+        let traversal = self.pick(traversals);
         // SAFETY: the traversal is compiled for this width's extension, which the CPU
-        // has (asserted above).
+        // has (`pick` checked).
         per_packet(rays, out, self.rays(), |r, o| unsafe { traversal(bvh, r, o) })
     }
 }

@@ -10,7 +10,7 @@
 use super::state::{Dacrt, Trace};
 use crate::geometry::hit_key::{BLOCKED, pack};
 use crate::geometry::lane_ops::{first_lanes, splat3, watertight};
-use crate::geometry::packet_lanes::{F8, F16, Packed, Width};
+use crate::geometry::packet_lanes::{F8, F16, Packed};
 use crate::geometry::{RayShear, closer, triangle_test};
 use glam::{Vec3, Vec4};
 use std::sync::atomic::Ordering::Relaxed;
@@ -23,15 +23,11 @@ impl Dacrt {
         match tr.lanes {
             None => leaf_in::<Vec4>(self, tr, rays, tris),
             Some(width) => {
-                assert!(width.supported(), "wide lanes on a CPU without them");
-                // SAFETY: each loop is compiled for its width's extension, which the
-                // CPU has (asserted above).
-                unsafe {
-                    match width {
-                        Width::Avx512 => leaf_avx512(self, tr, rays, tris),
-                        Width::Avx2 => leaf_avx2(self, tr, rays, tris),
-                    }
-                }
+                type Loop = unsafe fn(&Dacrt, &Trace, &[u32], &[u32]);
+                let wide = width.pick::<Loop>([leaf_avx512, leaf_avx2]);
+                // SAFETY: the loop is compiled for the width's extension, which the
+                // CPU has (`pick` checked).
+                unsafe { wide(self, tr, rays, tris) }
             }
         }
     }

@@ -7,6 +7,7 @@
 
 use super::packets::{MIN_RUN, Packets, coherence_key};
 use super::state::{Dacrt, Trace};
+use crate::geometry::hit_key;
 use crate::geometry::lane_ops::{first_lanes, slab, splat3};
 use crate::geometry::lanes::RaySlab;
 use crate::geometry::packet_lanes::{F8, F16, Packed, Width};
@@ -128,15 +129,11 @@ impl Trace {
 
     /// The partition's loop on `width`'s lanes (without packets).
     fn partition_wide(&self, width: Width, ids: &mut [u32], grown: &Aabb, rejected: &mut [u32]) -> (usize, usize) {
-        assert!(width.supported(), "wide lanes on a CPU without them");
-        // SAFETY: each loop is compiled for its width's extension, which the CPU has
-        // (asserted above).
-        unsafe {
-            match width {
-                Width::Avx512 => partition_avx512(self, ids, grown, rejected),
-                Width::Avx2 => partition_avx2(self, ids, grown, rejected),
-            }
-        }
+        type Loop = unsafe fn(&Trace, &mut [u32], &Aabb, &mut [u32]) -> (usize, usize);
+        let wide = width.pick::<Loop>([partition_avx512, partition_avx2]);
+        // SAFETY: the loop is compiled for the width's extension, which the CPU has
+        // (`pick` checked).
+        unsafe { wide(self, ids, grown, rejected) }
     }
 }
 
@@ -182,9 +179,9 @@ fn partition_in<L: Packed>(tr: &Trace, ids: &mut [u32], grown: &Aabb, rejected: 
         let [ox, oy, oz, t_min, ix, iy, iz, t_max] = L::records::<8>(floats, block);
         let (o, inv) = ([ox, oy, oz], [ix, iy, iz]);
         own[..w].copy_from_slice(block);
-        // The key's distance bits: NaN for no hit yet (`NONE`), whose minimum with
+        // The key's distance: NaN for no hit yet (`NONE`'s bits), whose minimum with
         // `t_max` below is `t_max` (`minps` returns its second operand for a NaN).
-        let t_key = L::from_fn(|k| f32::from_bits((tr.keys[own[k] as usize].load(Relaxed) >> 32) as u32));
+        let t_key = L::from_fn(|k| hit_key::t_of(tr.keys[own[k] as usize].load(Relaxed)));
         let t_far = cull_distance_lanes(t_key.min(t_max));
         // Any-hit: a blocked ray's key is 0 (the only keys are `NONE` and `BLOCKED`).
         let blocked = if tr.any_hit { L::bits(t_key.eq(zero)) } else { 0 };

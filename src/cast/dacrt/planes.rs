@@ -64,8 +64,8 @@ impl Dacrt {
     #[inline]
     pub(super) fn partition_triangles(&self, lanes: Option<Width>, tris: &mut [u32], child: &Aabb) -> (usize, Aabb) {
         match lanes {
-            Some(width) if tris.len() >= 2 * width.rays() => self.partition_wide(width, tris, child),
-            _ => {
+            Some(width) => self.partition_wide(width, tris, child),
+            None => {
                 let mut g = Grower::new(child);
                 let n = partition(tris, |t| g.test(&self.boxes[t as usize]));
                 (n, g.union())
@@ -74,14 +74,11 @@ impl Dacrt {
     }
 
     fn partition_wide(&self, width: Width, tris: &mut [u32], child: &Aabb) -> (usize, Aabb) {
-        assert!(width.supported(), "wide lanes on a CPU without them");
-        // SAFETY: each loop is compiled for its width's extension, which the CPU has.
-        unsafe {
-            match width {
-                Width::Avx512 => partition_avx512(&self.boxes, tris, child),
-                Width::Avx2 => partition_avx2(&self.boxes, tris, child),
-            }
-        }
+        type Loop = unsafe fn(&[Aabb], &mut [u32], &Aabb) -> (usize, Aabb);
+        let wide = width.pick::<Loop>([partition_avx512, partition_avx2]);
+        // SAFETY: the loop is compiled for the width's extension, which the CPU has
+        // (`pick` checked).
+        unsafe { wide(&self.boxes, tris, child) }
     }
 }
 
@@ -131,7 +128,10 @@ fn partition_in<L: Packed>(boxes: &[Aabb], tris: &mut [u32], child: &Aabb) -> (u
         let keep = g.test(&boxes[tris[k] as usize]);
         swap_front(tris, k, &mut n, keep);
     }
-    let tail = g.union();
+    if i == 0 {
+        // A list shorter than a block: the `Grower` saw every box.
+        return (n, g.union());
+    }
     let (mut min, mut max) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
     for a in 0..3 {
         let (l, h) = (lo[a].to_array(), hi[a].to_array());
@@ -139,7 +139,7 @@ fn partition_in<L: Packed>(boxes: &[Aabb], tris: &mut [u32], child: &Aabb) -> (u
             (min[a], max[a]) = (min[a].min(l[k]), max[a].max(h[k]));
         }
     }
-    let union = Aabb { min: min.into(), max: max.into() };
+    let (union, tail) = (Aabb { min: min.into(), max: max.into() }, g.union());
     // Nothing kept in the blocks leaves an inverted box; the union with the tail's
     // (possibly empty) box is then the tail's.
     (n, if union.min.x > union.max.x { tail } else { union.union(tail) })

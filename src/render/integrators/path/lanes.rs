@@ -16,6 +16,7 @@
 use super::shade::{brings, continue_path, emitter_density, next_event, with_emission};
 use super::state::{Bounce, PathState, Shadow};
 use crate::bsdf::TransportMode;
+use crate::geometry::packet_lanes::Width;
 use crate::geometry::{Hit, Ray, barycentric_point};
 use crate::lights::{Light, LightSample, area_point};
 use crate::render::context::Context;
@@ -131,14 +132,12 @@ pub(super) type Kernel = unsafe fn(&Inputs, Bounce, &mut Outputs);
 
 /// The lanes' loop for every vector extension this CPU has, widest first, by name.
 pub(super) fn kernels() -> impl Iterator<Item = (&'static str, Kernel)> {
-    let has = |extension: &str| match extension {
-        "avx512f" => std::arch::is_x86_feature_detected!("avx512f"),
-        "avx2" => std::arch::is_x86_feature_detected!("avx2"),
-        _ => true,
-    };
-    let all: [(&str, &str, Kernel); 3] =
-        [("AVX-512", "avx512f", shade_avx512), ("AVX2", "avx2", shade_avx2), ("SSE2", "sse2", shade_baseline)];
-    all.into_iter().filter(move |k| has(k.1)).map(|(name, _, kernel)| (name, kernel))
+    let all: [(&str, Option<Width>, Kernel); 3] = [
+        ("AVX-512", Some(Width::Avx512), shade_avx512),
+        ("AVX2", Some(Width::Avx2), shade_avx2),
+        ("SSE2", None, shade_baseline),
+    ];
+    all.into_iter().filter(|k| k.1.is_none_or(Width::supported)).map(|(name, _, kernel)| (name, kernel))
 }
 
 impl Group {
