@@ -104,7 +104,10 @@ impl Width {
     /// returned is safe to call on this CPU.
     pub(crate) fn pick<F: Copy>(self, loops: [F; 2]) -> F {
         assert!(self.supported(), "{self:?} lanes on a CPU without them");
-        loops[Width::ALL.iter().position(|&w| w == self).unwrap_or(0)]
+        match self {
+            Width::Avx512 => loops[0],
+            Width::Avx2 => loops[1],
+        }
     }
 }
 

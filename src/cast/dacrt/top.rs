@@ -69,15 +69,13 @@ struct RouteNode {
 const CELL: usize = 3;
 
 impl Routes {
-    fn new(plan: &Plan) -> Routes {
+    /// The routes of a plan whose cells are numbered `0..cells`.
+    fn new(plan: &Plan, cells: usize) -> Routes {
         fn push(plan: &Plan, (lo, hi): (Vec3, Vec3), routes: &mut Routes) -> usize {
             let at = routes.nodes.len();
             routes.nodes.push(RouteNode { axis: CELL, pos: 0.0, kids: [0; 2] });
             routes.nodes[at] = match plan {
                 Plan::Cell(c) => {
-                    if routes.regions.len() <= *c {
-                        routes.regions.resize(*c + 1, (Vec3::INFINITY, Vec3::NEG_INFINITY));
-                    }
                     routes.regions[*c] = (lo, hi);
                     RouteNode { axis: CELL, pos: 0.0, kids: [*c, 0] }
                 }
@@ -94,7 +92,7 @@ impl Routes {
             };
             at
         }
-        let mut routes = Routes { nodes: Vec::new(), regions: Vec::new() };
+        let mut routes = Routes { nodes: Vec::new(), regions: vec![(Vec3::INFINITY, Vec3::NEG_INFINITY); cells] };
         push(plan, (Vec3::NEG_INFINITY, Vec3::INFINITY), &mut routes);
         routes
     }
@@ -244,7 +242,7 @@ impl Dacrt {
         let mut plan = self.plan_top(&Trace::empty(), &sample, self.scene_box, ids, stride, 0);
         let mut cells = 0;
         plan.number(&mut cells);
-        let routes = Routes::new(&plan);
+        let routes = Routes::new(&plan, cells);
 
         // Pass 1 also keeps each triangle's cell (`SEVERAL` for one that touches a plane
         // and is routed again in pass 2).
@@ -408,7 +406,7 @@ mod tests {
             let mut p = plan(&mut rng, 0);
             let mut cells = 0;
             p.number(&mut cells);
-            let routes = Routes::new(&p);
+            let routes = Routes::new(&p, cells);
             let coarse = trial % 2 == 0;
             let (mut shortcuts, mut touching, mut last) = (0, 0, None);
             for k in 0..2000 {
