@@ -341,26 +341,41 @@ fn pdacrt_reuses_its_workspace_without_changing_results() {
 
 /// A DACRT call reports its stages in order; the stages that run one after another add
 /// up to no more than the call, the two halves of `prepare` (run side by side) each fit
-/// in it, and the groups' longest time fits in their summed time. Other casters report
-/// none.
+/// in it, the shared top's three stages fit in its half, and the groups' longest time
+/// fits in their summed time. Other casters report none.
 #[test]
 fn dacrt_reports_its_stages() {
     let scene = cornell_box();
     let [primary, ..] = batches(&scene, 64, 64, 0);
-    let d = Dacrt::new(&scene);
+    // Cells of 8 triangles: the Cornell box's shared top has planes.
+    let d = Dacrt::new(&scene).with_params(DacrtParams { top_cell_triangles: 8, ..DacrtParams::default() });
     assert!(d.phase_seconds().is_empty(), "no call yet");
     let st = d.closest(&primary, &mut vec![Hit::MISS; primary.len()]);
     let phases = d.phase_seconds();
     let names: Vec<&str> = phases.iter().map(|p| p.0).collect();
     assert_eq!(
         names,
-        ["filter", "prepare", "prepare_top", "prepare_rays", "groups", "groups_busy", "groups_longest", "back"]
+        [
+            "filter",
+            "prepare",
+            "prepare_top",
+            "prepare_rays",
+            "top_plan",
+            "top_route",
+            "top_gather",
+            "groups",
+            "groups_busy",
+            "groups_longest",
+            "back"
+        ]
     );
     let at = |n: &str| phases.iter().find(|p| p.0 == n).unwrap().1;
     assert!(phases.iter().all(|p| p.1.is_finite() && p.1 >= 0.0), "{phases:?}");
     let laps = at("filter") + at("prepare") + at("groups") + at("back");
     assert!(laps <= st.seconds, "stages {laps} s in a call of {} s", st.seconds);
     assert!(at("prepare_top") <= at("prepare") && at("prepare_rays") <= at("prepare"), "{phases:?}");
+    let top = at("top_plan") + at("top_route") + at("top_gather");
+    assert!(top <= at("prepare_top") && at("top_plan") > 0.0, "{phases:?}");
     assert!(at("groups_longest") <= at("groups_busy") && at("groups_busy") > 0.0, "{phases:?}");
     assert!(BruteForce::new(&scene).phase_seconds().is_empty());
 }

@@ -49,7 +49,8 @@
 //!
 //! Files: `state.rs` is the floor (the caster, its tunables, a call's `Trace`, the
 //! shared constants); this file is the recursion's driver, and `top`, `planes`,
-//! `partition`, `leaf`, `fork` and `stages` are its steps, importing only the floor.
+//! `partition`, `leaf`, `fork` and `stages` are its steps, importing only the floor
+//! (and `top` the plan and routes of `routes`, which import nothing of DACRT's).
 //!
 //! Every call counts its ray–triangle tests ([`CastStats::tests`]).
 
@@ -71,6 +72,7 @@ mod leaf;
 mod packets;
 mod partition;
 mod planes;
+mod routes;
 mod stages;
 mod state;
 mod top;
@@ -214,8 +216,10 @@ impl Dacrt {
             },
         );
         clock.lap("prepare");
+        let (top, top_stages) = top;
         clock.note("prepare_top", top_s);
         clock.note("prepare_rays", sort_s);
+        top_stages.iter().for_each(|&(name, s)| clock.note(name, s));
         let m = order.len();
         tr.alloc(
             m * (4 + 8 + std::mem::size_of::<RaySlab>() + std::mem::size_of::<Ray>() + 4)
