@@ -16,7 +16,9 @@
 //! `embree-fast` with low quality and the dynamic flag, in 16-ray packets;
 //! `embree-refit` keeps one structure and refits it to each frame's vertices (built
 //! once before the timed frames). Within each frame the casters run one after another
-//! (interleaved), and the table gives medians over the frames.
+//! (interleaved), and the table gives medians over the frames. `--json` prints one row
+//! per frame and caster, with each call's ray–triangle tests and, for DACRT, its ms
+//! by stage (`primary_phases`, `secondary_phases`: `RayCaster::phase_seconds`).
 
 use clap::Parser;
 use std::time::Instant;
@@ -78,6 +80,17 @@ struct FrameRow {
     secondary_ms: f64,
     rays: usize,
     tests: u64,
+    /// The primary and the secondary call's ray–triangle tests and ms by stage
+    /// (`RayCaster::phase_seconds`; DACRT's only).
+    primary_tests: u64,
+    primary_phases: Vec<(&'static str, f64)>,
+    secondary_phases: Vec<(&'static str, f64)>,
+}
+
+/// `{"stage":ms,...}` of a call's `phase_seconds`.
+fn phases_json(phases: &[(&str, f64)]) -> String {
+    let items: Vec<String> = phases.iter().map(|(k, v)| format!("\"{k}\":{:.3}", v * 1e3)).collect();
+    format!("{{{}}}", items.join(","))
 }
 
 /// The casters this build can measure.
@@ -185,15 +198,16 @@ fn run(a: Args) -> Result<(), String> {
         pool.install(|| live.iter_mut().try_for_each(|l| l.frame(waving_grid(n, -0.25), |_| ()).map(|_| ())))?;
         for (f, (tris, rays)) in frames.iter().enumerate() {
             for (c, l) in a.casters.iter().zip(&mut live) {
-                let (setup, (p, s)) = pool.install(|| {
+                let (setup, ((p, primary_phases), (s, secondary_phases))) = pool.install(|| {
                     l.frame(tris.clone(), |caster| {
                         let p = caster.closest(&primary, &mut vec![Hit::MISS; primary.len()]);
+                        let p_phases = caster.phase_seconds();
                         let s = if diffuse {
                             caster.closest(rays, &mut vec![Hit::MISS; rays.len()])
                         } else {
                             caster.occluded(rays, &mut vec![false; rays.len()])
                         };
-                        (p, s)
+                        ((p, p_phases), (s, caster.phase_seconds()))
                     })
                 })?;
                 rows.push(FrameRow {
@@ -205,6 +219,9 @@ fn run(a: Args) -> Result<(), String> {
                     secondary_ms: s.seconds * 1e3,
                     rays: p.rays + s.rays,
                     tests: p.tests + s.tests,
+                    primary_tests: p.tests,
+                    primary_phases,
+                    secondary_phases,
                 });
             }
         }
@@ -215,7 +232,7 @@ fn run(a: Args) -> Result<(), String> {
         println!("{{\"machine\":{}}}", machine.json());
         for r in &rows {
             println!(
-                "{{\"scene\":\"{scene}\",\"triangles\":{},\"caster\":\"{}\",\"threads\":{},\"frame\":{},\"setup_ms\":{:.3},\"primary_ms\":{:.3},\"secondary\":\"{}\",\"secondary_ms\":{:.3},\"total_ms\":{:.3},\"rays\":{},\"tests\":{}}}",
+                "{{\"scene\":\"{scene}\",\"triangles\":{},\"caster\":\"{}\",\"threads\":{},\"frame\":{},\"setup_ms\":{:.3},\"primary_ms\":{:.3},\"secondary\":\"{}\",\"secondary_ms\":{:.3},\"total_ms\":{:.3},\"rays\":{},\"tests\":{},\"primary_tests\":{},\"primary_phases\":{},\"secondary_phases\":{}}}",
                 2 * n * n,
                 r.caster,
                 r.threads,
@@ -226,7 +243,10 @@ fn run(a: Args) -> Result<(), String> {
                 r.secondary_ms,
                 r.setup_ms + r.primary_ms + r.secondary_ms,
                 r.rays,
-                r.tests
+                r.tests,
+                r.primary_tests,
+                phases_json(&r.primary_phases),
+                phases_json(&r.secondary_phases)
             );
         }
         return Ok(());
