@@ -8,6 +8,7 @@
 //! cargo run --release --features embree --example animated -- [--triangles 1000000]
 //!     [--size 1024] [--frames 5] [--threads 1,2,4,8,16] [--secondary shadow|diffuse]
 //!     [--casters bvh,bvh4,dacrt,dacrt-sse,pdacrt,embree,embree-fast,embree-refit] [--json]
+//!     [--dacrt-groups-per-thread N]
 //! ```
 //!
 //! Secondary rays: `shadow` (segments to a point light above the grid: coherent, the
@@ -50,6 +51,9 @@ struct Args {
     /// One JSON object per (caster, threads, frame) instead of the table.
     #[arg(long)]
     json: bool,
+    /// DACRT's ray groups per thread for one-origin batches (default: the library's).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(0..=1024))]
+    dacrt_groups_per_thread: Option<u64>,
 }
 
 /// One cosine-weighted diffuse bounce from every primary hit (seeded by pixel).
@@ -101,17 +105,17 @@ const KNOWN: &[&str] = &["bvh", "bvh4", "dacrt", "dacrt-sse", "pdacrt"];
 
 /// A caster kept across frames and told each frame's triangles, or rebuilt each frame.
 enum Live {
-    Rebuilt(String),
+    Rebuilt(String, DacrtParams),
     #[cfg(feature = "embree")]
     Refit(Option<warpray::cast::embree::EmbreeCaster>),
 }
 
 impl Live {
-    fn new(name: &str) -> Live {
+    fn new(name: &str, dacrt: DacrtParams) -> Live {
         match name {
             #[cfg(feature = "embree")]
             "embree-refit" => Live::Refit(None),
-            other => Live::Rebuilt(other.to_string()),
+            other => Live::Rebuilt(other.to_string(), dacrt),
         }
     }
 
@@ -120,8 +124,8 @@ impl Live {
     fn frame<R>(&mut self, tris: Vec<[Vec3; 3]>, f: impl FnOnce(&dyn RayCaster) -> R) -> Result<(f64, R), String> {
         let start = Instant::now();
         match self {
-            Live::Rebuilt(name) => {
-                let c = build(name, tris)?;
+            Live::Rebuilt(name, dacrt) => {
+                let c = build(name, tris, *dacrt)?;
                 let setup = start.elapsed().as_secs_f64();
                 Ok((setup, f(c.as_ref())))
             }
@@ -143,13 +147,13 @@ impl Live {
     }
 }
 
-fn build(name: &str, tris: Vec<[Vec3; 3]>) -> Result<Box<dyn RayCaster>, String> {
+fn build(name: &str, tris: Vec<[Vec3; 3]>, dacrt: DacrtParams) -> Result<Box<dyn RayCaster>, String> {
     Ok(match name {
         "bvh" => Box::new(BvhCaster::from_triangles(tris).with_traversal(Traversal::Fast)),
         "bvh4" => Box::new(Bvh4::from_triangles(tris)),
-        "dacrt" => Box::new(Dacrt::from_triangles(tris, Default::default())),
+        "dacrt" => Box::new(Dacrt::from_triangles(tris, dacrt)),
         // DACRT on SSE alone (no AVX2 or AVX-512 lanes): what the lanes are worth.
-        "dacrt-sse" => Box::new(Dacrt::from_triangles(tris, DacrtParams { lanes: false, ..Default::default() })),
+        "dacrt-sse" => Box::new(Dacrt::from_triangles(tris, DacrtParams { lanes: false, ..dacrt })),
         "pdacrt" => Box::new(Pdacrt::from_triangles(&tris, Default::default())),
         #[cfg(feature = "embree")]
         "embree" | "embree-fast" => {
@@ -166,6 +170,8 @@ fn run(a: Args) -> Result<(), String> {
         return Err(format!("unknown caster {c} (known: {})", KNOWN.join(", ")));
     }
     let diffuse = a.secondary == "diffuse";
+    let mut dacrt = DacrtParams::default();
+    dacrt.groups_per_thread = a.dacrt_groups_per_thread.map_or(dacrt.groups_per_thread, |g| g as usize);
     let n = ((a.triangles / 2) as f64).sqrt().round().max(1.0) as usize;
     let camera = waving_grid_camera();
     let primary = primary_rays(&camera, a.size, a.size);
@@ -193,7 +199,7 @@ fn run(a: Args) -> Result<(), String> {
     let mut rows = Vec::new();
     for &t in &a.threads {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build().map_err(|e| e.to_string())?;
-        let mut live: Vec<Live> = a.casters.iter().map(|c| Live::new(c)).collect();
+        let mut live: Vec<Live> = a.casters.iter().map(|c| Live::new(c, dacrt)).collect();
         // A refitted structure is built once, from the frame before the first.
         pool.install(|| live.iter_mut().try_for_each(|l| l.frame(waving_grid(n, -0.25), |_| ()).map(|_| ())))?;
         for (f, (tris, rays)) in frames.iter().enumerate() {
