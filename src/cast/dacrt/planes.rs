@@ -150,22 +150,23 @@ fn partition_in<L: Packed>(boxes: &[Aabb], tris: &mut [u32], child: &Aabb) -> (u
 pub(super) fn sah_plane(boxes: &[Aabb], bounds: &Aabb, tris: &[u32]) -> Option<(usize, f32)> {
     let step = tris.len().div_ceil(SAH_SAMPLES).max(1);
     let (ext, min) = (bounds.extent(), bounds.min);
+    let bin = |axis: usize, x: f32| (((x - min[axis]) / ext[axis] * SAH_BINS as f32) as usize).min(SAH_BINS - 1);
+    // Each sampled box is clipped once and binned on every axis of some extent.
+    let (mut starts, mut ends) = ([[0u32; SAH_BINS]; 3], [[0u32; SAH_BINS]; 3]);
+    let axes = || (0..3).filter(|&a| ext[a] > 0.0);
+    for &t in tris.iter().step_by(step) {
+        let b = boxes[t as usize].intersection(*bounds);
+        for axis in axes() {
+            starts[axis][bin(axis, b.min[axis])] += 1;
+            ends[axis][bin(axis, b.max[axis])] += 1;
+        }
+    }
     let mut best: Option<(f32, usize, f32)> = None;
-    for axis in 0..3 {
-        if ext[axis] <= 0.0 {
-            continue;
-        }
-        let bin = |x: f32| (((x - min[axis]) / ext[axis] * SAH_BINS as f32) as usize).min(SAH_BINS - 1);
-        let (mut starts, mut ends) = ([0u32; SAH_BINS], [0u32; SAH_BINS]);
-        for &t in tris.iter().step_by(step) {
-            let b = boxes[t as usize].intersection(*bounds);
-            starts[bin(b.min[axis])] += 1;
-            ends[bin(b.max[axis])] += 1;
-        }
+    for axis in axes() {
         for k in 1..SAH_BINS {
             let pos = min[axis] + ext[axis] * k as f32 / SAH_BINS as f32;
-            let n_lo: u32 = starts[..k].iter().sum();
-            let n_hi: u32 = ends[k..].iter().sum();
+            let n_lo: u32 = starts[axis][..k].iter().sum();
+            let n_hi: u32 = ends[axis][k..].iter().sum();
             let (lo, hi) = bounds.split(axis, pos);
             let cost = lo.surface_area() * n_lo as f32 + hi.surface_area() * n_hi as f32;
             if best.is_none_or(|b| cost < b.0) {

@@ -206,18 +206,30 @@ impl Dacrt {
         let Some((axis, pos)) = self.choose_split(none, (sample, stride), &bounds, &[], &tris) else {
             return Plan::Cell(0);
         };
-        let side = |child: Aabb| -> (Vec<u32>, Aabb) {
-            let keep = |&t: &u32| sample[t as usize].overlaps(&child);
-            let ids: Vec<u32> = if tris.len() < 1 << 14 {
-                tris.iter().copied().filter(keep).collect()
-            } else {
-                tris.par_iter().copied().filter(keep).collect()
-            };
-            let union = ids.iter().fold(Aabb::EMPTY, |u, &t| u.union(sample[t as usize]));
-            (ids, child.intersection(union))
-        };
         let (lo, hi) = bounds.split(axis, pos);
-        let ((lo_ids, lo_box), (hi_ids, hi_box)) = (side(lo), side(hi));
+        // Each side's sample ids and the union of their boxes, in one pass over the
+        // node's ids (two parallel filters on large nodes).
+        let ((lo_ids, lo_union), (hi_ids, hi_union)) = if tris.len() < 1 << 14 {
+            let (mut l, mut h) = ((Vec::new(), Aabb::EMPTY), (Vec::new(), Aabb::EMPTY));
+            for &t in &tris {
+                let b = sample[t as usize];
+                for (side, child) in [(&mut l, &lo), (&mut h, &hi)] {
+                    if b.overlaps(child) {
+                        side.0.push(t);
+                        side.1 = side.1.union(b);
+                    }
+                }
+            }
+            (l, h)
+        } else {
+            let side = |child: &Aabb| {
+                let ids: Vec<u32> = tris.par_iter().copied().filter(|&t| sample[t as usize].overlaps(child)).collect();
+                let union = ids.iter().fold(Aabb::EMPTY, |u, &t| u.union(sample[t as usize]));
+                (ids, union)
+            };
+            (side(&lo), side(&hi))
+        };
+        let (lo_box, hi_box) = (lo.intersection(lo_union), hi.intersection(hi_union));
         drop(tris);
         let (a, b) = rayon::join(
             || self.plan_top(none, sample, lo_box, lo_ids, stride, depth + 1),
