@@ -24,7 +24,7 @@
 use clap::Parser;
 use std::time::Instant;
 use warpray::cast::batches::{primary_rays, waving_grid, waving_grid_camera, waving_grid_shadow_rays};
-use warpray::cast::{Bvh4, BvhCaster, Dacrt, DacrtParams, RayCaster, Traversal};
+use warpray::cast::{Bvh4, BvhCaster, Dacrt, DacrtParams, RayCaster, Traversal, phases_json};
 use warpray::geometry::{Hit, Ray, offset_ray_origin};
 use warpray::glam::Vec3;
 use warpray::machine::median;
@@ -89,12 +89,6 @@ struct FrameRow {
     primary_tests: u64,
     primary_phases: Vec<(&'static str, f64)>,
     secondary_phases: Vec<(&'static str, f64)>,
-}
-
-/// `{"stage":ms,...}` of a call's `phase_seconds`.
-fn phases_json(phases: &[(&str, f64)]) -> String {
-    let items: Vec<String> = phases.iter().map(|(k, v)| format!("\"{k}\":{:.3}", v * 1e3)).collect();
-    format!("{{{}}}", items.join(","))
 }
 
 /// The casters this build can measure.

@@ -31,7 +31,7 @@
 
 use clap::Parser;
 use warpray::cast::batches::interior_camera;
-use warpray::cast::{Bvh4, BvhBuild, BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster, Traversal};
+use warpray::cast::{Bvh4, BvhBuild, BvhCaster, CastStats, Dacrt, DacrtParams, RayCaster, Traversal, phases_json};
 use warpray::geometry::{Hit, Ray};
 use warpray::machine::median;
 use warpray::pdacrt::{Pdacrt, PdacrtParams};
@@ -110,7 +110,7 @@ struct Row {
     peak_bytes: usize,
     structure_bytes: usize,
     tests: u64,
-    /// The caster's stages of the fastest call, ms (DACRT only).
+    /// The caster's stages of the fastest call, seconds (DACRT only).
     phases: Vec<(&'static str, f64)>,
 }
 
@@ -130,18 +130,14 @@ impl Row {
             self.peak_bytes,
             self.structure_bytes,
             self.tests,
-            phases_json(&self.phases)
+            phases_field(&self.phases)
         )
     }
 }
 
 /// `,"phases":{...}` in ms, or nothing.
-fn phases_json(phases: &[(&str, f64)]) -> String {
-    if phases.is_empty() {
-        return String::new();
-    }
-    let items: Vec<String> = phases.iter().map(|(k, v)| format!("\"{k}\":{v:.3}")).collect();
-    format!(",\"phases\":{{{}}}", items.join(","))
+fn phases_field(phases: &[(&str, f64)]) -> String {
+    if phases.is_empty() { String::new() } else { format!(",\"phases\":{}", phases_json(phases)) }
 }
 
 fn scene(name: &str) -> Result<Scene, String> {
@@ -298,7 +294,7 @@ fn measure(
                 peak_bytes: st.peak_working_bytes + c.memory_bytes(),
                 structure_bytes: c.memory_bytes(),
                 tests: st.tests,
-                phases: c.phase_seconds().into_iter().map(|(k, v)| (k, v * 1e3)).collect(),
+                phases: c.phase_seconds(),
             };
             match rows.get_mut(k) {
                 Some(r) => {

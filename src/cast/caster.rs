@@ -61,8 +61,9 @@ pub trait RayCaster: Send + Sync {
     /// Bytes of the caster's persistent structure (BVH nodes, indices, its triangle copy).
     fn memory_bytes(&self) -> usize;
     /// The last call's seconds by stage, in order, for casters that time their stages
-    /// (DACRT: `filter`, `prepare` with its two halves run side by side, `groups` with
-    /// the groups' summed and longest times, `back`); empty for the others.
+    /// (DACRT: `filter`, `prepare` with its two halves run side by side, the shared
+    /// top's `top_plan`, `top_route` and `top_gather`, `groups` with the groups' summed
+    /// and longest times, `back`); empty for the others. [`phases_json`] writes them.
     fn phase_seconds(&self) -> Vec<(&'static str, f64)> {
         Vec::new()
     }
@@ -374,4 +375,28 @@ pub fn any_hit_ids<T: TriangleCorners + ?Sized>(
         }
     }
     (false, tests)
+}
+
+/// A call's [`RayCaster::phase_seconds`] as a JSON object of milliseconds by stage,
+/// `{"filter":1.234,...}` (`{}` for a caster that times none), as the benchmarks'
+/// `--json` rows carry them.
+pub fn phases_json(phases: &[(&str, f64)]) -> String {
+    let items: Vec<String> = phases.iter().map(|(k, s)| format!("\"{k}\":{:.3}", s * 1e3)).collect();
+    format!("{{{}}}", items.join(","))
+}
+
+#[cfg(test)]
+mod phases_tests {
+    use super::phases_json;
+
+    /// Seconds in, milliseconds out, in order, as JSON that parses.
+    #[test]
+    fn phases_are_written_as_milliseconds_by_stage() {
+        let json = phases_json(&[("filter", 0.001_25), ("groups", 2.5)]);
+        let v: serde_json::Value = serde_json::from_str(&json).expect("valid JSON");
+        assert_eq!(v["filter"].as_f64(), Some(1.25), "{json}");
+        assert_eq!(v["groups"].as_f64(), Some(2500.0), "{json}");
+        assert!(json.find("filter") < json.find("groups"), "{json}");
+        assert_eq!(phases_json(&[]), "{}");
+    }
 }

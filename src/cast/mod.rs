@@ -26,7 +26,7 @@ pub mod pdacrt;
 pub use brute::BruteForce;
 pub use bvh::{BvhBuild, BvhCaster, Traversal};
 pub use bvh4::Bvh4;
-pub use caster::{CastStats, CountingCaster, InThread, RayCaster, Triangles, any_hit_ids, intersect_ids};
+pub use caster::{CastStats, CountingCaster, InThread, RayCaster, Triangles, any_hit_ids, intersect_ids, phases_json};
 pub use dacrt::{Dacrt, DacrtParams};
 pub use lbvh::Lbvh;
 

@@ -189,7 +189,7 @@ impl Dacrt {
         );
         let top = SharedTop { root: Top::from_plan(&plan, self.scene_box, &starts, &unions), ids };
         clock.lap("top_gather");
-        (top, [clock.seconds[0], clock.seconds[1], clock.seconds[2]])
+        (top, clock.seconds.try_into().expect("three laps"))
     }
 
     /// The shared top's planes over a sample of the triangles' boxes (`tris` index
