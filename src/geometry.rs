@@ -16,6 +16,8 @@ use glam::Vec3;
 pub(crate) mod hit_key;
 mod slack;
 pub(crate) use slack::{batch_slack, hit_slack, magnitude};
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod lane_compact;
 pub(crate) mod lane_ops;
 pub mod lanes;
 #[cfg(target_arch = "x86_64")]

@@ -4,6 +4,7 @@
 use super::state::Trace;
 use crate::geometry::Ray;
 use crate::geometry::hit_key::{BLOCKED, NONE, pack};
+use crate::geometry::lanes::RaySlab;
 use crate::geometry::packet_lanes::Width;
 use crate::sampling::Rng;
 use glam::Vec3;
@@ -43,7 +44,8 @@ pub(super) fn case(rng: &mut Rng, any_hit: bool, lanes: bool) -> (Vec<[Vec3; 3]>
             Ray { origin, dir: if dir == Vec3::ZERO { Vec3::Z } else { dir }, t_min: 0.0, t_max }
         })
         .collect();
-    let tr = Trace::new(rays, any_hit, 0, 0, 4.0, lanes);
+    let slabs = rays.iter().map(RaySlab::new).collect();
+    let tr = Trace::new(rays, slabs, any_hit, 0, 0, 4.0, lanes);
     for k in &tr.keys {
         let u = rng.uniform();
         k.store(

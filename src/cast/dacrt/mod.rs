@@ -172,7 +172,7 @@ impl Dacrt {
     /// Partitions the parent's lists for `child`, shrinks its box to its triangles,
     /// and recurses.
     fn child(&self, tr: &Trace, child: Aabb, rays: &mut [u32], tris: &mut [u32], spare: &mut Vec<u32>, depth: u32) {
-        let (nt, union) = self.partition_triangles(tr.lanes, tris, &child);
+        let (nt, union) = self.partition_triangles(tr.lanes, tris, &child, spare);
         if nt == 0 {
             return;
         }
@@ -203,8 +203,14 @@ impl Dacrt {
                     // The valid rays renumbered in that order: ids, keys, reciprocal
                     // directions, the copies of the rays, the map back, and the packets.
                     // (The sort's own 16 bytes per ray are freed before these are made.)
+                    let (mut in_order, mut slabs) = (Vec::new(), Vec::new());
+                    order
+                        .par_iter()
+                        .map(|&i| (rays[i as usize], RaySlab::new(&rays[i as usize])))
+                        .unzip_into_vecs(&mut in_order, &mut slabs);
                     let tr = Trace::new(
-                        order.par_iter().map(|&i| rays[i as usize]).collect(),
+                        in_order,
+                        slabs,
                         any_hit,
                         self.params.packet_rays,
                         fork_min_rays,

@@ -20,7 +20,7 @@
 
 use crate::geometry::lanes::RaySlab;
 use crate::geometry::{Aabb, Ray, SLAB_WIDEN};
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 /// A run of fewer of one packet's rays in a ray list is tested ray by ray: a packet
@@ -133,11 +133,24 @@ impl Packets {
 /// A Morton-style key that puts rays with nearby origins and directions next to each
 /// other: 10 bits per component of the origin (in `bounds`) and the unit direction,
 /// interleaved (direction bits first at every level): bit `b` of component `j` (x, y,
-/// z of the direction, then of the origin) lands on bit `6b + 5 - j`.
+/// z of the direction, then of the origin) lands on bit `6b + 5 - j`. Each component
+/// is `(c.clamp(0, 1) · 1023) as usize`, computed three lanes at a time: the lanes run
+/// the scalar operations (the direction's length as `(x·x + y·y) + z·z`), so the key is
+/// the same on every machine.
 pub(super) fn coherence_key(ray: &Ray, bounds: &Aabb) -> u64 {
-    let q = |x: f32| (x.clamp(0.0, 1.0) * 1023.0) as usize;
-    let o = (ray.origin - bounds.min) / bounds.extent().max(Vec3::splat(1e-30));
-    let d = ray.dir.normalize_or_zero() * 0.5 + 0.5;
+    let o = (Vec3A::from(ray.origin) - Vec3A::from(bounds.min)) / Vec3A::from(bounds.extent().max(Vec3::splat(1e-30)));
+    let d = Vec3A::from(ray.dir).normalize_or_zero() * 0.5 + 0.5;
+    let (o, d) = (o.clamp(Vec3A::ZERO, Vec3A::ONE) * 1023.0, d.clamp(Vec3A::ZERO, Vec3A::ONE) * 1023.0);
+    // A NaN (a ray or box with non-finite coordinates) becomes 0, as `as` makes it.
+    let q = |x: f32| {
+        if x.is_nan() {
+            0
+        } else {
+            // SAFETY: `x` is not NaN and lies in [0, 1023] (clamped, then scaled), where
+            // truncation to an integer is defined.
+            unsafe { x.to_int_unchecked::<u32>() as usize }
+        }
+    };
     let comps = [q(d.x), q(d.y), q(d.z), q(o.x), q(o.y), q(o.z)];
     comps.iter().enumerate().fold(0, |key, (j, &c)| key | SPREAD6[c] << (5 - j))
 }

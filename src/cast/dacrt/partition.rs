@@ -6,12 +6,13 @@
 //! `packets.rs`. Every way moves the same rays to the same places.
 
 use super::packets::{MIN_RUN, Packets, coherence_key};
-use super::state::{Dacrt, Trace};
+use super::state::{Dacrt, Trace, place};
 use crate::geometry::hit_key;
+use crate::geometry::lane_compact::compact;
 use crate::geometry::lane_ops::{first_lanes, slab, splat3};
 use crate::geometry::lanes::RaySlab;
 use crate::geometry::packet_lanes::{F8, F16, Packed, Width};
-use crate::geometry::{Aabb, Ray, cull_distance_lanes, hit_slack, inv_dir};
+use crate::geometry::{Aabb, Ray, cull_distance_lanes, hit_slack};
 use rayon::prelude::*;
 use std::sync::atomic::Ordering::Relaxed;
 
@@ -32,7 +33,7 @@ impl Dacrt {
                 let (mut or, mut and) = (0, u64::MAX);
                 for (i, r) in chunk.iter().enumerate() {
                     let grown = scene_box.grown(hit_slack(self.magnitude, r.origin.abs().max_element()));
-                    if r.is_valid() && grown.intersect(r.origin, inv_dir(r.dir), r.t_min, r.t_max).is_some() {
+                    if r.is_valid() && RaySlab::new(r).enters(&grown, r.t_max) {
                         let key = coherence_key(r, &scene_box);
                         (or, and) = (or | key, and & key);
                         ids.push((c * CHUNK + i) as u32);
@@ -147,17 +148,6 @@ fn partition_avx2(tr: &Trace, ids: &mut [u32], grown: &Aabb, rejected: &mut [u32
     partition_in::<F8>(tr, ids, grown, rejected)
 }
 
-/// Ray `r` goes to the front of `ids` (at `n`) when `enters`, else to `rejected` (at
-/// `m`): both writes happen and only the counts depend on the answer (no branch on it:
-/// the answers are as good as random).
-#[inline(always)]
-fn place(ids: &mut [u32], rejected: &mut [u32], r: u32, enters: bool, n: &mut usize, m: &mut usize) {
-    ids[*n] = r;
-    rejected[*m] = r;
-    *n += enters as usize;
-    *m += !enters as usize;
-}
-
 /// The rays of `ids` against `grown`, `L::WIDTH` at a time: each lane loads its ray's
 /// record from `Trace::slabs` (`Packed::records`) and its interval's end from its key
 /// (`Packed::from_fn`, set from registers), and the slab test
@@ -194,9 +184,9 @@ fn partition_in<L: Packed>(tr: &Trace, ids: &mut [u32], grown: &Aabb, rejected: 
             odd &= odd - 1;
             enters |= (tr.enters(own[k as usize], grown) as u32) << k;
         }
-        for (k, &r) in own[..w].iter().enumerate() {
-            place(ids, rejected, r, enters >> k & 1 == 1, &mut n, &mut m);
-        }
+        // As `place` a ray at a time: the entering rays to the front, the others aside.
+        n += compact::<L>(&own[..w], enters, ids, n);
+        m += compact::<L>(&own[..w], !enters & first_lanes(w), rejected, m);
         i += w;
     }
     for k in i..ids.len() {

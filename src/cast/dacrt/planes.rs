@@ -1,9 +1,10 @@
 //! Split planes that do not depend on the rays: a binned SAH over a subsample of a
 //! node's triangles, and the median of their centroids; and a child's triangle test.
 
-use super::state::{Dacrt, SAH_BINS, SAH_SAMPLES, partition, swap_front};
+use super::state::{Dacrt, SAH_BINS, SAH_SAMPLES, place};
 use crate::geometry::Aabb;
-use crate::geometry::lane_ops::splat3;
+use crate::geometry::lane_compact::compact;
+use crate::geometry::lane_ops::{first_lanes, splat3};
 use crate::geometry::packet_lanes::{F8, F16, Packed, Width};
 use glam::{BVec4A, Vec4};
 
@@ -57,55 +58,86 @@ impl Grower {
 }
 
 impl Dacrt {
-    /// Partitions `tris` so those whose boxes overlap `child` come first; returns their
-    /// count and the union of their boxes. On wide lanes the boxes are tested sixteen
-    /// or eight at a time (`partition_wide`), in the same order and with the same
-    /// answers as the [`Grower`] one at a time.
+    /// Partitions `tris` so those whose boxes overlap `child` come first, both parts in
+    /// their order (`aside` holds the others meanwhile); returns their count and the
+    /// union of their boxes. On wide lanes the boxes are tested sixteen or eight at a
+    /// time (`partition_wide`), with the same answers, order and union as the
+    /// [`Grower`] one at a time.
     #[inline]
-    pub(super) fn partition_triangles(&self, lanes: Option<Width>, tris: &mut [u32], child: &Aabb) -> (usize, Aabb) {
-        match lanes {
-            Some(width) => self.partition_wide(width, tris, child),
+    pub(super) fn partition_triangles(
+        &self,
+        lanes: Option<Width>,
+        tris: &mut [u32],
+        child: &Aabb,
+        aside: &mut Vec<u32>,
+    ) -> (usize, Aabb) {
+        if aside.len() < tris.len() {
+            aside.resize(tris.len(), 0);
+        }
+        let (n, m, union) = match lanes {
+            Some(width) => {
+                type Loop = unsafe fn(&[Aabb], &mut [u32], &Aabb, &mut [u32]) -> (usize, usize, Aabb);
+                let wide = width.pick::<Loop>([partition_avx512, partition_avx2]);
+                // SAFETY: the loop is compiled for the width's extension, which the CPU
+                // has (`pick` checked).
+                unsafe { wide(&self.boxes, tris, child, aside) }
+            }
             None => {
                 let mut g = Grower::new(child);
-                let n = partition(tris, |t| g.test(&self.boxes[t as usize]));
-                (n, g.union())
+                let (n, m) = partition_tail(&self.boxes, tris, 0, (0, 0), &mut g, aside);
+                (n, m, g.union())
             }
-        }
-    }
-
-    fn partition_wide(&self, width: Width, tris: &mut [u32], child: &Aabb) -> (usize, Aabb) {
-        type Loop = unsafe fn(&[Aabb], &mut [u32], &Aabb) -> (usize, Aabb);
-        let wide = width.pick::<Loop>([partition_avx512, partition_avx2]);
-        // SAFETY: the loop is compiled for the width's extension, which the CPU has
-        // (`pick` checked).
-        unsafe { wide(&self.boxes, tris, child) }
+        };
+        tris[n..].copy_from_slice(&aside[..m]);
+        (n, union)
     }
 }
 
 #[target_feature(enable = "avx512f")]
-fn partition_avx512(boxes: &[Aabb], tris: &mut [u32], child: &Aabb) -> (usize, Aabb) {
-    partition_in::<F16>(boxes, tris, child)
+fn partition_avx512(boxes: &[Aabb], tris: &mut [u32], child: &Aabb, aside: &mut [u32]) -> (usize, usize, Aabb) {
+    partition_in::<F16>(boxes, tris, child, aside)
 }
 
 #[target_feature(enable = "avx2")]
-fn partition_avx2(boxes: &[Aabb], tris: &mut [u32], child: &Aabb) -> (usize, Aabb) {
-    partition_in::<F8>(boxes, tris, child)
+fn partition_avx2(boxes: &[Aabb], tris: &mut [u32], child: &Aabb, aside: &mut [u32]) -> (usize, usize, Aabb) {
+    partition_in::<F8>(boxes, tris, child, aside)
 }
 
-/// [`partition`] of the triangles overlapping `child`, `L::WIDTH` boxes at a time: the
-/// boxes' six floats loaded a box a lane, each lane's overlap answered as
-/// [`Aabb::overlaps`] does (a NaN in any coordinate fails), and the union of the kept
-/// boxes kept per lane (minima and maxima are exact, so the order they are met in does
-/// not matter); the last boxes, fewer than a block, go through the [`Grower`].
+/// The partition of `tris[from..]` one box at a time through the [`Grower`], the counts
+/// `(n, m)` so far given and returned.
 #[inline(always)]
-fn partition_in<L: Packed>(boxes: &[Aabb], tris: &mut [u32], child: &Aabb) -> (usize, Aabb) {
+fn partition_tail(
+    boxes: &[Aabb],
+    tris: &mut [u32],
+    from: usize,
+    (mut n, mut m): (usize, usize),
+    g: &mut Grower,
+    aside: &mut [u32],
+) -> (usize, usize) {
+    for k in from..tris.len() {
+        let id = tris[k];
+        place(tris, aside, id, g.test(&boxes[id as usize]), &mut n, &mut m);
+    }
+    (n, m)
+}
+
+/// The partition of the triangles overlapping `child`, `L::WIDTH` boxes at a time: the
+/// boxes' six floats loaded a box a lane, each lane's overlap answered as
+/// [`Aabb::overlaps`] does (a NaN in any coordinate fails), the block's ids stored to
+/// their sides in order (`geometry::lane_compact::compact`), and the union of the kept boxes kept per
+/// lane (minima and maxima are exact, so the order they are met in does not matter);
+/// the last boxes, fewer than a block, go through the [`Grower`].
+#[inline(always)]
+fn partition_in<L: Packed>(boxes: &[Aabb], tris: &mut [u32], child: &Aabb, aside: &mut [u32]) -> (usize, usize, Aabb) {
     let w = L::WIDTH;
     let floats = Aabb::floats(boxes);
     let (near, far) = (splat3::<L>(child.min), splat3::<L>(child.max));
     let (mut lo, mut hi) = ([L::splat(f32::INFINITY); 3], [L::splat(f32::NEG_INFINITY); 3]);
-    let (mut n, mut i) = (0, 0);
+    let (mut n, mut m, mut i) = (0, 0, 0);
+    let mut own = [0u32; 32];
     while i + w <= tris.len() {
-        let [x0, y0, z0, x1, y1, z1, _, _] = L::records::<6>(floats, &tris[i..i + w]);
+        own[..w].copy_from_slice(&tris[i..i + w]);
+        let [x0, y0, z0, x1, y1, z1, _, _] = L::records::<6>(floats, &own[..w]);
         let (b_lo, b_hi) = ([x0, y0, z0], [x1, y1, z1]);
         let keep = b_lo[0].le(far[0])
             & b_lo[1].le(far[1])
@@ -118,19 +150,15 @@ fn partition_in<L: Packed>(boxes: &[Aabb], tris: &mut [u32], child: &Aabb) -> (u
             hi[a] = L::select(keep, hi[a].max(b_hi[a]), hi[a]);
         }
         let bits = L::bits(keep);
-        for k in 0..w {
-            swap_front(tris, i + k, &mut n, bits >> k & 1 == 1);
-        }
+        n += compact::<L>(&own[..w], bits, tris, n);
+        m += compact::<L>(&own[..w], !bits & first_lanes(w), aside, m);
         i += w;
     }
     let mut g = Grower::new(child);
-    for k in i..tris.len() {
-        let keep = g.test(&boxes[tris[k] as usize]);
-        swap_front(tris, k, &mut n, keep);
-    }
+    (n, m) = partition_tail(boxes, tris, i, (n, m), &mut g, aside);
     if i == 0 {
         // A list shorter than a block: the `Grower` saw every box.
-        return (n, g.union());
+        return (n, m, g.union());
     }
     let (mut min, mut max) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
     for a in 0..3 {
@@ -142,7 +170,7 @@ fn partition_in<L: Packed>(boxes: &[Aabb], tris: &mut [u32], child: &Aabb) -> (u
     let (union, tail) = (Aabb { min: min.into(), max: max.into() }, g.union());
     // Nothing kept in the blocks leaves an inverted box; the union with the tail's
     // (possibly empty) box is then the tail's.
-    (n, if union.min.x > union.max.x { tail } else { union.union(tail) })
+    (n, m, if union.min.x > union.max.x { tail } else { union.union(tail) })
 }
 
 /// Binned SAH over a subsample of the triangles (their boxes clipped to the node):
@@ -230,8 +258,8 @@ mod tests {
                 let len = (trial as usize * 13) % 121;
                 let ids: Vec<u32> = (0..len as u32).map(|i| (i * 53 + trial as u32) % 120).collect();
                 let (mut w_ids, mut s_ids) = (ids.clone(), ids);
-                let (wn, wu) = d.partition_triangles(Some(width), &mut w_ids, &child);
-                let (sn, su) = d.partition_triangles(None, &mut s_ids, &child);
+                let (wn, wu) = d.partition_triangles(Some(width), &mut w_ids, &child, &mut Vec::new());
+                let (sn, su) = d.partition_triangles(None, &mut s_ids, &child, &mut Vec::new());
                 assert_eq!((wn, &w_ids), (sn, &s_ids), "{width:?}, trial {trial}");
                 let bits = |b: Aabb| b.as_floats().map(f32::to_bits);
                 assert_eq!(bits(wu), bits(su), "{width:?}, trial {trial}: union {wu:?} against {su:?}");

@@ -132,17 +132,19 @@ pub(super) struct Trace {
 }
 
 impl Trace {
-    /// A trace of `rays` (already renumbered) with no hits yet.
+    /// A trace of `rays` (already renumbered) with no hits yet, given their records
+    /// (`slabs[i]` is `RaySlab::new(&rays[i])`: the caller makes both in one pass).
     pub(super) fn new(
         rays: Vec<Ray>,
+        slabs: Vec<RaySlab>,
         any_hit: bool,
         packet_rays: usize,
         fork_min_rays: usize,
         magnitude: f32,
         lanes: bool,
     ) -> Trace {
+        debug_assert_eq!(rays.len(), slabs.len());
         let grow = batch_slack(magnitude, rays.par_iter().map(|r| r.origin));
-        let slabs: Vec<RaySlab> = rays.par_iter().map(RaySlab::new).collect();
         let keys: Vec<AtomicU64> = (0..rays.len()).into_par_iter().map(|_| AtomicU64::new(NONE)).collect();
         let packets = Packets::new(&rays, &slabs, packet_rays);
         let lanes = if lanes { Width::widest() } else { None };
@@ -164,7 +166,7 @@ impl Trace {
 
     /// A trace with no rays (the shared top levels choose planes from triangles alone).
     pub(super) fn empty() -> Trace {
-        Trace::new(Vec::new(), false, 0, 0, 0.0, false)
+        Trace::new(Vec::new(), Vec::new(), false, 0, 0, 0.0, false)
     }
 
     pub(super) fn alloc(&self, bytes: usize) {
@@ -211,24 +213,15 @@ impl Trace {
     }
 }
 
-/// Moves the elements satisfying `keep` to the front; returns how many there are.
-/// The order is that of swapping each kept element to the front, written without a
-/// branch on `keep` (its answer is as good as random for the partitions here).
-pub(super) fn partition(ids: &mut [u32], mut keep: impl FnMut(u32) -> bool) -> usize {
-    let mut n = 0;
-    for i in 0..ids.len() {
-        let k = keep(ids[i]);
-        swap_front(ids, i, &mut n, k);
-    }
-    n
-}
-
-/// One step of [`partition`]: element `i` swapped with the front `n` (and the front
-/// moved on) when `keep`, both writes made either way.
+/// One step of a stable partition: `id` goes to the front of `ids` (at `n`) when
+/// `keep`, else to `aside` (at `m`). Both writes happen and only the counts depend on
+/// the answer (no branch on it: the answers are as good as random). `n` never passes
+/// the element being read, so a partition in place reads every element before it is
+/// overwritten; the caller copies `aside[..m]` after the kept ones.
 #[inline(always)]
-pub(super) fn swap_front(ids: &mut [u32], i: usize, n: &mut usize, keep: bool) {
-    let (id, front) = (ids[i], ids[*n]);
-    ids[i] = if keep { front } else { id };
-    ids[*n] = if keep { id } else { front };
+pub(super) fn place(ids: &mut [u32], aside: &mut [u32], id: u32, keep: bool, n: &mut usize, m: &mut usize) {
+    ids[*n] = id;
+    aside[*m] = id;
     *n += keep as usize;
+    *m += !keep as usize;
 }
