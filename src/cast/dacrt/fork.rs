@@ -22,6 +22,15 @@ use std::sync::atomic::Ordering::Relaxed;
 use std::time::Instant;
 
 impl Trace {
+    /// The rays of `rays` that enter `b`, in their order, as a list of their own: the
+    /// ray partition (on the trace's lanes) of a copy.
+    fn entering(&self, rays: &[u32], b: &Aabb, spare: &mut Vec<u32>) -> Vec<u32> {
+        let mut kept = rays.to_vec();
+        let n = self.partition_rays(&mut kept, b, spare);
+        kept.truncate(n);
+        kept
+    }
+
     /// True when a node with `rays` rays hands its far child out as a task.
     #[inline]
     pub(super) fn forks(&self, rays: usize) -> bool {
@@ -42,15 +51,12 @@ impl Dacrt {
         spare: &mut Vec<u32>,
         depth: u32,
     ) {
-        let mut grow = super::planes::Grower::new(&far);
-        let mut far_tris: Vec<u32> = tris.iter().copied().filter(|&t| grow.test(&self.boxes[t as usize])).collect();
-        let tight = far.intersection(grow.union());
-        let grown = tr.grown(&tight);
-        let far_rays: Vec<u32> = if far_tris.is_empty() {
-            Vec::new()
-        } else {
-            rays.iter().copied().filter(|&r| tr.enters(r, &grown)).collect()
-        };
+        // The far child's triangles and rays, copied out (on the trace's lanes).
+        let mut far_tris = tris.to_vec();
+        let (nt, union) = self.partition_triangles(tr.lanes, &mut far_tris, &far, spare);
+        far_tris.truncate(nt);
+        let tight = far.intersection(union);
+        let far_rays = if far_tris.is_empty() { Vec::new() } else { tr.entering(rays, &tight, spare) };
         if far_rays.is_empty() {
             return self.child(tr, near, rays, tris, spare, depth);
         }
@@ -59,9 +65,9 @@ impl Dacrt {
             far_tris.len() + far_rays.len(),
             || self.child(tr, near, rays, tris, spare, depth),
             |tr| {
-                let mut far_rays = far_rays;
-                far_rays.retain(|&r| tr.enters(r, &grown));
-                self.recurse(tr, tight, &mut far_rays, &mut far_tris, &mut Vec::new(), depth + 1);
+                let mut spare = Vec::new();
+                let mut far_rays = tr.entering(&far_rays, &tight, &mut spare);
+                self.recurse(tr, tight, &mut far_rays, &mut far_tris, &mut spare, depth + 1);
             },
         );
     }
@@ -77,8 +83,7 @@ impl Dacrt {
         depth: u32,
     ) {
         let b = *far.bounds();
-        let grown = tr.grown(&b);
-        let far_rays: Vec<u32> = rays.iter().copied().filter(|&r| tr.enters(r, &grown)).collect();
+        let far_rays = tr.entering(rays, &b, &mut scratch.rays);
         let near_part = |rays: &mut [u32], scratch: &mut Scratch| {
             let nr = tr.partition_rays(rays, near.bounds(), &mut scratch.rays);
             self.trace_top(tr, top, near, &mut rays[..nr], scratch, depth + 1);
@@ -91,9 +96,9 @@ impl Dacrt {
             far_rays.len(),
             || near_part(rays, scratch),
             |tr| {
-                let mut far_rays = far_rays;
-                far_rays.retain(|&r| tr.enters(r, &grown));
-                self.trace_top(tr, top, far, &mut far_rays, &mut Scratch::default(), depth + 1);
+                let mut scratch = Scratch::default();
+                let mut far_rays = tr.entering(&far_rays, &b, &mut scratch.rays);
+                self.trace_top(tr, top, far, &mut far_rays, &mut scratch, depth + 1);
             },
         );
     }
