@@ -23,7 +23,8 @@ use std::time::Instant;
 
 impl Trace {
     /// The rays of `rays` that enter `b`, in their order, as a list of their own: the
-    /// ray partition (on the trace's lanes) of a copy.
+    /// ray partition (on the trace's lanes) of a copy. (A task that owns its list
+    /// partitions it in place.)
     fn entering(&self, rays: &[u32], b: &Aabb, spare: &mut Vec<u32>) -> Vec<u32> {
         let mut kept = rays.to_vec();
         let n = self.partition_rays(&mut kept, b, spare);
@@ -65,9 +66,9 @@ impl Dacrt {
             far_tris.len() + far_rays.len(),
             || self.child(tr, near, rays, tris, spare, depth),
             |tr| {
-                let mut spare = Vec::new();
-                let mut far_rays = tr.entering(&far_rays, &tight, &mut spare);
-                self.recurse(tr, tight, &mut far_rays, &mut far_tris, &mut spare, depth + 1);
+                let (mut far_rays, mut spare) = (far_rays, Vec::new());
+                let n = tr.partition_rays(&mut far_rays, &tight, &mut spare);
+                self.recurse(tr, tight, &mut far_rays[..n], &mut far_tris, &mut spare, depth + 1);
             },
         );
     }
@@ -96,9 +97,9 @@ impl Dacrt {
             far_rays.len(),
             || near_part(rays, scratch),
             |tr| {
-                let mut scratch = Scratch::default();
-                let mut far_rays = tr.entering(&far_rays, &b, &mut scratch.rays);
-                self.trace_top(tr, top, far, &mut far_rays, &mut scratch, depth + 1);
+                let (mut far_rays, mut scratch) = (far_rays, Scratch::default());
+                let n = tr.partition_rays(&mut far_rays, &b, &mut scratch.rays);
+                self.trace_top(tr, top, far, &mut far_rays[..n], &mut scratch, depth + 1);
             },
         );
     }

@@ -6,7 +6,7 @@
 //! `packets.rs`. Every way moves the same rays to the same places.
 
 use super::packets::{MIN_RUN, Packets, coherence_key};
-use super::state::{Dacrt, Trace, place};
+use super::state::{Dacrt, Trace, place, stable_partition};
 use crate::geometry::hit_key;
 use crate::geometry::lane_compact::compact;
 use crate::geometry::lane_ops::{first_lanes, slab, splat3};
@@ -87,12 +87,9 @@ impl Trace {
     /// packet's rays is rejected at once when the packet misses.
     pub(super) fn partition_rays(&self, ids: &mut [u32], b: &Aabb, rejected: &mut Vec<u32>) -> usize {
         // Kept rays move down to `n` (never past the ray being read); rejected ones go
-        // to `rejected[m]`, which holds room for every ray.
-        if rejected.len() < ids.len() {
-            rejected.resize(ids.len(), 0);
-        }
+        // to `rejected[m]`.
         let b = &self.grown(b);
-        let (n, m) = match (&self.packets, self.lanes) {
+        stable_partition(ids, rejected, |ids, rejected| match (&self.packets, self.lanes) {
             (None, Some(width)) => self.partition_wide(width, ids, b, rejected),
             (None, None) => {
                 let (mut n, mut m) = (0, 0);
@@ -103,9 +100,7 @@ impl Trace {
                 (n, m)
             }
             (Some(packets), _) => self.partition_packets(packets, ids, b, rejected),
-        };
-        ids[n..].copy_from_slice(&rejected[..m]);
-        n
+        })
     }
 
     /// The partition's loop with packet filtering: a run of at least [`MIN_RUN`] of one

@@ -1,7 +1,7 @@
 //! Split planes that do not depend on the rays: a binned SAH over a subsample of a
 //! node's triangles, and the median of their centroids; and a child's triangle test.
 
-use super::state::{Dacrt, SAH_BINS, SAH_SAMPLES, place};
+use super::state::{Dacrt, SAH_BINS, SAH_SAMPLES, place, stable_partition};
 use crate::geometry::Aabb;
 use crate::geometry::lane_compact::compact;
 use crate::geometry::lane_ops::{first_lanes, splat3};
@@ -71,24 +71,25 @@ impl Dacrt {
         child: &Aabb,
         aside: &mut Vec<u32>,
     ) -> (usize, Aabb) {
-        if aside.len() < tris.len() {
-            aside.resize(tris.len(), 0);
-        }
-        let (n, m, union) = match lanes {
-            Some(width) => {
-                type Loop = unsafe fn(&[Aabb], &mut [u32], &Aabb, &mut [u32]) -> (usize, usize, Aabb);
-                let wide = width.pick::<Loop>([partition_avx512, partition_avx2]);
-                // SAFETY: the loop is compiled for the width's extension, which the CPU
-                // has (`pick` checked).
-                unsafe { wide(&self.boxes, tris, child, aside) }
-            }
-            None => {
-                let mut g = Grower::new(child);
-                let (n, m) = partition_tail(&self.boxes, tris, 0, (0, 0), &mut g, aside);
-                (n, m, g.union())
-            }
-        };
-        tris[n..].copy_from_slice(&aside[..m]);
+        let mut union = Aabb::EMPTY;
+        let n = stable_partition(tris, aside, |tris, aside| {
+            let (n, m, u) = match lanes {
+                Some(width) => {
+                    type Loop = unsafe fn(&[Aabb], &mut [u32], &Aabb, &mut [u32]) -> (usize, usize, Aabb);
+                    let wide = width.pick::<Loop>([partition_avx512, partition_avx2]);
+                    // SAFETY: the loop is compiled for the width's extension, which the
+                    // CPU has (`pick` checked).
+                    unsafe { wide(&self.boxes, tris, child, aside) }
+                }
+                None => {
+                    let mut g = Grower::new(child);
+                    let (n, m) = partition_tail(&self.boxes, tris, 0, (0, 0), &mut g, aside);
+                    (n, m, g.union())
+                }
+            };
+            union = u;
+            (n, m)
+        });
         (n, union)
     }
 }

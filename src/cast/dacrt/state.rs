@@ -213,6 +213,23 @@ impl Trace {
     }
 }
 
+/// A stable partition of `ids` in place: `split` moves the kept ids to the front of
+/// `ids` and the others to the front of `aside` (each in its order, with [`place`] or
+/// a wide loop) and returns both counts; the ids set aside then follow the kept ones.
+/// Returns how many are kept. `aside` is grown to room for every id.
+pub(super) fn stable_partition(
+    ids: &mut [u32],
+    aside: &mut Vec<u32>,
+    split: impl FnOnce(&mut [u32], &mut [u32]) -> (usize, usize),
+) -> usize {
+    if aside.len() < ids.len() {
+        aside.resize(ids.len(), 0);
+    }
+    let (n, m) = split(ids, aside);
+    ids[n..].copy_from_slice(&aside[..m]);
+    n
+}
+
 /// One step of a stable partition: `id` goes to the front of `ids` (at `n`) when
 /// `keep`, else to `aside` (at `m`). Both writes happen and only the counts depend on
 /// the answer (no branch on it: the answers are as good as random). `n` never passes
