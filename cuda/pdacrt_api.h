@@ -10,7 +10,7 @@ extern "C" {
 #endif
 
 /* Bumped whenever a struct or signature below changes. */
-#define WR_API_VERSION 6
+#define WR_API_VERSION 7
 
 /* PdacrtParams, plus what the kernels need from the Rust side. */
 typedef struct WrParams {

@@ -21,17 +21,18 @@ typedef struct WrRenderSettings {
     uint32_t regenerate; /* CIS: compaction and regeneration */
     uint32_t candidates;
     uint32_t draws;       /* CIS: connections drawn per camera vertex; LVC: n_c */
-    uint32_t light_paths; /* per pass; 0: one per pixel */
+    uint32_t light_paths; /* per iteration; 0: one per pixel */
     uint32_t pool;        /* CIS: slots of the light and camera pools */
     uint64_t seed;
     float widen; /* geometry::SLAB_WIDEN */
     float grow;  /* geometry::hit_slack for every ray of the render */
+    uint32_t per_iteration; /* camera passes per iteration (light pass); 0 counts as 1 */
 } WrRenderSettings;
 
 typedef struct WrRenderStats {
     double build_ms;   /* create: the BVH build (GPU time) */
     double pass_ms;    /* pass: GPU time of the pass, before the estimates and splats are read back */
-    double light_ms;   /* pass: of which the light pass and its camera splats */
+    double light_ms;   /* pass: of which the light pass (at an iteration's first pass) and the pass's camera splats */
     double readback_ms; /* pass: reading back the estimates and splats (host wall time) */
     uint64_t rays;     /* pass: rays the stream cast (the megakernels' are not counted) */
     uint64_t bounces;  /* pass: camera-stream bounces */

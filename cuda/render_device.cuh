@@ -175,9 +175,9 @@ HD bool connect_to_camera(const Scene& sc, const Vertex* light, int s, const Ver
 // cache::host::light_splats: every camera splat of one light subpath of `len` vertices,
 // in vertex order, given to `sink(ray, value, film)`.
 template <class S>
-HD void light_splats(const Scene& sc, const Vertex* verts, int len, uint32_t n_light, VertexList& path, S& sink) {
+HD void light_splats(const Scene& sc, const Vertex* verts, int len, double splat_paths, VertexList& path, S& sink) {
     Vertex cam = camera_vertex(sc);
-    float scale = (float)((double)(sc.width * sc.height) / (double)n_light);
+    float scale = (float)((double)(sc.width * sc.height) / splat_paths);
     for (int s = 1; s <= len; s++) {
         V3 l;
         V2 film;

@@ -50,7 +50,9 @@ struct K {
     Scene sc;
     Tracer tracer;
     uint64_t seed;
-    uint32_t pass, stride, first, n_light, miss_key;
+    uint32_t pass, iteration, stride, first, n_light, miss_key;
+    uint32_t share[2];   // the subpath numbers whose splats join this camera pass
+    double splat_paths;  // StrategyCounts::splat_paths
     // camera pool
     Slot* slots;
     Vertex* cam_vertices;
@@ -117,19 +119,21 @@ HD void cache_store(const K& k, size_t f) {
     p[1] = start;
     p[2] = len;
 }
-// The camera splats of cache subpath `first + p` into its `stride` entries; `visible`
-// decides each one's state (0: left out).
+// The camera splats of cache subpath `first + p` into its `stride` entries, if its
+// number is in the pass's share; `visible` decides each one's state (0: left out).
 template <class V>
 HD void splat_entries(const K& k, size_t p, V visible) {
     const uint32_t* path = k.cache_paths + 3 * (k.first + p);
-    VertexList verts, full;
-    for (uint32_t j = 0; j < path[2]; j++) verts.push(k.cache_vertices[path[1] + j]);
     size_t next = 0;
-    auto sink = [&](Ray ray, V3 value, V2 film) {
-        uint32_t state = visible(ray);
-        if (state != 0) k.splats[p * k.stride + next++] = {ray, value, film, state};
-    };
-    light_splats(k.sc, verts.v, verts.len, k.n_light, full, sink);
+    if (path[0] >= k.share[0] && path[0] < k.share[1]) {
+        VertexList verts, full;
+        for (uint32_t j = 0; j < path[2]; j++) verts.push(k.cache_vertices[path[1] + j]);
+        auto sink = [&](Ray ray, V3 value, V2 film) {
+            uint32_t state = visible(ray);
+            if (state != 0) k.splats[p * k.stride + next++] = {ray, value, film, state};
+        };
+        light_splats(k.sc, verts.v, verts.len, k.splat_paths, full, sink);
+    }
     for (size_t j = next; j < k.stride; j++) k.splats[p * k.stride + j] = SplatData{};
 }
 HD void splat_waiting_flags(const K& k, size_t i) { k.flags[i] = k.splats[i].state == 1; }
@@ -157,7 +161,7 @@ HD void light_generate(const K& k, size_t i) {
     uint32_t slot = k.list[i], path = k.first + (uint32_t)i;
     Vertex origin;
     Walker w;
-    bool ok = start_light_subpath(k.sc, rng_for_sample(k.seed ^ 0x4c564321ull, path, k.pass), (int)k.stride, origin, w);
+    bool ok = start_light_subpath(k.sc, rng_for_sample(k.seed ^ 0x4c564321ull, path, k.iteration), (int)k.stride, origin, w);
     if (ok) k.staging[(size_t)slot * k.stride] = origin;
     k.light_slots[slot] = light_slot(w, path, ok ? 1 : 0);
 }
@@ -263,7 +267,7 @@ HD void mk_light_path(const K& k, size_t i) {
     Vertex origin;
     Walker w;
     VertexList verts;
-    if (start_light_subpath(k.sc, rng_for_sample(k.seed ^ 0x4c564321ull, path, k.pass), (int)k.stride, origin, w)) {
+    if (start_light_subpath(k.sc, rng_for_sample(k.seed ^ 0x4c564321ull, path, k.iteration), (int)k.stride, origin, w)) {
         verts.push(origin);
         walk(k, w, verts, false, (int)k.stride);
     }
@@ -310,6 +314,7 @@ struct Renderer {
     Mem<SplatData> splats;
     Mem<V3> splat_out;
     size_t n_splats = 0;              // visible splats in splat_out
+    uint32_t cached = UINT32_MAX;     // the iteration whose light pass the cache holds
     std::vector<float> host_splats;  // x, y, r, g, b per visible splat, after the pass
     WrRenderStats stats{};
 
@@ -409,7 +414,8 @@ struct Renderer {
     void set_counts(uint32_t n_c) {
         double pixels = (double)k.sc.width * (double)k.sc.height;
         size_t entries = cache_entries.n / 2;
-        k.sc.count_splat = (double)k.n_light / pixels;
+        k.splat_paths = (double)k.n_light / (double)std::max<uint32_t>(set.per_iteration, 1);
+        k.sc.count_splat = k.splat_paths / pixels;
         k.sc.count_connection = entries == 0 ? 0.0 : (double)n_c * (double)k.n_light / (double)entries;
         k.sc.n_entries = entries;
         stats.cache_entries += entries;
@@ -433,7 +439,7 @@ struct Renderer {
         }
     }
 
-    // CIS-LBDPT's light pass (light/mod.rs light_pass and splat_stream).
+    // CIS-LBDPT's light pass (light/mod.rs light_pass).
     void cis_light_pass(size_t pool) {
         uint32_t n_light = k.n_light;
         pool = std::max<size_t>(32, std::min<size_t>(pool, std::max<uint32_t>(n_light, 32)));
@@ -457,8 +463,11 @@ struct Renderer {
             append_paths(ended);
             keep_active(select<light_alive_flags>("cis::light_alive_flags", n));
         }
-        set_counts(set.draws);
-        // The camera splats, `pool` subpaths at a time.
+    }
+    // The camera splats of the pass's share of the cached subpaths, `pool` at a time
+    // (light/mod.rs splat_stream).
+    void cis_splats(size_t pool) {
+        pool = std::max<size_t>(32, std::min<size_t>(pool, std::max<uint32_t>(k.n_light, 32)));
         size_t paths = cache_paths.n / 3;
         for (size_t first = 0; first < paths; first += pool) {
             size_t m = std::min(pool, paths - first);
@@ -500,8 +509,8 @@ struct Renderer {
         }
     }
 
-    // LVC-BDPT's light megakernel and splats (megakernel/mod.rs render_pass), all light
-    // subpaths in one launch.
+    // LVC-BDPT's light megakernel (megakernel/mod.rs light_paths), all light subpaths
+    // in one launch, cached in number order.
     void megakernel_light() {
         start_cache();
         staging.resize((size_t)k.n_light * k.stride);
@@ -509,39 +518,56 @@ struct Renderer {
         k.first = 0;
         run<mk_light_path>("lvc::light_path", k.n_light);
         append_paths(k.n_light);
-        set_counts(set.draws);
-        size_t paths = cache_paths.n / 3;
-        splats.resize(paths * k.stride);
-        k.first = 0;
-        run<mk_splat>("lvc::splat", paths);
-        collect_splats(paths * k.stride);
+    }
+    // The splat megakernel over the pass's share of the cached subpaths
+    // (megakernel/mod.rs render_pass).
+    void megakernel_splats() {
+        size_t m = k.share[1] - k.share[0];
+        splats.resize(m * k.stride);
+        k.first = k.share[0];
+        run<mk_splat>("lvc::splat", m);
+        collect_splats(m * k.stride);
     }
 
-    // One pass of `set.method` into `estimates` and `splat_out` (download_splats reads them).
+    // One pass of `set.method` into `estimates` and `splat_out` (download_splats reads
+    // them): the light pass at the first of its iteration's passes (Iterations in
+    // render/options.rs), the pass's share of the splats, the camera pass.
     void pass(uint32_t number) {
         stats = WrRenderStats{};
         n_splats = 0;
         splat_out.resize(0);
         size_t pixels = (size_t)k.sc.width * k.sc.height;
+        uint32_t per = std::max<uint32_t>(set.per_iteration, 1);
         k.pass = number;
+        k.iteration = number / per;
         k.stride = k.sc.max_depth + 1;
         k.n_light = set.light_paths == 0 ? (uint32_t)pixels : set.light_paths;
+        uint64_t j = number % per;
+        k.share[0] = (uint32_t)((j * k.n_light + per - 1) / per);
+        k.share[1] = (uint32_t)(((j + 1) * k.n_light + per - 1) / per);
         estimates.resize(3 * pixels);
         fill_zero(estimates.p, 3 * pixels);
         Clock all, light;
         all.start();
         light.start();
+        bool fresh = cached != k.iteration;
+        cached = UINT32_MAX;
         if (set.method == 0) {
             k.sc.resampled = set.resampled, k.sc.candidates = set.candidates, k.sc.draws = set.draws;
-            cis_light_pass(set.pool);
+            if (fresh) cis_light_pass(set.pool);
+            set_counts(set.draws);
+            cis_splats(set.pool);
             stats.light_ms = light.stop_ms();
             cis_camera_pass(pixels, set.pool);
         } else {
             k.sc.resampled = 0, k.sc.candidates = 0, k.sc.draws = set.draws;
-            megakernel_light();
+            if (fresh) megakernel_light();
+            set_counts(set.draws);
+            megakernel_splats();
             stats.light_ms = light.stop_ms();
             run<mk_camera_path>("lvc::camera_path", pixels);
         }
+        cached = k.iteration;
         stats.pass_ms = all.stop_ms();
         stats.splats = n_splats;
     }

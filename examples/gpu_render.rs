@@ -33,23 +33,16 @@ use std::time::Instant;
 use warpray::cast::RayCaster;
 use warpray::gpu::{GpuRender, GpuRenderStats};
 use warpray::machine::{Machine, median};
-use warpray::render::{Budget, RenderOptions, Renderer, Variant};
-use warpray::scene::{Scene, load_scene};
+use warpray::render::{Budget, RenderOptions, Renderer};
+use warpray::scene::Scene;
+
+#[path = "gpu_scenes/mod.rs"]
+mod gpu_scenes;
 
 #[derive(Parser)]
 struct Args {
-    /// Scenes: cornell, white-room, bedroom, or scene files (comma-separated).
-    #[arg(long, value_delimiter = ',', default_value = "cornell,white-room,bedroom")]
-    scenes: Vec<String>,
-    /// Integrators (labels of `warpray render --integrator`): lvc-mk and the cis variants.
-    #[arg(long, value_delimiter = ',', default_value = "lvc-mk,cis,cis-nosort")]
-    integrators: Vec<String>,
-    /// Image side in pixels.
-    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(8..=4096))]
-    size: u32,
-    /// Longest path, in bounces.
-    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=30))]
-    max_depth: u32,
+    #[command(flatten)]
+    common: gpu_scenes::Common,
     /// Passes per integrator and round.
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     passes: u32,
@@ -94,23 +87,8 @@ impl Row {
     }
 }
 
-fn scene_path(name: &str) -> String {
-    match name {
-        "white-room" | "bedroom" => format!("assets/scenes/{name}.toml"),
-        other => other.to_string(),
-    }
-}
-
 fn options(a: &Args, label: &str) -> Result<RenderOptions, String> {
-    let mut o = Variant::parse(label).map_err(|e| e.to_string())?.apply(RenderOptions {
-        width: a.size,
-        height: a.size,
-        max_depth: a.max_depth,
-        seed: 1,
-        ..Default::default()
-    });
-    o.cis.pool = if a.pool == 0 { a.size * a.size } else { a.pool };
-    Ok(o)
+    gpu_scenes::options(&a.common, label, 1, a.pool)
 }
 
 fn mean_of(v: impl Iterator<Item = f64>) -> f64 {
@@ -130,9 +108,9 @@ fn cpu_pass_ms(scene: &Scene, opts: &RenderOptions, passes: u32) -> Result<f64, 
 }
 
 fn run_scene(a: &Args, name: &str, rows: &mut Vec<Row>, device: &mut String) -> Result<(), String> {
-    let scene = load_scene(&scene_path(name)).map_err(|e| e.to_string())?.scene;
+    let scene = gpu_scenes::load(name)?;
     let mut runs = Vec::new();
-    for label in &a.integrators {
+    for label in &a.common.integrators {
         let opts = options(a, label)?;
         let mut gpu = GpuRender::new(&scene, &opts).map_err(|e| e.to_string())?;
         if device.is_empty() {
@@ -186,7 +164,7 @@ fn run_scene(a: &Args, name: &str, rows: &mut Vec<Row>, device: &mut String) -> 
 }
 
 fn print(a: &Args, rows: &[Row], device: &str, machine: &Machine) {
-    for scene in &a.scenes {
+    for scene in &a.common.scenes {
         let ours: Vec<&Row> = rows.iter().filter(|r| &r.scene == scene).collect();
         let Some(first) = ours.first() else { continue };
         let base = first.cost();
@@ -196,8 +174,8 @@ fn print(a: &Args, rows: &[Row], device: &str, machine: &Machine) {
                     "{{\"scene\":\"{}\",\"integrator\":\"{}\",\"size\":{},\"max_depth\":{},\"spp\":{},\"pass_ms\":{:.4},\"light_ms\":{:.4},\"readback_ms\":{:.4},\"wall_ms\":{:.4},\"variance\":{:.6e},\"image_mean\":{:.6e},\"speedup_equal_error\":{:.4},\"bvh_build_ms\":{:.4},\"cache_entries\":{:.0},\"bounces\":{:.2},\"cpu_pass_ms\":{},\"gpu\":\"{}\",\"machine\":{}}}",
                     r.scene,
                     r.integrator,
-                    a.size,
-                    a.max_depth,
+                    a.common.size,
+                    a.common.max_depth,
                     r.spp,
                     r.pass_ms,
                     r.light_ms,
@@ -216,7 +194,7 @@ fn print(a: &Args, rows: &[Row], device: &str, machine: &Machine) {
             }
             continue;
         }
-        println!("\n{scene}, {0}x{0}, max depth {1}, {2} passes each:", a.size, a.max_depth, first.spp);
+        println!("\n{scene}, {0}x{0}, max depth {1}, {2} passes each:", a.common.size, a.common.max_depth, first.spp);
         println!(
             "| integrator | GPU ms/pass | of which light | read-back ms | wall ms/pass | variance/pass | image mean | speed-up at equal error | CPU ms/pass |"
         );
@@ -245,7 +223,7 @@ fn run(a: Args) -> Result<(), String> {
     let machine = Machine::this();
     eprintln!("host: {machine}");
     let (mut rows, mut device) = (Vec::new(), String::new());
-    for name in &a.scenes {
+    for name in &a.common.scenes {
         run_scene(&a, name, &mut rows, &mut device)?;
     }
     print(&a, &rows, &device, &machine);

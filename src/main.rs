@@ -184,6 +184,11 @@ struct RenderArgs {
     /// Random seed; the same seed gives the same image at any thread count.
     #[arg(long)]
     seed: Option<u64>,
+    /// LVC-BDPT and CIS-LBDPT (lvc, lvc-mk, cis and its ablations): camera samples per
+    /// pixel rendered against each iteration's light pass, which they share (the
+    /// CIS-LBDPT paper renders 4–8) [default: 1].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    spp_per_iteration: Option<u32>,
     /// Ray caster: `bvh4`, warpray's own BVH, by default (docs/bvh.md).
     #[arg(long, value_enum, default_value = "bvh4")]
     caster: CasterKind,
@@ -431,6 +436,16 @@ fn run_render(args: RenderArgs) -> Result<bool> {
     opts.filter = args.filter.unwrap_or(opts.filter);
     opts.filter_mode = args.filter_mode.unwrap_or(opts.filter_mode);
     opts.gpu_profile = args.gpu_profile.clone();
+    if let Some(k) = args.spp_per_iteration {
+        if !matches!(opts.integrator, IntegratorKind::Lvc | IntegratorKind::LvcMegakernel | IntegratorKind::Cis) {
+            return Err(Error::BadSetting(format!(
+                "--spp-per-iteration sets how many passes share a light vertex cache; {} has none \
+                 (it applies to lvc, lvc-mk and cis)",
+                variant.label
+            )));
+        }
+        (opts.lvc.samples_per_iteration, opts.cis.samples_per_iteration) = (k, k);
+    }
     warpray::film::check_size(width, height)?;
     desc.scene.check_renderable()?;
 

@@ -17,7 +17,7 @@ pub fn library_path() -> PathBuf {
 }
 
 /// `WR_API_VERSION` of the header this file mirrors.
-const API_VERSION: c_int = 6;
+const API_VERSION: c_int = 7;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default)]

@@ -35,6 +35,7 @@ struct WrRenderSettings {
     seed: u64,
     widen: f32,
     grow: f32,
+    per_iteration: u32,
 }
 
 /// What the GPU did for a render's set-up or one pass (`WrRenderStats` of
@@ -46,7 +47,7 @@ pub struct GpuRenderStats {
     pub build_ms: f64,
     /// The pass's GPU time (CUDA events), before its estimates and splats are read back.
     pub pass_ms: f64,
-    /// Of which the light pass with its camera splats.
+    /// Of which the light pass (at the first pass of an iteration) and the pass's camera splats.
     pub light_ms: f64,
     /// Reading back the estimates and splats (host wall time).
     pub readback_ms: f64,
@@ -201,11 +202,13 @@ fn settings(scene: &Scene, opts: &RenderOptions) -> Result<WrRenderSettings> {
             s.draws = p.draws.min(MAX_DRAWS as u32);
             s.light_paths = p.light_paths;
             s.pool = p.pool;
+            s.per_iteration = p.iterations().0;
         }
         IntegratorKind::LvcMegakernel => {
             s.method = 1;
             s.draws = opts.lvc.connections;
             s.light_paths = opts.lvc.light_paths;
+            s.per_iteration = opts.lvc.iterations().0;
         }
         other => {
             return refuse(&format!("are CIS-LBDPT (cis) and the LVC-BDPT megakernels (lvc-mk), not {}", other.name()));

@@ -31,6 +31,8 @@ pub use integrators::light::LightTracer;
 pub use integrators::lvc::LvcBdpt;
 pub use integrators::megakernel::LvcMegakernel;
 pub use integrators::path::PathTracer;
-pub use options::{Budget, CisParams, IntegratorKind, LvcParams, MAX_SECONDS, RenderOptions, RenderStats, Strategy};
+pub use options::{
+    Budget, CisParams, IntegratorKind, Iterations, LvcParams, MAX_SECONDS, RenderOptions, RenderStats, Strategy,
+};
 pub use registry::Variant;
 pub use renderer::{Renderer, render};

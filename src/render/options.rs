@@ -258,13 +258,16 @@ pub struct LvcParams {
     pub light_paths: u32,
     /// Cache connections per camera vertex (`n_c`).
     pub connections: u32,
+    /// Camera samples per pixel (passes) per iteration, each iteration's light pass
+    /// shared by them ([`Iterations`]; 0 counts as 1).
+    pub samples_per_iteration: u32,
     /// The megakernel: measure the kernels' SIMD efficiency and memory traffic.
     pub measure: bool,
 }
 
 impl Default for LvcParams {
     fn default() -> Self {
-        LvcParams { light_paths: 0, connections: 3, measure: false }
+        LvcParams { light_paths: 0, connections: 3, samples_per_iteration: 1, measure: false }
     }
 }
 
@@ -272,6 +275,11 @@ impl LvcParams {
     /// Light subpaths per iteration of an image of `pixels` pixels.
     pub fn light_paths_for(&self, pixels: u32) -> u32 {
         if self.light_paths == 0 { pixels } else { self.light_paths }
+    }
+
+    /// How its passes make iterations.
+    pub fn iterations(&self) -> Iterations {
+        Iterations(self.samples_per_iteration.max(1))
     }
 }
 
@@ -292,8 +300,18 @@ pub struct CisParams {
     pub importance: bool,
     /// Compact dead samples and regenerate their slots at once.
     pub regenerate: bool,
+    /// Camera samples per pixel (passes) per iteration, each iteration's light pass
+    /// shared by them ([`Iterations`]; 0 counts as 1).
+    pub samples_per_iteration: u32,
     /// Record SIMD efficiency and memory traffic of the kernels (slower).
     pub measure: bool,
+}
+
+impl CisParams {
+    /// How its passes make iterations.
+    pub fn iterations(&self) -> Iterations {
+        Iterations(self.samples_per_iteration.max(1))
+    }
 }
 
 impl Default for CisParams {
@@ -306,7 +324,74 @@ impl Default for CisParams {
             sort: true,
             importance: true,
             regenerate: true,
+            samples_per_iteration: 1,
             measure: false,
+        }
+    }
+}
+
+/// How LVC iterations are made of passes: each iteration traces one light pass into
+/// its cache, then renders this many camera passes (samples per pixel) against it
+/// (at least 1; the CIS-LBDPT paper renders 4–8). The iteration's light subpaths share
+/// its light tracing: each camera pass takes the splats of its own slice of them, by
+/// subpath number, so every pass is an estimate of the image by itself and the passes
+/// of an iteration together splat every subpath once.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Iterations(pub u32);
+
+impl Iterations {
+    /// The iteration of camera pass `pass`.
+    #[inline]
+    pub fn of(self, pass: u32) -> u32 {
+        pass / self.0
+    }
+
+    /// Camera pass `pass`'s place within its iteration (0 for the first).
+    #[inline]
+    pub fn pass_in_iteration(self, pass: u32) -> u32 {
+        pass % self.0
+    }
+
+    /// The light subpaths, by number `first..end` of `n_light`, whose splats join camera
+    /// pass `pass`.
+    pub fn splat_range(self, pass: u32, n_light: u32) -> (u32, u32) {
+        let (j, k, n) = (self.pass_in_iteration(pass) as u64, self.0 as u64, n_light as u64);
+        ((j * n).div_ceil(k) as u32, ((j + 1) * n).div_ceil(k) as u32)
+    }
+
+    /// The camera pass within its iteration that light subpath `path` (of `n_light`)
+    /// splats into.
+    #[inline]
+    pub fn share_of(self, path: u32, n_light: u32) -> u32 {
+        (path as u64 * self.0 as u64 / n_light.max(1) as u64) as u32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Iterations;
+
+    /// The camera passes of an iteration divide its light subpaths among them: every
+    /// subpath goes to exactly one pass, the one `share_of` names, in slices that
+    /// differ in size by at most one.
+    #[test]
+    fn the_passes_of_an_iteration_share_its_light_subpaths_once() {
+        for k in [1, 2, 3, 4, 7, 8] {
+            for n in [1, 5, 8, 63, 1000, 262_144] {
+                let it = Iterations(k);
+                let mut next = 0;
+                for pass in 10 * k..11 * k {
+                    let (first, end) = it.splat_range(pass, n);
+                    assert_eq!(first, next, "k {k}, n {n}, pass {pass}");
+                    assert!(end - first <= n.div_ceil(k) && end - first >= n / k);
+                    for path in [first, end.saturating_sub(1)].into_iter().filter(|&p| (first..end).contains(&p)) {
+                        assert_eq!(it.share_of(path, n), it.pass_in_iteration(pass));
+                    }
+                    next = end;
+                }
+                assert_eq!(next, n);
+                assert_eq!((it.of(10 * k), it.of(11 * k - 1), it.of(11 * k)), (10, 10, 11));
+            }
         }
     }
 }

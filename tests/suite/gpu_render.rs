@@ -17,9 +17,17 @@ use warpray::gpu::GpuRender;
 use warpray::render::{Budget, RenderOptions, Renderer, Variant};
 use warpray::scene::{Scene, load_scene};
 
-/// `passes` passes of `variant` on the CPU (BVH caster) and through the library's port.
-fn both(lib: &Path, scene: &Scene, variant: &str, opts: RenderOptions, passes: u32) -> (Vec<Vec3>, Vec<Vec3>) {
-    let opts = Variant::parse(variant).unwrap().apply(RenderOptions { budget: Budget::Samples(passes), ..opts });
+/// `passes` passes of `variant`, `per_iteration` of them per iteration, on the CPU (BVH
+/// caster) and through the library's port.
+fn both(
+    lib: &Path,
+    scene: &Scene,
+    variant: &str,
+    opts: RenderOptions,
+    (passes, per_iteration): (u32, u32),
+) -> (Vec<Vec3>, Vec<Vec3>) {
+    let mut opts = Variant::parse(variant).unwrap().apply(RenderOptions { budget: Budget::Samples(passes), ..opts });
+    (opts.lvc.samples_per_iteration, opts.cis.samples_per_iteration) = (per_iteration, per_iteration);
     let caster = warpray::cast::BvhCaster::new(scene);
     let mut r = Renderer::new(scene, &caster, &opts).unwrap();
     let mut cpu = r.film().unwrap();
@@ -46,16 +54,22 @@ fn compare(a: &[Vec3], b: &[Vec3], rel: f32) -> (usize, f64) {
 fn the_ported_renders_give_the_cpu_images_on_the_cpu() {
     let lib = host_library();
     let opts = RenderOptions { width: 24, height: 18, seed: 5, max_depth: 6, ..Default::default() };
-    for scene in ["cornell", "assets/scenes/materials.toml"] {
+    let variants = ["lvc-mk", "cis", "cis-nosort", "cis-nois", "cis-nocompact"];
+    // Two passes of one iteration each; and five passes, three per iteration (a light
+    // pass shared, its splats divided, the last iteration unfinished).
+    let cases = [("cornell", 1, 2, &variants[..]), ("assets/scenes/materials.toml", 1, 2, &variants[..])];
+    let shared = [("cornell", 3, 5, &variants[..3]), ("assets/scenes/materials.toml", 3, 5, &variants[..2])];
+    for (scene, per_iteration, passes, variants) in cases.into_iter().chain(shared) {
         let s = load_scene(scene).unwrap().scene;
-        for variant in ["lvc-mk", "cis", "cis-nosort", "cis-nois", "cis-nocompact"] {
+        for variant in variants {
             let mut o = opts.clone();
             o.cis.pool = 100; // several regenerations per pass
-            let (cpu, gpu) = both(&lib, &s, variant, o, 2);
+            let (cpu, gpu) = both(&lib, &s, variant, o, (passes, per_iteration));
             let (differ, mean) = compare(&cpu, &gpu, 1e-4);
-            eprintln!("{scene} {variant}: {differ} of {} pixels differ, means {mean:+.2e}", cpu.len());
-            assert!(cpu.iter().any(|p| p.max_element() > 0.0), "{scene} {variant}: a black image");
-            assert_eq!(differ, 0, "{scene} {variant}: {differ} pixels differ (means {mean:+.2e})");
+            let what = format!("{scene} {variant}, {per_iteration} per iteration");
+            eprintln!("{what}: {differ} of {} pixels differ, means {mean:+.2e}", cpu.len());
+            assert!(cpu.iter().any(|p| p.max_element() > 0.0), "{what}: a black image");
+            assert_eq!(differ, 0, "{what}: {differ} pixels differ (means {mean:+.2e})");
         }
     }
 }
@@ -67,14 +81,17 @@ fn the_gpu_renders_agree_with_the_cpu_integrators() {
     let opts = RenderOptions { width: 64, height: 48, seed: 5, max_depth: 8, ..Default::default() };
     for scene in ["cornell", "assets/scenes/materials.toml", "assets/scenes/bedroom.toml"] {
         let s = load_scene(scene).unwrap().scene;
-        for variant in ["lvc-mk", "cis", "cis-nosort"] {
-            let (cpu, gpu) = both(&lib, &s, variant, opts.clone(), 4);
+        for (variant, shape) in
+            [("lvc-mk", (4, 1)), ("cis", (4, 1)), ("cis-nosort", (4, 1)), ("lvc-mk", (6, 4)), ("cis", (6, 4))]
+        {
+            let (cpu, gpu) = both(&lib, &s, variant, opts.clone(), shape);
             let (differ, mean) = compare(&cpu, &gpu, 1e-4);
-            eprintln!("{scene} {variant}: {differ} of {} pixels differ, means {mean:+.2e}", cpu.len());
+            let what = format!("{scene} {variant}, {} per iteration", shape.1);
+            eprintln!("{what}: {differ} of {} pixels differ, means {mean:+.2e}", cpu.len());
             // CUDA's sin, cos and exp send a few paths another way: most pixels agree
             // to rounding, and the image means within a percent.
-            assert!(differ * 10 <= cpu.len(), "{scene} {variant}: {differ} of {} pixels differ", cpu.len());
-            assert!(mean.abs() < 0.01, "{scene} {variant}: image means differ by {mean:+.2e}");
+            assert!(differ * 10 <= cpu.len(), "{what}: {differ} of {} pixels differ", cpu.len());
+            assert!(mean.abs() < 0.01, "{what}: image means differ by {mean:+.2e}");
         }
     }
 }
@@ -119,11 +136,24 @@ fn the_command_line_renders_on_the_gpu_and_refuses_what_it_cannot() {
             .output()
             .unwrap()
     };
-    let ok = run(&["render", "--gpu", "--integrator", "lvc-mk", "--spp", "2", "--size", "16x12", "-q", "-o"]
-        .iter()
-        .copied()
-        .chain([out.to_str().unwrap()])
-        .collect::<Vec<_>>());
+    let ok = run(&[
+        "render",
+        "--gpu",
+        "--integrator",
+        "lvc-mk",
+        "--spp",
+        "2",
+        "--spp-per-iteration",
+        "2",
+        "--size",
+        "16x12",
+        "-q",
+        "-o",
+    ]
+    .iter()
+    .copied()
+    .chain([out.to_str().unwrap()])
+    .collect::<Vec<_>>());
     let stdout = String::from_utf8_lossy(&ok.stdout);
     assert!(
         ok.status.success() && stdout.contains("2 spp, lvc-mk on the GPU"),

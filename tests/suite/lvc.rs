@@ -44,6 +44,13 @@ fn lvc_converges_to_bdpt_on_the_cornell_box() {
         12,
         "cornell, 300 light paths",
     );
+    // Four camera passes per iteration sharing its light pass and its splats.
+    converges_to_bdpt(
+        TestBox::Cornell,
+        LvcParams { samples_per_iteration: 4, ..Default::default() },
+        8,
+        "cornell, 4 passes per iteration",
+    );
 }
 
 #[test]

@@ -6,6 +6,7 @@ use super::host::{LightVertexCache, StrategyCounts};
 use super::kernels::{CacheViews, SplatData, cache_counts, cache_store};
 use crate::render::bidir::Vertex;
 use crate::render::context::Context;
+use crate::render::options::Iterations;
 use glam::{Vec2, Vec3};
 use simt::{Device, DeviceBuffer};
 
@@ -24,9 +25,10 @@ impl DeviceCache {
         DeviceCache { vertices: dev.alloc(0), entries: dev.alloc(0), paths: dev.alloc(0), light_paths }
     }
 
-    /// MIS sample counts once the cache is complete (as [`LightVertexCache`]'s).
-    pub fn counts(&self, ctx: &Context, n_c: u32) -> StrategyCounts {
-        StrategyCounts::new(ctx, self.light_paths, self.entries.len(), n_c)
+    /// MIS sample counts once the cache is complete (as [`LightVertexCache`]'s), for
+    /// camera passes made as `iterations` says.
+    pub fn counts(&self, ctx: &Context, n_c: u32, iterations: Iterations) -> StrategyCounts {
+        StrategyCounts::new(ctx, self.light_paths, self.entries.len(), n_c, iterations)
     }
 
     /// A host copy, subpaths in the order of their numbers (as the host light pass

@@ -12,6 +12,7 @@ use crate::render::bidir::{
 };
 use crate::render::context::{Context, Passes};
 use crate::render::mis::{Densities, Known, mis_weight_counts, subpath_densities};
+use crate::render::options::Iterations;
 use crate::render::walk::{PendingLists, Subpaths, extend_together, resolve_wave, start_light_wave};
 use crate::sampling::Rng;
 use glam::{Vec2, Vec3};
@@ -63,14 +64,23 @@ pub struct StrategyCounts {
     pub splat: f64,
     /// Cache connections per camera sample and strategy.
     pub connection: f64,
+    /// Light subpaths whose splats make one camera pass's light-tracing estimate: the
+    /// iteration's `N_L` over its camera passes ([`Iterations`]).
+    pub splat_paths: f64,
 }
 
 impl StrategyCounts {
     /// The counts of an iteration of `n_light` light subpaths whose cache holds
-    /// `entries` vertices, with `n_c` connections per camera vertex.
-    pub(crate) fn new(ctx: &Context, n_light: u32, entries: usize, n_c: u32) -> StrategyCounts {
+    /// `entries` vertices, with `n_c` connections per camera vertex, shared by the
+    /// camera passes of `iterations`.
+    pub(crate) fn new(ctx: &Context, n_light: u32, entries: usize, n_c: u32, iterations: Iterations) -> StrategyCounts {
         let pixels = (ctx.opts.width * ctx.opts.height) as f64;
-        StrategyCounts { splat: n_light as f64 / pixels, connection: Self::connections(n_c, n_light, entries) }
+        let splat_paths = n_light as f64 / iterations.0 as f64;
+        StrategyCounts {
+            splat: splat_paths / pixels,
+            connection: Self::connections(n_c, n_light, entries),
+            splat_paths,
+        }
     }
 
     /// Samples drawn per connection strategy: `n_c · N_L / |cache|` (0 for an empty cache).
@@ -91,19 +101,25 @@ impl StrategyCounts {
 }
 
 /// One iteration's light pass: the cache, its MIS counts, and the camera splats of
-/// every light vertex (in path order).
+/// every light vertex (in path order), one list per camera pass of the iteration.
 pub(crate) struct LightPass {
     pub cache: LightVertexCache,
     pub counts: StrategyCounts,
-    pub splats: Vec<(Vec2, Vec3)>,
+    pub splats: Vec<Vec<(Vec2, Vec3)>>,
 }
 
 /// The light passes of the iterations of `span` (`span.per_pass` light subpaths each),
 /// traced as wavefronts together: each wave's light subpaths may belong to several
 /// iterations, and each subpath goes to its own iteration's cache, in path order. The
 /// splats of every light vertex to the camera are weighted with its iteration's
-/// `counts`, which need the cache size, so they are made after the caches are built.
-pub(crate) fn build_caches(ctx: &Context, span: Passes, n_c: u32, wave_size: u32) -> (Vec<LightPass>, CastStats) {
+/// `counts`, which need the cache size, so they are made after the caches are built,
+/// and listed by the camera pass of `iterations` they join.
+pub(crate) fn build_caches(
+    ctx: &Context,
+    span: Passes,
+    (n_c, iterations): (u32, Iterations),
+    wave_size: u32,
+) -> (Vec<LightPass>, CastStats) {
     let max_vertices = ctx.opts.max_depth as usize + 1;
     let n_light = span.per_pass;
     let mut caches: Vec<LightVertexCache> =
@@ -134,10 +150,10 @@ pub(crate) fn build_caches(ctx: &Context, span: Passes, n_c: u32, wave_size: u32
         }
     }
     let counts: Vec<StrategyCounts> =
-        caches.iter().map(|c| StrategyCounts::new(ctx, n_light, c.entries.len(), n_c)).collect();
+        caches.iter().map(|c| StrategyCounts::new(ctx, n_light, c.entries.len(), n_c, iterations)).collect();
     // Splats (t = 1) of every light vertex, in path order, their shadow rays cast one
     // wave at a time.
-    let mut splats = vec![Vec::new(); span.count as usize];
+    let mut splats = vec![vec![Vec::new(); iterations.0 as usize]; span.count as usize];
     let mut pending = PendingLists::default();
     for wave in span.waves(wave_size) {
         let first = wave.start as usize;
@@ -147,12 +163,13 @@ pub(crate) fn build_caches(ctx: &Context, span: Passes, n_c: u32, wave_size: u32
             let verts = &caches[q].vertices[start as usize..(start + len) as usize];
             let known = subpath_densities(ctx, verts);
             let sink = &mut |ray, l, px| out.push((Some(ray), l, Some(px)));
-            light_splats(ctx, verts, &known, counts[q], n_light, path, sink);
+            light_splats(ctx, verts, &known, counts[q], path, sink);
         });
         let (resolved, shadow) = resolve_wave(ctx, &mut pending);
         stats = stats.merge(shadow);
         for (i, k) in wave.enumerate() {
-            splats[iteration(k)].extend_from_slice(resolved.sample(i).1);
+            let share = iterations.share_of(span.at(k).0, n_light) as usize;
+            splats[iteration(k)][share].extend_from_slice(resolved.sample(i).1);
         }
     }
     let passes = caches.into_iter().zip(counts).zip(splats);
@@ -165,21 +182,20 @@ pub(crate) fn light_path_rng(ctx: &Context, path: u32, pass: u32) -> Rng {
     Rng::for_sample(ctx.opts.seed ^ 0x4c56_4321, path as u64, pass as u64)
 }
 
-/// The camera splats (t = 1) of one light subpath of an iteration with `n_light`
-/// subpaths, in vertex order, each given to `sink` as (shadow ray, weighted value,
-/// film position). `known`: the subpath's densities, or empty (kernels evaluate them).
-/// Allocation-free: kernels call it.
+/// The camera splats (t = 1) of one light subpath of an iteration whose camera passes
+/// each take `counts.splat_paths` subpaths' splats, in vertex order, each given to
+/// `sink` as (shadow ray, weighted value, film position). `known`: the subpath's
+/// densities, or empty (kernels evaluate them). Allocation-free: kernels call it.
 pub(crate) fn light_splats(
     ctx: &Context,
     verts: &[Vertex],
     known: &[Densities],
     counts: StrategyCounts,
-    n_light: u32,
     path: &mut VertexList,
     sink: &mut dyn FnMut(crate::geometry::Ray, Vec3, Vec2),
 ) {
     let cam_v = camera_vertex(&ctx.scene.camera);
-    let scale = ((ctx.opts.width * ctx.opts.height) as f64 / n_light as f64) as f32;
+    let scale = ((ctx.opts.width * ctx.opts.height) as f64 / counts.splat_paths) as f32;
     for s in 1..=verts.len() {
         if !ctx.opts.keeps(s, 1) {
             continue;

@@ -85,44 +85,49 @@ pub fn cache_store(
 }
 
 /// `cis::light_splat`: the camera splats of cache subpath `p`, into its `stride`
-/// splat entries (shadow rays still to be cast).
+/// splat entries (shadow rays still to be cast), if its number is in `share`.
 #[allow(clippy::too_many_arguments)]
 pub fn light_splat(
     t: &Thread,
     ctx: &Context,
     p: usize,
     (paths, vertices): (&Global<[u32; 3]>, &Global<Vertex>),
-    (counts, n_light): (StrategyCounts, u32),
+    (counts, share): (StrategyCounts, (u32, u32)),
     stride: usize,
     splats: &GlobalMut<SplatData>,
 ) {
-    splat_entries(t, ctx, p, (paths, vertices), (counts, n_light), (stride, splats), &|_| 1);
+    splat_entries(t, ctx, p, (paths, vertices), (counts, share), (stride, splats), &|_| 1);
 }
 
 /// The camera splats of cache subpath `p` into its `stride` entries, in vertex order,
-/// each with the state `state_of(shadow ray)` gives it (0: left out); the rest cleared.
+/// each with the state `state_of(shadow ray)` gives it (0: left out); the rest cleared,
+/// and all of them when the subpath's number is outside `share` (the subpath numbers
+/// whose splats join this camera pass: [`super::host::Iterations::splat_range`]).
 pub fn splat_entries(
     t: &Thread,
     ctx: &Context,
     p: usize,
     (paths, vertices): (&Global<[u32; 3]>, &Global<Vertex>),
-    (counts, n_light): (StrategyCounts, u32),
+    (counts, share): (StrategyCounts, (u32, u32)),
     (stride, splats): (usize, &GlobalMut<SplatData>),
     state_of: &dyn Fn(Ray) -> u32,
 ) {
-    let [_, start, len] = t.load(paths, p);
-    let mut verts = VertexList::default();
-    for k in 0..len as usize {
-        verts.push(t.load(vertices, start as usize + k));
-    }
-    let (mut path, mut next) = (VertexList::default(), 0);
-    light_splats(ctx, &verts, &[], counts, n_light, &mut path, &mut |ray, value, film| {
-        let state = state_of(ray);
-        if state != 0 {
-            t.store(splats, p * stride + next, SplatData { ray, value, film, state });
-            next += 1;
+    let [number, start, len] = t.load(paths, p);
+    let mut next = 0;
+    if (share.0..share.1).contains(&number) {
+        let mut verts = VertexList::default();
+        for k in 0..len as usize {
+            verts.push(t.load(vertices, start as usize + k));
         }
-    });
+        let mut path = VertexList::default();
+        light_splats(ctx, &verts, &[], counts, &mut path, &mut |ray, value, film| {
+            let state = state_of(ray);
+            if state != 0 {
+                t.store(splats, p * stride + next, SplatData { ray, value, film, state });
+                next += 1;
+            }
+        });
+    }
     for k in next..stride {
         t.store(splats, p * stride + k, SplatData::default());
     }

@@ -40,7 +40,7 @@ fn the_prefetched_entries_are_the_ones_the_connections_read() {
         1
     };
     let prefetch = |drawn: &[usize]| hinted.borrow_mut().extend_from_slice(drawn);
-    let counts = StrategyCounts { splat: 1.0, connection: 1.0 };
+    let counts = StrategyCounts { splat: 1.0, connection: 1.0, splat_paths: 1.0 };
     let (mut path, mut checked) = (VertexList::default(), 0);
     for (tri, connections) in [
         (0, Connections::Uniform { n: 3 }),

@@ -69,7 +69,8 @@ pub struct CisLbdpt {
     dev: Device,
     /// One record per wavefront iteration of the last pass (the inspector's queue panel).
     pub records: Vec<QueueRecord>,
-    cache: Option<DeviceCache>,
+    /// The cache of the last iteration, with its number, for its next camera passes.
+    cache: Option<(u32, DeviceCache)>,
     observer: Option<ShadeObserver>,
 }
 
@@ -106,9 +107,10 @@ impl CisLbdpt {
         span.numbers().fold(CastStats::default(), |stats, pass| stats.merge(self.render_pass(ctx, pass, film)))
     }
 
-    /// Renders one pass into `film`: the light pass streams the iteration's light
-    /// subpaths into the cache (`light`), then the camera pass streams one sample per
-    /// pixel through the pool, bounce by bounce.
+    /// Renders one pass into `film`: at the iteration's first, the light pass streams
+    /// its light subpaths into the cache (`light`); the pass's share of their camera
+    /// splats; then the camera pass streams one sample per pixel through the pool,
+    /// bounce by bounce.
     fn render_pass(&mut self, ctx: &Context, pass: u32, film: &mut Film) -> CastStats {
         let dev = &self.dev;
         let p = self.params;
@@ -119,8 +121,18 @@ impl CisLbdpt {
             Connections::Uniform { n: p.draws.min(MAX_DRAWS as u32) }
         };
         let n_light = if p.light_paths == 0 { pixels } else { p.light_paths };
-        let (cache, counts, splats, mut rays) =
-            light::light_pass(dev, ctx, pass, (n_light, connections.per_vertex()), p.pool as usize, p.sort);
+        // The iteration's light pass, once for all its camera passes; then this camera
+        // pass's share of its splats.
+        let (iterations, number) = (p.iterations(), p.iterations().of(pass));
+        let (cache, mut rays) = match self.cache.take().filter(|(n, _)| *n == number) {
+            Some((_, cache)) => (cache, 0),
+            None => light::light_pass(dev, ctx, number, n_light, p.pool as usize, p.sort),
+        };
+        let counts = cache.counts(ctx, connections.per_vertex(), iterations);
+        let share = iterations.splat_range(pass, cache.light_paths);
+        let chunk = (p.pool as usize).clamp(32, (n_light as usize).max(32));
+        let (splats, splat_rays) = light::splat_stream(dev, ctx, &cache, (counts, share), chunk);
+        rays += splat_rays;
         film.add_splats(splats);
 
         let mut cam = CameraPool::new(dev, p.pool.clamp(32, pixels.max(32)) as usize, pixels as usize);
@@ -184,14 +196,14 @@ impl CisLbdpt {
         }
         let est: Vec<glam::Vec3> = cam.estimates.as_slice().iter().map(|&e| glam::Vec3::from_array(e)).collect();
         film.add_pass(pass, &est);
-        self.cache = Some(cache);
+        self.cache = Some((number, cache));
         CastStats { rays, peak_working_bytes: dev.memory().peak, ..Default::default() }
     }
 
     /// The light vertex cache of the last pass, copied to the host with its subpaths in
     /// the order of their numbers (the host light pass's order).
     pub fn light_cache(&self) -> Option<LightVertexCache> {
-        self.cache.as_ref().map(DeviceCache::to_host)
+        self.cache.as_ref().map(|(_, cache)| cache.to_host())
     }
 }
 

@@ -99,12 +99,12 @@ pub fn splat(
     ctx: &Context,
     p: usize,
     (paths, vertices): (&Global<[u32; 3]>, &Global<Vertex>),
-    (counts, n_light): (StrategyCounts, u32),
+    (counts, share): (StrategyCounts, (u32, u32)),
     stride: usize,
     splats: &GlobalMut<SplatData>,
 ) {
     let visible = |ray| if unblocked(t, ctx, ray) { 2 } else { 0 };
-    splat_entries(t, ctx, p, (paths, vertices), (counts, n_light), (stride, splats), &visible);
+    splat_entries(t, ctx, p, (paths, vertices), (counts, share), (stride, splats), &visible);
 }
 
 /// `lvc::camera_path`: pixel `pixel`'s sample of pass `pass`, whole: its camera subpath

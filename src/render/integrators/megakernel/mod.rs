@@ -3,13 +3,13 @@
 //! runs it, one thread per subpath doing the whole subpath, so that the device measures
 //! its divergence.
 //!
-//! Each iteration:
+//! Each iteration (of one or more camera passes, [`Iterations`]):
 //! 1. `lvc::light_path`: one thread per light subpath traces it whole (a wave of up to
 //!    `WAVE` at a time) and stages its vertices; the wave is appended to the device
 //!    light vertex cache in subpath order (`cis::cache_counts`, scans, `cis::cache_store`,
 //!    shared with the stream);
-//! 2. `lvc::splat`: one thread per cached subpath connects each vertex to the camera,
-//!    tracing each shadow ray at once;
+//! 2. `lvc::splat`: one thread per cached subpath of the camera pass's share connects
+//!    each vertex to the camera, tracing each shadow ray at once;
 //! 3. `lvc::camera_path`: one thread per pixel traces its camera subpath and evaluates
 //!    every strategy at every vertex, tracing each shadow ray at once.
 //!
@@ -28,7 +28,7 @@ use crate::render::cache::device::{DeviceCache, append_paths, visible_splats};
 use crate::render::cache::host::Connections;
 use crate::render::cache::kernels::{CacheRead, SplatData};
 use crate::render::context::{Context, Passes, WAVE, waves};
-use crate::render::options::LvcParams;
+use crate::render::options::{Iterations, LvcParams};
 use kernels::*;
 use simt::{Device, DeviceConfig, LaunchConfig};
 
@@ -37,13 +37,16 @@ pub struct LvcMegakernel {
     /// Its settings.
     pub params: LvcParams,
     dev: Device,
+    /// The cache of the last iteration, with its number, for its next camera passes.
+    cache: Option<(u32, DeviceCache)>,
 }
 
 impl LvcMegakernel {
     /// The megakernel integrator with `params`, on a device of its own (measured when
     /// `params.measure`).
     pub fn new(params: LvcParams) -> Self {
-        LvcMegakernel { params, dev: Device::new(DeviceConfig { measure: params.measure, ..Default::default() }) }
+        let dev = Device::new(DeviceConfig { measure: params.measure, ..Default::default() });
+        LvcMegakernel { params, dev, cache: None }
     }
 
     /// The device the megakernels run on.
@@ -51,12 +54,20 @@ impl LvcMegakernel {
         &self.dev
     }
 
-    /// Renders the passes of `span`, one at a time.
+    /// Renders the passes of `span`, one at a time, each iteration's light pass once
+    /// (stage 1 at the first of its camera passes that this integrator renders).
     pub(crate) fn render_passes(&mut self, ctx: &Context, span: Passes, film: &mut Film) -> CastStats {
         let n_light = self.params.light_paths_for(ctx.opts.width * ctx.opts.height);
-        let n_c = self.params.connections;
+        let (n_c, iterations) = (self.params.connections, self.params.iterations());
+        let stride = ctx.opts.max_depth as usize + 1;
         span.numbers().fold(CastStats::default(), |stats, pass| {
-            stats.merge(render_pass(&self.dev, ctx, pass, (n_light, n_c), film))
+            let number = iterations.of(pass);
+            if self.cache.as_ref().is_none_or(|(n, _)| *n != number) {
+                self.cache = None;
+                self.cache = Some((number, light_paths(&self.dev, ctx, number, n_light, stride)));
+            }
+            let cache = &self.cache.as_ref().expect("made above").1;
+            stats.merge(render_pass(&self.dev, ctx, pass, cache, (n_c, iterations), film))
         })
     }
 }
@@ -94,20 +105,28 @@ fn launch_per_item(
     .expect("a linear launch of 128-thread blocks is valid");
 }
 
-/// One pass of LVC-BDPT as megakernels on `dev`: `n_light` light subpaths, `n_c`
-/// uniform cache connections per camera vertex.
-fn render_pass(dev: &Device, ctx: &Context, pass: u32, (n_light, n_c): (u32, u32), film: &mut Film) -> CastStats {
+/// One camera pass of LVC-BDPT as megakernels on `dev` against its iteration's
+/// `cache`: the splats of the pass's share of the cached subpaths, then the camera
+/// subpaths, with `n_c` uniform cache connections per camera vertex.
+fn render_pass(
+    dev: &Device,
+    ctx: &Context,
+    pass: u32,
+    cache: &DeviceCache,
+    (n_c, iterations): (u32, Iterations),
+    film: &mut Film,
+) -> CastStats {
     let stride = ctx.opts.max_depth as usize + 1;
-    let cache = light_paths(dev, ctx, pass, n_light, stride);
-    let counts = cache.counts(ctx, n_c);
-    // Splats, a wave of cached subpaths at a time.
+    let counts = cache.counts(ctx, n_c, iterations);
+    // Splats of the pass's share, a wave of cached subpaths (in number order) at a time.
+    let share = iterations.splat_range(pass, cache.light_paths);
     let mut splats = Vec::new();
-    for wave in waves(cache.paths.len() as u32, WAVE) {
-        let (first, m) = (wave.start as usize, wave.len());
+    for wave in waves(share.1 - share.0, WAVE) {
+        let (first, m) = ((share.0 + wave.start) as usize, wave.len());
         let mut entries = dev.alloc_pooled::<SplatData>(m * stride);
         let (pv, vv, sv) = (cache.paths.slice(first, m), cache.vertices.view(), entries.view_mut());
         launch_per_item(dev, ("lvc::splat", SPLAT_REGISTERS), m, |t, p| {
-            splat(t, ctx, p, (&pv, &vv), (counts, n_light), stride, &sv)
+            splat(t, ctx, p, (&pv, &vv), (counts, share), stride, &sv)
         });
         splats.extend(visible_splats(dev, &entries));
     }
@@ -128,9 +147,9 @@ fn render_pass(dev: &Device, ctx: &Context, pass: u32, (n_light, n_c): (u32, u32
     CastStats { peak_working_bytes: dev.memory().peak, ..Default::default() }
 }
 
-/// Stage 1: the light subpaths, one thread each, a wave at a time, appended to the
-/// cache in subpath order.
-fn light_paths(dev: &Device, ctx: &Context, pass: u32, n_light: u32, stride: usize) -> DeviceCache {
+/// Stage 1: iteration `number`'s light subpaths, one thread each, a wave at a time,
+/// appended to the cache in subpath order.
+fn light_paths(dev: &Device, ctx: &Context, number: u32, n_light: u32, stride: usize) -> DeviceCache {
     let mut cache = DeviceCache::new(dev, n_light);
     for wave in waves(n_light, WAVE) {
         let m = wave.len();
@@ -139,7 +158,7 @@ fn light_paths(dev: &Device, ctx: &Context, pass: u32, n_light: u32, stride: usi
         {
             let (sv, dv) = (staging.view_mut(), done.view_mut());
             launch_per_item(dev, ("lvc::light_path", LIGHT_PATH_REGISTERS), m, |t, i| {
-                light_path(t, ctx, i, (wave.start, pass), stride, &sv, &dv)
+                light_path(t, ctx, i, (wave.start, number), stride, &sv, &dv)
             });
         }
         append_paths(dev, ctx, &done, &staging, stride, &mut cache);
@@ -156,32 +175,43 @@ mod tests {
 
     /// The megakernel schedules LVC-BDPT differently and computes the same thing: its
     /// image equals the wavefront one bit for bit, over two passes (so the light pass,
-    /// the splats and the camera pass all count), with its kernels on the device.
+    /// the splats and the camera pass all count), with its kernels on the device; and
+    /// over five passes with three camera passes per iteration (a light pass shared,
+    /// the splats divided among the passes, an iteration left unfinished).
     #[test]
     fn the_megakernel_renders_the_wavefront_image() {
         let scene = cornell_box();
         let caster = BvhCaster::new(&scene);
-        let image = |megakernel: bool| {
+        let image = |megakernel: bool, (passes, per_iteration): (u32, u32)| {
             let integrator = if megakernel { IntegratorKind::LvcMegakernel } else { IntegratorKind::Lvc };
-            let opts = RenderOptions { width: 40, height: 30, integrator, seed: 9, max_depth: 6, ..Default::default() };
+            let mut opts =
+                RenderOptions { width: 40, height: 30, integrator, seed: 9, max_depth: 6, ..Default::default() };
+            opts.lvc.samples_per_iteration = per_iteration;
             let mut r = Renderer::new(&scene, &caster, &opts).unwrap();
             let mut film = r.film().unwrap();
-            for pass in 0..2 {
+            for pass in 0..passes {
                 r.pass(pass, &mut film);
             }
-            let kernels: Vec<&str> =
-                r.device().map(|d| d.kernel_stats().iter().map(|k| k.name).collect()).unwrap_or_default();
+            let kernels: Vec<(&str, u64)> =
+                r.device().map(|d| d.kernel_stats().iter().map(|k| (k.name, k.launches)).collect()).unwrap_or_default();
             (film.mean(), kernels)
         };
-        let (wavefront, none) = image(false);
-        let (mega, kernels) = image(true);
-        assert!(none.is_empty());
-        for k in ["lvc::light_path", "cis::cache_store", "lvc::splat", "lvc::camera_path"] {
-            assert!(kernels.contains(&k), "{k} did not run: {kernels:?}");
+        for shape in [(2, 1), (5, 3)] {
+            let (wavefront, none) = image(false, shape);
+            let (mega, kernels) = image(true, shape);
+            assert!(none.is_empty());
+            let launches = |name: &str| kernels.iter().find(|k| k.0 == name).map(|k| k.1);
+            // Stage 1 once per iteration (two of them), the others once per pass.
+            let light = if shape.1 == 1 { shape.0 } else { 2 };
+            assert_eq!(launches("lvc::light_path"), Some(light as u64), "{kernels:?}");
+            for k in ["cis::cache_store", "lvc::splat", "lvc::camera_path"] {
+                assert!(launches(k).is_some(), "{k} did not run: {kernels:?}");
+            }
+            assert_eq!(launches("lvc::camera_path"), Some(shape.0 as u64));
+            assert!(wavefront.iter().any(|p| p.max_element() > 0.0));
+            let differ = wavefront.iter().zip(&mega).filter(|(a, b)| a != b).count();
+            assert_eq!(differ, 0, "{shape:?}: {differ} pixels differ");
         }
-        assert!(wavefront.iter().any(|p| p.max_element() > 0.0));
-        let differ = wavefront.iter().zip(&mega).filter(|(a, b)| a != b).count();
-        assert_eq!(differ, 0, "{differ} pixels differ");
     }
 
     /// With the GPU BVH's twin, each thread traverses its own rays (the traversal's

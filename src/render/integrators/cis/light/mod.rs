@@ -10,8 +10,9 @@
 //!    ([`append_paths`]: counts, two scans, `cis::cache_store`);
 //! 6. *compact*: the ended leave the active list, freeing their slots.
 //!
-//! After the pool drains, every cached subpath's camera splats are made
-//! (`cis::light_splat`), their shadow rays cast as one batch per chunk of subpaths.
+//! Each camera pass of the iteration then makes the camera splats of its share of the
+//! cached subpaths (`cis::light_splat`, [`splat_stream`]), their shadow rays cast as one
+//! batch per chunk of subpaths.
 //!
 //! The cache holds subpaths in the order they ended (bounce, then active order), which
 //! depends on the subpaths' random numbers only, never on threads; its contents are
@@ -30,16 +31,16 @@ use glam::{Vec2, Vec3};
 use kernels::*;
 use simt::{Device, LaunchConfig};
 
-/// The iteration's light subpaths streamed through a pool of `pool` slots (sorted by
-/// material when `sort`): the cache, its MIS counts, the camera splats, and the rays cast.
+/// Iteration `number`'s `n_light` light subpaths streamed through a pool of `pool`
+/// slots (sorted by material when `sort`): the cache, and the rays cast.
 pub(crate) fn light_pass(
     dev: &Device,
     ctx: &Context,
-    pass: u32,
-    (n_light, n_c): (u32, u32),
+    number: u32,
+    n_light: u32,
     pool: usize,
     sort: bool,
-) -> (DeviceCache, StrategyCounts, Vec<(Vec2, Vec3)>, usize) {
+) -> (DeviceCache, usize) {
     let stride = ctx.opts.max_depth as usize + 1;
     let pool = pool.clamp(32, (n_light as usize).max(32));
     let mut slots = dev.alloc::<LightSlot>(pool);
@@ -56,7 +57,7 @@ pub(crate) fn light_pass(
             let k = free.len().min((n_light - next) as usize);
             let (fv, sv, gv) = (free.view(), slots.view_mut(), staging.view_mut());
             dev.for_each("cis::light_generate", k, |t, i| {
-                light_generate(t, ctx, i, &fv, (next, pass), stride, &sv, &gv)
+                light_generate(t, ctx, i, &fv, (next, number), stride, &sv, &gv)
             });
             active = append_active(dev, "cis::light_append_active", &active, &free, k);
             next += k as u32;
@@ -99,20 +100,19 @@ pub(crate) fn light_pass(
         append_paths(dev, ctx, &done, &staging, stride, &mut cache);
         active = survivors(dev, "cis::light_alive_flags", &active, &slots, |s: &LightSlot| &s.alive, true);
     }
-    drop((slots, staging));
-    let counts = cache.counts(ctx, n_c);
-    let (splats, splat_rays) = splat_stream(dev, ctx, &cache, counts, pool);
-    (cache, counts, splats, rays + splat_rays)
+    (cache, rays)
 }
 
-/// The camera splats of every cached subpath, `chunk` subpaths at a time: splat entries
-/// (`cis::light_splat`), their shadow rays compacted and cast as one batch, and the
-/// visible ones collected in subpath and vertex order.
-fn splat_stream(
+/// The camera splats of the cached subpaths whose numbers are in `share` (a camera
+/// pass's, [`crate::render::Iterations::splat_range`]), `chunk` cached subpaths at a
+/// time: splat entries (`cis::light_splat`), their shadow rays compacted and cast as
+/// one batch, and the visible ones collected in cache and vertex order; with the rays
+/// cast.
+pub(crate) fn splat_stream(
     dev: &Device,
     ctx: &Context,
     cache: &DeviceCache,
-    counts: StrategyCounts,
+    (counts, share): (StrategyCounts, (u32, u32)),
     chunk: usize,
 ) -> (Vec<(Vec2, Vec3)>, usize) {
     let stride = ctx.opts.max_depth as usize + 1;
@@ -122,9 +122,8 @@ fn splat_stream(
         let mut splats = dev.alloc_pooled::<SplatData>(m * stride);
         {
             let (pv, vv, sv) = (cache.paths.slice(first, m), cache.vertices.view(), splats.view_mut());
-            let n_light = cache.light_paths;
             dev.for_each("cis::light_splat", m, |t, p| {
-                light_splat(t, ctx, p, (&pv, &vv), (counts, n_light), stride, &sv)
+                light_splat(t, ctx, p, (&pv, &vv), (counts, share), stride, &sv)
             });
         }
         // Shadow rays of the waiting entries, as one batch.
@@ -157,9 +156,9 @@ fn splat_stream(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::RenderOptions;
     use crate::render::cache::host::{LightPass, build_caches};
     use crate::render::context::{Passes, TestSetup, WAVE};
+    use crate::render::{Iterations, RenderOptions};
     use crate::scene::cornell_box;
 
     /// Splats as sortable bit patterns (the stream makes them in another order).
@@ -174,7 +173,8 @@ mod tests {
 
     /// The streamed light pass, with small and large pools, sorted or not, caches the
     /// same subpaths vertex for vertex as the host light pass, with the same MIS
-    /// counts and the same splats (as sets: the stream makes them in ending order).
+    /// counts, and each camera pass of the iteration gets the same splats (as sets: the
+    /// stream makes them in ending order), whether it has one camera pass or three.
     #[test]
     fn the_stream_caches_what_the_host_light_pass_caches() {
         let scene = cornell_box();
@@ -182,18 +182,28 @@ mod tests {
         let setup = TestSetup::new(&scene);
         let ctx = setup.ctx(&opts);
         let n_light = 32 * 24;
-        let (mut host, _) = build_caches(&ctx, Passes { first: 2, count: 1, per_pass: n_light }, 3, WAVE);
-        let LightPass { cache: host, counts: host_counts, splats: host_splats } = host.pop().expect("one pass");
-        assert!(host.entries.len() > n_light as usize / 2 && !host_splats.is_empty());
-        for (pool, sort) in [(32, true), (100, false), (1 << 16, true)] {
-            let dev = Device::default();
-            let (cache, counts, splats, _) = light_pass(&dev, &ctx, 2, (n_light, 3), pool, sort);
-            let copy = cache.to_host();
-            assert_eq!(format!("{:?}", copy.vertices), format!("{:?}", host.vertices), "pool {pool}: vertices");
-            assert_eq!(copy.entries, host.entries, "pool {pool}: entries");
-            assert_eq!(counts.connection, host_counts.connection);
-            assert_eq!(counts.splat, host_counts.splat);
-            assert!(sorted(&splats) == sorted(&host_splats), "pool {pool}: splats");
+        for iterations in [Iterations(1), Iterations(3)] {
+            let span = Passes { first: 2, count: 1, per_pass: n_light };
+            let (mut host, _) = build_caches(&ctx, span, (3, iterations), WAVE);
+            let LightPass { cache: host, counts: host_counts, splats: host_splats } = host.pop().expect("one pass");
+            assert!(host.entries.len() > n_light as usize / 2);
+            assert_eq!(host_splats.len(), iterations.0 as usize);
+            assert!(host_splats.iter().all(|s| !s.is_empty()));
+            for (pool, sort) in [(32, true), (100, false), (1 << 16, true)] {
+                let dev = Device::default();
+                let (cache, _) = light_pass(&dev, &ctx, 2, n_light, pool, sort);
+                let copy = cache.to_host();
+                assert_eq!(format!("{:?}", copy.vertices), format!("{:?}", host.vertices), "pool {pool}: vertices");
+                assert_eq!(copy.entries, host.entries, "pool {pool}: entries");
+                let counts = cache.counts(&ctx, 3, iterations);
+                assert_eq!(counts.connection, host_counts.connection);
+                assert_eq!((counts.splat, counts.splat_paths), (host_counts.splat, host_counts.splat_paths));
+                for (j, want) in host_splats.iter().enumerate() {
+                    let share = iterations.splat_range(2 * iterations.0 + j as u32, n_light);
+                    let (splats, _) = splat_stream(&dev, &ctx, &cache, (counts, share), pool);
+                    assert!(sorted(&splats) == sorted(want), "pool {pool}, camera pass {j}: splats");
+                }
+            }
         }
     }
 }
