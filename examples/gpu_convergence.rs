@@ -127,9 +127,11 @@ fn bdpt_check(a: &Args, scene: &Scene, reference: &[Vec3], ref_mse: f64) -> Resu
     let (image, var) = (film.mean(), film.variance());
     let expected = mean3(&var) / a.bdpt_spp as f64 + ref_mse;
     let measured = rmse(&image, reference).powi(2);
-    // The image mean's standard error: pixels independent, each with its variance / S.
+    // The difference of the image means' standard error: pixels independent, each with
+    // its variance over its samples, BDPT's and the reference's.
     let n = (3 * image.len()) as f64;
-    let se = (var.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>() / a.bdpt_spp as f64).sqrt() / n;
+    let bdpt = var.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>() / a.bdpt_spp as f64;
+    let se = (bdpt + ref_mse * n).sqrt() / n;
     let (m, r_mean) = (mean3(&image), mean3(reference));
     Ok([measured / expected, (m - r_mean) / r_mean, se / r_mean, seconds])
 }
