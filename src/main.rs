@@ -115,6 +115,10 @@ struct ConvergeArgs {
     /// Integrator of a rendered reference.
     #[arg(long, value_enum, default_value = "path")]
     reference_integrator: IntegratorKind,
+    /// Camera samples per pixel against each light pass of the integrators with a light
+    /// vertex cache (lvc, lvc-mk, cis and its ablations; path, light and bdpt have none).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    spp_per_iteration: u32,
     /// Image size as WIDTHxHEIGHT.
     #[arg(long, value_parser = parse_size, default_value = "128x128")]
     size: (u32, u32),
@@ -766,6 +770,7 @@ fn run_converge(args: ConvergeArgs) -> Result<bool> {
             seed: args.seed,
             filter: image.filter,
             filter_mode: image.filter_mode,
+            samples_per_iteration: args.spp_per_iteration,
         };
         let rows = run(
             &desc.scene,

@@ -47,6 +47,9 @@ pub struct ConvergeOptions {
     pub filter: crate::filter::Filter,
     /// How camera samples meet the filter.
     pub filter_mode: crate::filter::FilterMode,
+    /// Camera passes per light pass of the integrators with a light vertex cache (lvc,
+    /// lvc-mk, cis and its ablations; [`crate::render::Iterations`]); 1 for the others.
+    pub samples_per_iteration: u32,
 }
 
 /// Renders with every integrator, measuring against `reference` (pixel order, the
@@ -86,7 +89,7 @@ pub fn run(
     let times: Vec<f64> = (0..n).map(|i| opts.seconds / 200.0 * 200f64.powf(i as f64 / (n - 1) as f64)).collect();
     let mut rows = Vec::new();
     for variant in &opts.integrators {
-        let render_opts = variant.apply(RenderOptions {
+        let mut render_opts = variant.apply(RenderOptions {
             width: opts.width,
             height: opts.height,
             budget: Budget::Seconds(opts.seconds),
@@ -97,6 +100,8 @@ pub fn run(
             filter_mode: opts.filter_mode,
             ..Default::default()
         });
+        (render_opts.lvc.samples_per_iteration, render_opts.cis.samples_per_iteration) =
+            (opts.samples_per_iteration, opts.samples_per_iteration);
         let label = variant.label;
         let start = Instant::now();
         let mut measuring = Duration::ZERO;

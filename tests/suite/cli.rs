@@ -68,6 +68,9 @@ fn bad_arguments_fail_with_a_message_and_write_nothing() {
         assert!(stderr.contains("error"), "{args:?}: {stderr}");
         assert!(!png.exists(), "{args:?} wrote an image");
     }
+    let out = warpray().args(["converge", "--spp-per-iteration", "0", "-o"]).arg(dir.join("c")).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("--spp-per-iteration"), "{stderr}");
     let out = warpray().args(["converge", "--seconds", "1e30", "-o"]).arg(dir.join("c")).output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && stderr.contains("--seconds"), "{stderr}");
@@ -122,6 +125,17 @@ fn converge_writes_csv_and_charts_and_reads_a_reference() {
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // The cache integrators with four camera passes per light pass.
+    let out = warpray()
+        .args(["converge", "--seconds", "0.1", "--size", "24x16", "--integrators", "lvc,cis", "--spp-per-iteration"])
+        .args(["4", "--reference"])
+        .arg(dir.join("c-reference.exr"))
+        .arg("-o")
+        .arg(dir.join("k"))
+        .output()
+        .unwrap();
+    let csv = std::fs::read_to_string(dir.join("k.csv")).unwrap_or_default();
+    assert!(out.status.success() && csv.contains("\nlvc,") && csv.contains("\ncis,"), "{csv}");
     // A reference of the wrong size is an error.
     let out = warpray()
         .args(["converge", "--seconds", "0.1", "--size", "32x32", "--reference"])
