@@ -448,6 +448,13 @@ fn run_render(args: RenderArgs) -> Result<bool> {
                 variant.label
             )));
         }
+        if k > 1 && args.aov.contains(&warpray::aov::Aov::Variance) {
+            return Err(Error::BadSetting(
+                "--aov variance is the variance between independent passes; with --spp-per-iteration above 1 \
+                 the passes of an iteration share a light vertex cache and are not independent"
+                    .into(),
+            ));
+        }
         (opts.lvc.samples_per_iteration, opts.cis.samples_per_iteration) = (k, k);
     }
     warpray::film::check_size(width, height)?;

@@ -44,8 +44,9 @@ fn render_writes_png_and_exr_and_a_summary() {
 fn bad_arguments_fail_with_a_message_and_write_nothing() {
     let dir = scratch("bad");
     let png = dir.join("never.png");
-    let cases: [&[&str]; 13] = [
+    let cases: [&[&str]; 14] = [
         &["render", "/no/such/scene.obj"],
+        &["render", "--spp-per-iteration", "2", "--integrator", "cis", "--aov", "variance"],
         &["render", "--spp-per-iteration", "0", "--integrator", "lvc"],
         &["render", "--spp-per-iteration", "4", "--integrator", "bdpt"],
         &["render", "--size", "0x10"],

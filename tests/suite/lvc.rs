@@ -67,6 +67,27 @@ fn lvc_is_deterministic_across_thread_counts() {
     assert!(a.sum == b.sum && a.splat == b.splat);
 }
 
+/// A pass rendered again by the same renderer, after another pass of its iteration,
+/// is the same pass: an iteration's kept light pass (cache and splats) is read, never
+/// used up.
+#[test]
+fn a_pass_rendered_again_is_the_same_pass() {
+    use warpray::render::Renderer;
+    let scene = warpray::scene::cornell_box();
+    let caster = BvhCaster::new(&scene);
+    for kind in [IntegratorKind::Lvc, IntegratorKind::LvcMegakernel, IntegratorKind::Cis] {
+        let mut opts = RenderOptions { width: 24, height: 16, integrator: kind, seed: 3, ..Default::default() };
+        (opts.lvc.samples_per_iteration, opts.cis.samples_per_iteration) = (2, 2);
+        let mut r = Renderer::new(&scene, &caster, &opts).unwrap();
+        let (mut first, mut other, mut again) = (r.film().unwrap(), r.film().unwrap(), r.film().unwrap());
+        r.pass(0, &mut first);
+        r.pass(1, &mut other);
+        r.pass(0, &mut again);
+        assert!(first.splat.iter().any(|s| s.max_element() > 0.0), "{kind:?}: no splats");
+        assert!(first.sum == again.sum && first.splat == again.splat, "{kind:?}: pass 0 differs the second time");
+    }
+}
+
 /// The heavy tier (README, docs/testing.md): tests that need many samples for their
 /// power, run by CI and before a release rather than before every commit.
 mod heavy {

@@ -79,10 +79,11 @@ impl LvcBdpt {
             let (resolved, shadow) = resolve_wave(ctx, &mut b.pending);
             stats = stats.merge(shadow);
             // A pass's share of its iteration's light splats reaches the film just
-            // before its camera estimates.
+            // before its camera estimates (read, not used up: a pass may be rendered
+            // again while its iteration's light pass is kept).
             flush_wave(film, span, wave, resolved, Some(&mut estimates), |film, pass| {
-                let splats = &mut light[(iterations.of(pass) - first) as usize].splats;
-                film.add_splats(std::mem::take(&mut splats[iterations.pass_in_iteration(pass) as usize]))
+                let splats = &light[(iterations.of(pass) - first) as usize].splats;
+                film.add_splats(splats[iterations.pass_in_iteration(pass) as usize].iter().copied())
             });
         }
         self.kept = light.pop().map(|pass| (last, pass));
