@@ -52,26 +52,30 @@ struct Args {
     #[command(flatten)]
     common: gpu_scenes::Common,
     /// Camera passes per iteration to compare (comma-separated).
-    #[arg(long, value_delimiter = ',', default_value = "1,4,8")]
+    #[arg(long, value_delimiter = ',', default_value = "1,4,8", value_parser = clap::value_parser!(u32).range(1..=1024))]
     per_iteration: Vec<u32>,
-    /// GPU seconds each integrator renders, per scene and setting.
-    #[arg(long, default_value_t = 2.0)]
+    /// GPU seconds each integrator renders, per scene and setting (above 0, at most 3600).
+    #[arg(long, default_value_t = 2.0, value_parser = parse_seconds)]
     seconds: f64,
     /// Passes of each reference integrator (lvc-mk and cis).
     #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(2..=1_000_000))]
     reference_passes: u32,
     /// Samples per pixel of the CPU BDPT render that checks the reference (0: none).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=65_536))]
     bdpt_spp: u32,
     /// One JSON object per row instead of the tables.
     #[arg(long)]
     json: bool,
 }
 
-fn options(a: &Args, label: &str, per_iteration: u32, seed: u64) -> Result<RenderOptions, String> {
-    if per_iteration == 0 {
-        return Err("--per-iteration values must be at least 1".into());
+fn parse_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(t) if t > 0.0 && t <= 3600.0 => Ok(t),
+        _ => Err(format!("{s}: seconds above 0, at most 3600")),
     }
+}
+
+fn options(a: &Args, label: &str, per_iteration: u32, seed: u64) -> Result<RenderOptions, String> {
     let mut o = gpu_scenes::options(&a.common, label, seed, 0)?;
     (o.lvc.samples_per_iteration, o.cis.samples_per_iteration) = (per_iteration, per_iteration);
     Ok(o)
