@@ -11,7 +11,8 @@
 //! ```
 //!
 //! Each pass is one sample per pixel with its own light pass (N light subpaths for N
-//! pixels), as the CPU integrators render it. Rounds interleave the integrators, each
+//! pixels), as the CPU integrators render it by default (`gpu_convergence` compares
+//! several passes per light pass, to equal RMSE against a reference). Rounds interleave the integrators, each
 //! rendering `--passes` passes per round onto its own film; times are medians over
 //! rounds of the per-pass GPU time (CUDA events, from the first launch to the last, the
 //! estimates still on the GPU), with the read-back of estimates and splats apart.
