@@ -128,7 +128,10 @@ impl Diff {
     pub fn fails(&self, limit: f64, ignore_nonfinite: bool) -> Result<bool> {
         check_limit(limit)?;
         let broken = self.non_finite.1 > 0 && !ignore_nonfinite;
-        Ok(!(self.rmse <= limit) || broken || self.compared == 0)
+        // A NaN RMSE fails the gate: `!(rmse <= limit)` is true for it.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
+        let above = !(self.rmse <= limit);
+        Ok(above || broken || self.compared == 0)
     }
 
     /// One JSON object; figures that are not finite (an RMSE of no pixels) are `null`.

@@ -27,6 +27,8 @@ struct Cli {
     render: RenderArgs,
 }
 
+// Parsed once per run: the render arguments' size does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Subcommand)]
 enum Command {
     /// Render a scene to PNG and/or EXR (the default command).

@@ -198,7 +198,7 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
 #[inline(always)]
 pub(crate) fn sin_cos_quarter(x: f32) -> (f32, f32) {
     let z = x * x;
-    let sin = ((-1.951_529_6e-4 * z + 8.332_160_9e-3) * z - 1.666_665_5e-1) * z * x + x;
+    let sin = ((-1.951_529_6e-4 * z + 8.332_161e-3) * z - 1.666_665_5e-1) * z * x + x;
     let cos = ((2.443_315_7e-5 * z - 1.388_731_6e-3) * z + 4.166_664_6e-2) * z * z - 0.5 * z + 1.0;
     (sin, cos)
 }

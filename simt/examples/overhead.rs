@@ -237,11 +237,11 @@ fn main() {
         let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1));
         kernels(n, repeat, &mut rows);
         // The primitives take minutes measured: skipped when only a kernel row is asked for.
-        if only.is_none_or(|o| !rows.iter().any(|r| &r.name == o)) {
+        if only.is_none_or(|o| !rows.iter().any(|r| r.name == *o)) {
             primitives::all(n, repeat, &mut rows);
         }
         if let Some(only) = only {
-            rows.retain(|r| &r.name == only);
+            rows.retain(|r| r.name == *only);
         }
         table.push(rows);
     }

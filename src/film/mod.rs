@@ -269,8 +269,8 @@ impl Film {
                         continue;
                     }
                     let y = s.0.y.floor();
-                    for b in band_of(y - k)..=band_of(y + k) {
-                        bands[b].push((c * chunk + j) as u32);
+                    for band in &mut bands[band_of(y - k)..=band_of(y + k)] {
+                        band.push((c * chunk + j) as u32);
                     }
                 }
                 (bands, rejected)

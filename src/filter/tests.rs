@@ -66,7 +66,7 @@ fn the_stepped_gaussian_gives_mitsubas_table_values() {
         assert!((raw(&stepped, x) - want).abs() < 1e-3, "x = {x}: {} against {want}", raw(&stepped, x));
         assert!((raw(&stepped, -x) - want).abs() < 1e-3, "x = -{x}");
     }
-    let mitsuba_exact = [(0.25, 0.882_166_74), (0.5, 0.606_423_0), (1.0, 0.134_960_49), (1.5, 0.010_758_21)];
+    let mitsuba_exact = [(0.25, 0.882_166_74), (0.5, 0.606_423), (1.0, 0.134_960_49), (1.5, 0.010_758_21)];
     for (x, want) in mitsuba_exact {
         assert!((raw(&exact, x) - want).abs() < 1e-3, "x = {x}: {} against {want}", raw(&exact, x));
     }

@@ -395,11 +395,14 @@ impl PendingLists {
     }
 }
 
+/// One chunk of a [`Resolved`] wave: its samples' estimates and their splats.
+type ResolvedChunk = (Vec<Vec3>, Chunk<(Vec2, Vec3)>);
+
 /// What the samples of a wave add to the image once their shadow rays are answered:
 /// each sample's pixel estimate and its splats (in the order they were made), in the
 /// pending lists' chunks.
 pub(crate) struct Resolved {
-    chunks: Vec<(Vec<Vec3>, Chunk<(Vec2, Vec3)>)>,
+    chunks: Vec<ResolvedChunk>,
 }
 
 impl Resolved {

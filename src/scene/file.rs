@@ -368,13 +368,18 @@ pub fn parse_scene_file(path: &Path, text: &str) -> Result<SceneDesc> {
             // A camera with no view direction, or no up that is not along it, would be
             // made up silently by `Camera::look_at`.
             let view = target - eye;
-            if !(view.length() > 1e-6 * eye.abs().max_element().max(1.0)) {
+            // Written so that NaN coordinates fail both tests.
+            #[allow(clippy::neg_cmp_op_on_partial_ord)]
+            let no_view = !(view.length() > 1e-6 * eye.abs().max_element().max(1.0));
+            if no_view {
                 return Err(err_at(
                     "look_at",
                     format!("camera.look_at {target} is the camera's position: no view direction"),
                 ));
             }
-            if !(view.normalize().cross(up.normalize_or_zero()).length() > 1e-4) {
+            #[allow(clippy::neg_cmp_op_on_partial_ord)]
+            let no_up = !(view.normalize().cross(up.normalize_or_zero()).length() > 1e-4);
+            if no_up {
                 return Err(err_at("up", format!("camera.up {up} is zero or along the view direction {view}")));
             }
             let cam = Camera::look_at(eye, target, up, c.fov);

@@ -87,7 +87,9 @@ fn smooth_layered_stacks_reflect_their_closed_form() {
     let gold = LayerBase::Conductor { eta: au_eta, k: au_k, roughness: 0.0 };
     let no_mirror = |_: f64| 0.0;
     let gold_mirror = |c: f64| fresnel_conductor(c, au_eta.x as f64, au_k.x as f64);
-    let cases: [(&str, Vec<(f32, f32)>, LayerBase, &dyn Fn(f64) -> f64, f64); 5] = [
+    // (name, coats, base, mirror, lambert): the fields the loop below takes apart.
+    type Case<'a> = (&'a str, Vec<(f32, f32)>, LayerBase, &'a dyn Fn(f64) -> f64, f64);
+    let cases: [Case; 5] = [
         ("clear coat over white", vec![(1.5, 0.0)], white, &no_mirror, 1.0),
         ("absorbing coat over white", vec![(1.5, 0.3)], white, &no_mirror, 1.0),
         ("two coats over white", vec![(1.5, 0.0), (1.3, 0.2)], white, &no_mirror, 1.0),
@@ -177,7 +179,8 @@ mod heavy {
         for alpha in [0.1f64, 0.4, 1.0] {
             let a = alpha as f32;
             let glass = Material::RoughGlass { ior: 1.5, roughness: a, tint: Vec3::ONE };
-            let cases: [(&str, Material, usize, &dyn Fn(f64) -> f64, bool, f64, bool); 4] = [
+            type Case<'a> = (&'a str, Material, usize, &'a dyn Fn(f64) -> f64, bool, f64, bool);
+            let cases: [Case; 4] = [
                 (
                     "perfect rough metal",
                     Material::Conductor { eta: Vec3::ONE, k: Vec3::splat(1e4), roughness: a },

@@ -75,7 +75,7 @@ fn check_against_cpu(scene: &Scene, params: PdacrtParams, rays: &[Ray]) {
 /// key rule decide them) and brute force's to rounding; occlusion equals both.
 fn same_hits_as_cpu(g: &dyn RayCaster, tris: &[[Vec3; 3]], params: PdacrtParams, rays: &[Ray]) {
     let cpu = Pdacrt::from_triangles(tris, params);
-    let brute = BruteForce::from_triangles(tris.to_vec().into());
+    let brute = BruteForce::from_triangles(tris.to_vec());
     let (mut gh, mut ch, mut bh) =
         (vec![Hit::MISS; rays.len()], vec![Hit::MISS; rays.len()], vec![Hit::MISS; rays.len()]);
     g.closest(rays, &mut gh);
@@ -166,7 +166,7 @@ fn gpu_casters_take_each_frame_of_the_waving_grid_and_tiny_scenes() {
         g.rebuild(&tris).unwrap();
         p.set_triangles(&tris).unwrap();
         let mut hits = vec![Hit::MISS; primary.len()];
-        BruteForce::from_triangles(tris.clone().into()).closest(&primary, &mut hits);
+        BruteForce::from_triangles(tris.clone()).closest(&primary, &mut hits);
         assert!(hits.iter().filter(|h| h.is_hit()).count() > primary.len() / 2, "the grid fills the view");
         let mut rays = primary.clone();
         rays.extend(waving_grid_shadow_rays(&tris, &primary, &hits));

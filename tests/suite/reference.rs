@@ -36,7 +36,8 @@ impl TestBox {
 /// [`MAX_DEPTH`], 8×8 blocks. Tests that ask for the same box share one rendering; the
 /// first to ask renders it while the others wait.
 pub fn bdpt(which: TestBox) -> Arc<Runs> {
-    static CACHE: Mutex<Option<HashMap<TestBox, Arc<OnceLock<Arc<Runs>>>>>> = Mutex::new(None);
+    type Cells = HashMap<TestBox, Arc<OnceLock<Arc<Runs>>>>;
+    static CACHE: Mutex<Option<Cells>> = Mutex::new(None);
     let cell = {
         let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
         cache.get_or_insert_with(HashMap::new).entry(which).or_default().clone()

@@ -72,7 +72,9 @@ pub fn runs(what: &str, base: u64, width: usize, block: usize, render: impl Fn(u
     let mut first = Vec::new();
     for i in 0..SEEDS {
         let img = render(base + i);
-        assert!(img.len() % width == 0 && width % block == 0 && (img.len() / width) % block == 0);
+        assert!(
+            img.len().is_multiple_of(width) && width.is_multiple_of(block) && (img.len() / width).is_multiple_of(block)
+        );
         per_seed.push(image_stats(&img, width, block));
         if average.is_empty() {
             average = vec![Vec3::ZERO; img.len()];

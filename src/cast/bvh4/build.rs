@@ -277,10 +277,10 @@ impl Builder<'_> {
         let index = out.nodes.len();
         out.nodes.push(node(&kids[..n], [0; 4]));
         let mut rest = refs;
-        for k in 0..n {
-            let (part, tail) = rest.split_at_mut(kids[k].len());
+        for (k, &kid) in kids[..n].iter().enumerate() {
+            let (part, tail) = rest.split_at_mut(kid.len());
             rest = tail;
-            out.nodes[index].child[k] = self.local_subtree(part, kids[k], depth + 1, out);
+            out.nodes[index].child[k] = self.local_subtree(part, kid, depth + 1, out);
         }
         index as u32
     }

@@ -428,6 +428,7 @@ pub(crate) fn vertex_strategies(
 }
 
 /// All strategies along one camera subpath (megakernel form of [`vertex_strategies`]).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn camera_strategies(
     ctx: &Context,
     cam: &[Vertex],
