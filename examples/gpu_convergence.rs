@@ -77,7 +77,7 @@ fn parse_seconds(s: &str) -> Result<f64, String> {
 
 fn options(a: &Args, label: &str, per_iteration: u32, seed: u64) -> Result<RenderOptions, String> {
     let mut o = gpu_scenes::options(&a.common, label, seed, 0)?;
-    (o.lvc.samples_per_iteration, o.cis.samples_per_iteration) = (per_iteration, per_iteration);
+    o.set_samples_per_iteration(per_iteration);
     Ok(o)
 }
 

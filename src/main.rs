@@ -457,7 +457,7 @@ fn run_render(args: RenderArgs) -> Result<bool> {
                     .into(),
             ));
         }
-        (opts.lvc.samples_per_iteration, opts.cis.samples_per_iteration) = (k, k);
+        opts.set_samples_per_iteration(k);
     }
     warpray::film::check_size(width, height)?;
     desc.scene.check_renderable()?;

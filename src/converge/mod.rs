@@ -100,8 +100,7 @@ pub fn run(
             filter_mode: opts.filter_mode,
             ..Default::default()
         });
-        (render_opts.lvc.samples_per_iteration, render_opts.cis.samples_per_iteration) =
-            (opts.samples_per_iteration, opts.samples_per_iteration);
+        render_opts.set_samples_per_iteration(opts.samples_per_iteration);
         let label = variant.label;
         let start = Instant::now();
         let mut measuring = Duration::ZERO;

@@ -235,6 +235,13 @@ impl RenderStats {
 pub use crate::limits::MAX_SECONDS;
 
 impl RenderOptions {
+    /// Camera passes (samples per pixel) per light pass for the integrators with a
+    /// light vertex cache (LVC-BDPT, its megakernel, CIS-LBDPT; [`Iterations`]); the
+    /// others have no light pass to share and ignore it.
+    pub fn set_samples_per_iteration(&mut self, k: u32) {
+        (self.lvc.samples_per_iteration, self.cis.samples_per_iteration) = (k, k);
+    }
+
     /// `opts` with a scene file's choices of what the image means (path depth, pixel
     /// filter and filter mode) and of how it is sampled (Russian roulette's start)
     /// wherever the file makes them: every front end (render, converge, the inspector)

@@ -27,7 +27,7 @@ fn both(
     (passes, per_iteration): (u32, u32),
 ) -> (Vec<Vec3>, Vec<Vec3>) {
     let mut opts = Variant::parse(variant).unwrap().apply(RenderOptions { budget: Budget::Samples(passes), ..opts });
-    (opts.lvc.samples_per_iteration, opts.cis.samples_per_iteration) = (per_iteration, per_iteration);
+    opts.set_samples_per_iteration(per_iteration);
     let caster = warpray::cast::BvhCaster::new(scene);
     let mut r = Renderer::new(scene, &caster, &opts).unwrap();
     let mut cpu = r.film().unwrap();

@@ -77,7 +77,7 @@ fn a_pass_rendered_again_is_the_same_pass() {
     let caster = BvhCaster::new(&scene);
     for kind in [IntegratorKind::Lvc, IntegratorKind::LvcMegakernel, IntegratorKind::Cis] {
         let mut opts = RenderOptions { width: 24, height: 16, integrator: kind, seed: 3, ..Default::default() };
-        (opts.lvc.samples_per_iteration, opts.cis.samples_per_iteration) = (2, 2);
+        opts.set_samples_per_iteration(2);
         let mut r = Renderer::new(&scene, &caster, &opts).unwrap();
         let (mut first, mut other, mut again) = (r.film().unwrap(), r.film().unwrap(), r.film().unwrap());
         r.pass(0, &mut first);
