@@ -278,10 +278,11 @@ impl Aabb {
     }
 }
 
-/// Reciprocal of a direction; zero components become signed infinities.
+/// Reciprocal of a direction; zero components become signed infinities. The three
+/// divisions run on one vector's lanes (the same IEEE quotients as one at a time).
 #[inline]
 pub fn inv_dir(dir: Vec3) -> Vec3 {
-    Vec3::ONE / dir
+    Vec3::from(glam::Vec3A::ONE / glam::Vec3A::from(dir))
 }
 
 /// The point of triangle `[a, b, c]` with barycentric weights `u` (of `b`) and `v` (of

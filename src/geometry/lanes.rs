@@ -11,7 +11,7 @@
 //! the scalar test itself (its double-precision tie-break).
 
 use super::lane_ops::{slab, watertight};
-use super::{Aabb, Ray, RayShear, SLAB_WIDEN, triangle_test};
+use super::{Aabb, Ray, RayShear, SLAB_WIDEN, inv_dir, triangle_test};
 use glam::{Vec3, Vec3A, Vec4};
 
 /// A ray packed for repeated slab tests: origin with `t_min`, and reciprocal direction
@@ -29,9 +29,7 @@ impl RaySlab {
     /// The record of a ray.
     #[inline]
     pub fn new(ray: &Ray) -> RaySlab {
-        // `geometry::inv_dir`'s three divisions on one vector's lanes (the same quotients).
-        let inv = Vec3::from(Vec3A::ONE / Vec3A::from(ray.dir));
-        RaySlab { origin_t_min: ray.origin.extend(ray.t_min), inv_t_max: inv.extend(ray.t_max) }
+        RaySlab { origin_t_min: ray.origin.extend(ray.t_min), inv_t_max: inv_dir(ray.dir).extend(ray.t_max) }
     }
 
     /// The records as floats, eight a ray in the record's order (origin x, y, z,
@@ -249,7 +247,6 @@ impl Hits4 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::inv_dir;
     use crate::sampling::Rng;
 
     #[test]
