@@ -1,7 +1,8 @@
 //! What the emulator costs: each kernel and primitive of `simt` against the best plain
 //! CPU code for the same job, with measurement off (and, for reference, on).
 //!
-//! `cargo run --release -p simt --example overhead -- [--json] [--n 16777216] [--repeat 5] [--rounds 1]`
+//! `cargo run --release -p simt --example overhead -- [--json] [--n 16777216] [--repeat 5] [--rounds 1]
+//! [--only ROW] [--gpu-profile h200]`
 //!
 //! Rows: `saxpy` (16M f32, memory-bound, `Device::transform_in_place`: each thread owns
 //! its element), `saxpy_any_store` (the same through `for_each` and a read-write view,
@@ -14,8 +15,12 @@
 //! whole table is measured R times in turn, and each row reports the median of its R
 //! ratios (each round's simt time over the same round's reference) and their range:
 //! on a shared machine a slow spell then moves both sides of a ratio, or one round.
+//! With `--gpu-profile NAME` the measured device also predicts GPU time on that profile
+//! (`Device::set_gpu_profile`), so its launches gather the footprints and warp chains
+//! the time model reads: the cost of measuring with a prediction.
 
 use rayon::prelude::*;
+use simt::timing::GpuProfile;
 use simt::{Device, DeviceConfig, LaunchConfig};
 use std::time::Instant;
 
@@ -116,8 +121,15 @@ fn leaf_data(rays: usize, tris: usize) -> (Vec<[f32; 8]>, Vec<[f32; 9]>) {
     (ray_data, tri_data)
 }
 
-fn kernels(n: usize, repeat: usize, rows: &mut Vec<Row>) {
+/// An unmeasured and a measured device; the measured one predicts on `profile` if any.
+fn devices(profile: Option<&GpuProfile>) -> [Device; 2] {
     let devs = [false, true].map(|measure| Device::new(DeviceConfig { measure, ..Default::default() }));
+    devs[1].set_gpu_profile(profile.cloned());
+    devs
+}
+
+fn kernels(n: usize, repeat: usize, profile: Option<&GpuProfile>, rows: &mut Vec<Row>) {
+    let devs = devices(profile);
     // Times `launch` on the unmeasured and the measured device; buffers are made once
     // per device by `setup`, outside the timing.
     fn time<B>(
@@ -231,14 +243,21 @@ fn main() {
     let n = value("--n", 1 << 24);
     let repeat = value("--repeat", 5).max(1);
     let rounds = value("--rounds", 1).max(1);
+    let profile = args.iter().position(|a| a == "--gpu-profile").map(|i| {
+        let name = args.get(i + 1).map_or("", String::as_str);
+        GpuProfile::load(name).unwrap_or_else(|e| {
+            eprintln!("overhead: --gpu-profile: {e}");
+            std::process::exit(2)
+        })
+    });
     let mut table: Vec<Vec<Row>> = Vec::new();
     for _ in 0..rounds {
         let mut rows = Vec::new();
         let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1));
-        kernels(n, repeat, &mut rows);
+        kernels(n, repeat, profile.as_ref(), &mut rows);
         // The primitives take minutes measured: skipped when only a kernel row is asked for.
         if only.is_none_or(|o| !rows.iter().any(|r| r.name == *o)) {
-            primitives::all(n, repeat, &mut rows);
+            primitives::all(n, repeat, profile.as_ref(), &mut rows);
         }
         if let Some(only) = only {
             rows.retain(|r| r.name == *only);
@@ -286,9 +305,8 @@ fn main() {
 }
 
 mod primitives {
-    use super::{Row, median_ms, median_ms_setup, random};
+    use super::{GpuProfile, Row, median_ms, median_ms_setup, random};
     use rayon::prelude::*;
-    use simt::{Device, DeviceConfig};
     use std::time::Instant;
 
     /// The faster of two references.
@@ -296,8 +314,8 @@ mod primitives {
         if a.0 <= b.0 { a } else { b }
     }
 
-    pub fn all(n: usize, repeat: usize, rows: &mut Vec<Row>) {
-        let devs = [false, true].map(|measure| Device::new(DeviceConfig { measure, ..Default::default() }));
+    pub fn all(n: usize, repeat: usize, profile: Option<&GpuProfile>, rows: &mut Vec<Row>) {
+        let devs = super::devices(profile);
         let reps = |k: usize| if k == 0 { repeat } else { 1 };
         let data = random(n, 3);
 
