@@ -9,6 +9,9 @@
 // The probes are deliberately unlike the checked kernels (PDACRT, CIS): the model is
 // calibrated on these only, then checked on those.
 //
+// About 620 lines on purpose: one probe per profile quantity, each with its launch, in
+// one program that `cuda/microbench.sh` profiles in one pass.
+//
 //   nvcc -std=c++17 -O3 -arch=sm_90 -o target/cuda/microbench cuda/microbench.cu
 //   target/cuda/microbench          every probe
 //   target/cuda/microbench fences   the atomic-latency and fence probes alone

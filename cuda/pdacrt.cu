@@ -4,6 +4,10 @@
 // `cuda/build.sh` and loaded at run time by `warpray::gpu` (cargo feature `cuda`), so
 // nothing here is needed to build warpray.
 //
+// About 770 lines on purpose: every kernel of the trace, the level loop that launches
+// them and the CUB calls between, in the order `src/cast/pdacrt` runs them, so that the
+// twins can be read side by side.
+//
 // The data layouts are the Rust ones (`#[repr(C)]`, 4-byte fields), so a load here
 // makes the requests the emulator counts for the same load. Floating-point work must
 // round as the Rust code does: build with `-fmad=false` (no fused multiply-add) and

@@ -15,7 +15,7 @@
 //! gpu_check gpu --gpu bvh --model bunny --batch primary,shadow --repeat 1   # the GPU BVH, keys against its twin
 //! ```
 //!
-//! About 650 lines on purpose: one subcommand per step of the check, sharing the input options
+//! About 680 lines on purpose: one subcommand per step of the check, sharing the input options
 //! (the GPU BVH's rows are in `gpu_bvh.rs`).
 //!
 //! `gpu` checks every GPU key against the CPU PDACRT's (bit for bit) and every 256th ray

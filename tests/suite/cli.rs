@@ -1,4 +1,8 @@
 //! The `warpray` command as a user runs it.
+//!
+//! About 660 lines on purpose: one test per command-line promise (each subcommand's
+//! output, its errors naming the file and the option), all driving the built binary
+//! through the same helpers.
 
 use std::path::PathBuf;
 use std::process::Command;
