@@ -3,8 +3,10 @@
 
     python3 docs/reproduce/casting-summary.py OUT_DIR
 
-Prints markdown: each batch's build + trace per caster and the ratios to Embree's
-default and fastest settings; DACRT's 1 -> 16 thread scaling; the animated grid.
+Prints markdown: the page's table (DACRT, BVH4 and Embree in interleaved processes,
+ratios within each process), each batch's build + trace per caster and the ratios to
+Embree's default and fastest settings; DACRT's 1 -> 16 thread scaling by stage; the
+animated grid.
 """
 import json
 import statistics
@@ -23,16 +25,57 @@ def rows(name):
     return machine, [l for l in lines if "machine" not in l]
 
 
+# docs/dacrt.md's table: per batch, medians over the interleaved processes, each ratio
+# taken within its process.
+procs = {}
+for f in sorted(out.glob("casting-1024-16t-process-*.jsonl")):
+    proc = f.name.split("-")[4]
+    m, r_all = rows(f.name)
+    if m and not procs:
+        print(f"Machine: {m['cpu']}, {m['cpus']} CPUs, vector extensions {' '.join(m['extensions'])}\n")
+    for r in r_all:
+        procs.setdefault((r["scene"], r["batch"]), {}).setdefault(proc, {})[r["caster"]] = r
+if procs:
+    med = statistics.median
+    print(f"DACRT against Embree, {len({p for v in procs.values() for p in v})} interleaved processes "
+          "(ms; ratios within each process, medians over them):\n")
+    print("| scene | batch | rays | DACRT | tests per ray | core-ns per test | BVH4 | Embree | Embree fastest "
+          "| DACRT ÷ Embree | DACRT ÷ Embree fastest | BVH4 ÷ Embree |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for scene in ["bunny", "conference", "dragon"]:
+        for batch in ["primary", "shadow", "specular", "ao"]:
+            by = procs.get((scene, batch))
+            if not by:
+                continue
+            full = [p for p in by.values() if all(c in p for c in ["dacrt", "embree", "embree-fast"])]
+            has_bvh4 = all("bvh4" in p for p in full)
+            if not full:
+                continue
+            d = [p["dacrt"] for p in full]
+            cell = lambda c: (f"{med(p[c]['build_ms'] for p in full):.1f} + "
+                              f"{med(p[c]['trace_ms'] for p in full):.1f}" if c != "bvh4" or has_bvh4 else "-")
+            ratio = lambda a, b: med(p[a]["total_ms"] / p[b]["total_ms"] for p in full)
+            tests = med(x["tests"] for x in d)
+            busy = med(x["phases"]["groups_busy"] for x in d)
+            print(f"| {scene} | {batch} | {d[0]['rays']:,} | {med(x['total_ms'] for x in d):.1f} | "
+                  f"{tests / d[0]['rays']:.1f} | {busy * 1e6 / max(tests, 1):.0f} | {cell('bvh4')} | "
+                  f"{cell('embree')} | {cell('embree-fast')} | {ratio('dacrt', 'embree'):.2f}× | "
+                  f"{ratio('dacrt', 'embree-fast'):.2f}× | "
+                  + (f"{ratio('bvh4', 'embree'):.2f}× |" if has_bvh4 else "- |"))
+
 machine, t = rows("casting-1024-16t.jsonl")
+if t:
+    print("\nEvery caster in one process:\n")
 if machine:
     print(f"Machine: {machine['cpu']}, {machine['cpus']} CPUs, vector extensions "
           f"{' '.join(machine['extensions'])}; binary compiled for "
           f"{' '.join(machine['compiled_for']) or 'baseline x86-64'}\n")
 cell = {(r["scene"], r["batch"], r["caster"]): r for r in t if r["threads"] == 16}
 casters = [c for c in ["embree", "embree-fast", "bvh", "bvh4", "dacrt", "pdacrt"] if any(k[2] == c for k in cell)]
-print("| scene | batch | rays | " + " | ".join(f"{c} ms" for c in casters)
-      + " | DACRT ÷ Embree | DACRT ÷ Embree fastest | BVH ÷ Embree | BVH4 ÷ Embree | DACRT tests/ray | DACRT core-ns/test |")
-print("|---|---|---:|" + "---:|" * (len(casters) + 6))
+if cell:
+    print("| scene | batch | rays | " + " | ".join(f"{c} ms" for c in casters)
+          + " | DACRT ÷ Embree | DACRT ÷ Embree fastest | BVH ÷ Embree | BVH4 ÷ Embree | DACRT tests/ray | DACRT core-ns/test |")
+    print("|---|---|---:|" + "---:|" * (len(casters) + 6))
 for scene in ["bunny", "conference", "dragon"]:
     for batch in ["primary", "shadow", "specular", "ao"]:
         if (scene, batch, "dacrt") not in cell:
