@@ -300,7 +300,10 @@ impl Film {
     /// `passes − 1`; NaN, undefined, before the second pass). The variance of the mean is this
     /// divided by `passes`. With [`FilterMode::Splat`] a pass's estimate is that pass's
     /// own weighted average (plus its splats), taken about the film's mean: close to,
-    /// not exactly, the variance of the ratio the film reports.
+    /// not exactly, the variance of the ratio the film reports. It assumes independent
+    /// passes: passes that share a light pass (`samples_per_iteration` above 1, see
+    /// [`crate::render::Iterations`]) are correlated, and the command line refuses
+    /// `--aov variance` for them.
     pub fn variance(&self) -> Vec<Vec3> {
         let n = self.passes as f64;
         if self.passes < 2 {
