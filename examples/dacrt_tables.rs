@@ -176,9 +176,10 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
         "bvh4" => Box::new(Bvh4::new(s)),
         "bvh4-8" => Box::new(Bvh4::new(s).max_packet(8)),
         "bvh4-single" => Box::new(Bvh4::new(s).single_rays()),
-        "dacrt" | "dacrt-sse" => {
+        "dacrt" | "dacrt-sse" | "dacrt-by-id" => {
             let mut d = Dacrt::new(s);
-            d.params.lanes = name == "dacrt";
+            d.params.lanes = name != "dacrt-sse";
+            d.params.cell_layout = name != "dacrt-by-id";
             let t = TUNABLES.get().copied().unwrap_or_default();
             d.params.top_cell_triangles = t.dacrt_top_cell.unwrap_or(d.params.top_cell_triangles);
             d.params.groups_per_thread = t.dacrt_groups_per_thread.unwrap_or(d.params.groups_per_thread);
@@ -214,6 +215,7 @@ const OWN: &[&str] = &[
     "bvh4-single",
     "dacrt",
     "dacrt-sse",
+    "dacrt-by-id",
     "pdacrt",
 ];
 #[cfg(feature = "embree")]

@@ -18,10 +18,11 @@ fn casters_under_test(scene: &Scene, measured: bool) -> Vec<Box<dyn RayCaster>> 
     let mut casters: Vec<Box<dyn RayCaster>> = vec![
         Box::new(Dacrt::new(scene)),
         // One recursion, with packet filtering, on the SSE steps alone (what a CPU
-        // without AVX2 runs; the others take the widest lanes this CPU has).
+        // without AVX2 runs; the others take the widest lanes this CPU has), gathering
+        // the triangles from the scene by id (the others lay each shared-top cell out).
         Box::new(Dacrt::from_triangles(
             scene.triangle_vertices(),
-            DacrtParams { packet_rays: 32, lanes: false, ..DacrtParams::serial() },
+            DacrtParams { packet_rays: 32, lanes: false, cell_layout: false, ..DacrtParams::serial() },
         )),
         // Tiny leaves force deep recursion; small packets are tested at every level.
         Box::new(Dacrt::from_triangles(
@@ -400,7 +401,11 @@ fn dacrt_pdacrt_and_both_bvhs_keep_the_smallest_key_where_triangles_tie() {
         BruteForce::new(&scene).closest(&rays, &mut want);
         let tiny = PdacrtParams { leaf_rays: 4, leaf_triangles: 2, ..PdacrtParams::default() };
         let tiny_dacrt = DacrtParams { leaf_rays: 1, leaf_triangles: 1, ..DacrtParams::default() };
-        let casters: [(&str, Box<dyn RayCaster>); 8] = [
+        // Shared-top cells of 64 triangles, laid out for the call or gathered by id: a
+        // cell's slots are not the scene's ids, and its ties must still go to the
+        // smaller scene id.
+        let cells = DacrtParams { top_cell_triangles: 64, ..DacrtParams::default() };
+        let casters: [(&str, Box<dyn RayCaster>); 10] = [
             ("bvh4", Box::new(Bvh4::from_triangles(tris.clone()))),
             ("bvh4, packets of 8", Box::new(Bvh4::from_triangles(tris.clone()).max_packet(8))),
             ("bvh4, one ray at a time", Box::new(Bvh4::from_triangles(tris.clone()).single_rays())),
@@ -409,6 +414,11 @@ fn dacrt_pdacrt_and_both_bvhs_keep_the_smallest_key_where_triangles_tie() {
             ("pdacrt, tiny leaves", Box::new(Pdacrt::from_triangles(&tris, tiny))),
             ("dacrt", Box::new(Dacrt::from_triangles(tris.clone(), DacrtParams::default()))),
             ("dacrt, tiny leaves", Box::new(Dacrt::from_triangles(tris.clone(), tiny_dacrt))),
+            ("dacrt, cells of 64", Box::new(Dacrt::from_triangles(tris.clone(), cells))),
+            (
+                "dacrt, cells of 64 by id",
+                Box::new(Dacrt::from_triangles(tris.clone(), DacrtParams { cell_layout: false, ..cells })),
+            ),
         ];
         for (caster, c) in casters {
             let mut got = vec![Hit::MISS; rays.len()];

@@ -15,7 +15,8 @@
 //! recursion's lists, and one taken by another thread at once holds more rays, whose
 //! intervals are cut again at every level below as hits arrive.
 
-use super::state::{Dacrt, Trace};
+use super::planes::partition_triangles;
+use super::state::{Dacrt, Soup, Trace};
 use super::top::{Scratch, SharedTop, Top};
 use crate::geometry::Aabb;
 use std::sync::atomic::Ordering::Relaxed;
@@ -45,8 +46,8 @@ impl Dacrt {
     pub(super) fn fork(
         &self,
         tr: &Trace,
-        near: Aabb,
-        far: Aabb,
+        soup: Soup,
+        [near, far]: [Aabb; 2],
         rays: &mut [u32],
         tris: &mut [u32],
         spare: &mut Vec<u32>,
@@ -54,21 +55,21 @@ impl Dacrt {
     ) {
         // The far child's triangles and rays, copied out (on the trace's lanes).
         let mut far_tris = tris.to_vec();
-        let (nt, union) = self.partition_triangles(tr.lanes, &mut far_tris, &far, spare);
+        let (nt, union) = partition_triangles(tr.lanes, soup.boxes, &mut far_tris, &far, spare);
         far_tris.truncate(nt);
         let tight = far.intersection(union);
         let far_rays = if far_tris.is_empty() { Vec::new() } else { tr.entering(rays, &tight, spare) };
         if far_rays.is_empty() {
-            return self.child(tr, near, rays, tris, spare, depth);
+            return self.child(tr, soup, near, rays, tris, spare, depth);
         }
         self.join(
             tr,
             far_tris.len() + far_rays.len(),
-            || self.child(tr, near, rays, tris, spare, depth),
+            || self.child(tr, soup, near, rays, tris, spare, depth),
             |tr| {
                 let (mut far_rays, mut spare) = (far_rays, Vec::new());
                 let n = tr.partition_rays(&mut far_rays, &tight, &mut spare);
-                self.recurse(tr, tight, &mut far_rays[..n], &mut far_tris, &mut spare, depth + 1);
+                self.recurse(tr, soup, tight, &mut far_rays[..n], &mut far_tris, &mut spare, depth + 1);
             },
         );
     }

@@ -7,7 +7,7 @@
 //! images do not depend on the CPU's vector width (`tests` checks each width the CPU
 //! has against SSE).
 
-use super::state::{Dacrt, Trace};
+use super::state::{Dacrt, Soup, Trace};
 use crate::geometry::hit_key::{BLOCKED, pack};
 use crate::geometry::lane_ops::{first_lanes, splat3, watertight};
 use crate::geometry::packet_lanes::{F8, F16, Packed};
@@ -19,27 +19,28 @@ impl Dacrt {
     /// Brute force over a node's rays and triangles on the trace's lanes. A leaf of up
     /// to [`LEAF_BLOCKS`] blocks loads them once for all its rays; a larger one (a few
     /// rays against many triangles) loads each block as each ray reaches it.
-    pub(super) fn leaf(&self, tr: &Trace, rays: &[u32], tris: &[u32]) {
+    /// `tris` are slots of `soup`; keys carry their scene ids.
+    pub(super) fn leaf(&self, tr: &Trace, soup: Soup, rays: &[u32], tris: &[u32]) {
         match tr.lanes {
-            None => leaf_in::<Vec4>(self, tr, rays, tris),
+            None => leaf_in::<Vec4>(soup, tr, rays, tris),
             Some(width) => {
-                type Loop = unsafe fn(&Dacrt, &Trace, &[u32], &[u32]);
+                type Loop = unsafe fn(Soup, &Trace, &[u32], &[u32]);
                 let wide = width.pick::<Loop>([leaf_avx512, leaf_avx2]);
                 // SAFETY: the loop is compiled for the width's extension, which the
                 // CPU has (`pick` checked).
-                unsafe { wide(self, tr, rays, tris) }
+                unsafe { wide(soup, tr, rays, tris) }
             }
         }
     }
 }
 
 #[target_feature(enable = "avx512f")]
-fn leaf_avx512(d: &Dacrt, tr: &Trace, rays: &[u32], tris: &[u32]) {
+fn leaf_avx512(d: Soup, tr: &Trace, rays: &[u32], tris: &[u32]) {
     leaf_in::<F16>(d, tr, rays, tris)
 }
 
 #[target_feature(enable = "avx2")]
-fn leaf_avx2(d: &Dacrt, tr: &Trace, rays: &[u32], tris: &[u32]) {
+fn leaf_avx2(d: Soup, tr: &Trace, rays: &[u32], tris: &[u32]) {
     leaf_in::<F8>(d, tr, rays, tris)
 }
 
@@ -65,19 +66,19 @@ fn block<L: Packed>(tris: &[[Vec3; 3]], ids: &[u32]) -> [[L; 3]; 3] {
 const LEAF_BLOCKS: usize = 4;
 
 #[inline(always)]
-fn leaf_in<L: Packed>(d: &Dacrt, tr: &Trace, rays: &[u32], tris: &[u32]) {
+fn leaf_in<L: Packed>(d: Soup, tr: &Trace, rays: &[u32], tris: &[u32]) {
     let w = L::WIDTH;
     let kept: Vec<[[L; 3]; 3]>;
     let mut stack = [[[L::splat(0.0); 3]; 3]; LEAF_BLOCKS];
     let preloaded: &[[[L; 3]; 3]] = if tris.len() <= w * LEAF_BLOCKS {
         for (ids, b) in tris.chunks(w).zip(&mut stack) {
-            *b = block::<L>(&d.tris, ids);
+            *b = block::<L>(d.corners, ids);
         }
         &stack[..tris.len().div_ceil(w)]
     } else if rays.len() > 2 {
         let mut blocks = Vec::with_capacity(tris.len().div_ceil(w));
         for ids in tris.chunks(w) {
-            blocks.push(block::<L>(&d.tris, ids));
+            blocks.push(block::<L>(d.corners, ids));
         }
         kept = blocks;
         &kept
@@ -108,7 +109,7 @@ fn leaf_in<L: Packed>(d: &Dacrt, tr: &Trace, rays: &[u32], tris: &[u32]) {
             let p = match preloaded.get(b) {
                 Some(p) => p,
                 None => {
-                    fresh = block::<L>(&d.tris, ids);
+                    fresh = block::<L>(d.corners, ids);
                     &fresh
                 }
             };
@@ -122,7 +123,7 @@ fn leaf_in<L: Packed>(d: &Dacrt, tr: &Trace, rays: &[u32], tris: &[u32]) {
             while edge != 0 {
                 let k = edge.trailing_zeros() as usize;
                 edge &= edge - 1;
-                let corners = d.tris[ids[k] as usize];
+                let corners = d.corners[ids[k] as usize];
                 if let (_, Some((tk, _, _))) = triangle_test(ray.origin, &shear, corners, ray.t_min, t_far) {
                     (mask, t[k]) = (mask | 1 << k, tk);
                 }
@@ -140,11 +141,11 @@ fn leaf_in<L: Packed>(d: &Dacrt, tr: &Trace, rays: &[u32], tris: &[u32]) {
             while rest != 0 {
                 let k = rest.trailing_zeros() as usize;
                 rest &= rest - 1;
-                if closer((t[k], ids[k]), (t[lane], ids[lane])) {
+                if closer((t[k], d.id(ids[k])), (t[lane], d.id(ids[lane]))) {
                     lane = k;
                 }
             }
-            best = best.min(pack(t[lane], ids[lane]));
+            best = best.min(pack(t[lane], d.id(ids[lane])));
         }
         tests += made as u64;
         key.fetch_min(best, Relaxed);
@@ -175,8 +176,8 @@ mod tests {
                 let n_rays = 1 + (trial as usize * 3) % 13;
                 let tri_ids: Vec<u32> = (0..n_tris as u32).map(|i| (i * 7 + trial as u32) % 40).collect();
                 let ray_ids: Vec<u32> = (0..n_rays as u32).map(|i| (i * 11 + trial as u32) % 200).collect();
-                d.leaf(&wide, &ray_ids, &tri_ids);
-                d.leaf(&sse, &ray_ids, &tri_ids);
+                d.leaf(&wide, d.soup(), &ray_ids, &tri_ids);
+                d.leaf(&sse, d.soup(), &ray_ids, &tri_ids);
                 for &r in &ray_ids {
                     let (w, s) = (wide.keys[r as usize].load(Relaxed), sse.keys[r as usize].load(Relaxed));
                     assert_eq!(w, s, "{width:?}, trial {trial}, ray {r}");

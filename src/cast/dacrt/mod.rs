@@ -31,6 +31,14 @@
 //!   into one per thread, whose recursions fork their far halves for idle threads to
 //!   take (`fork.rs`). With one thread there is one group. Nothing is kept between
 //!   calls.
+//! * **Cell layout.** A group entering a cell copies the cell's boxes and corners side
+//!   by side into its own buffers ([`DacrtParams::cell_layout`]; one gather), and the
+//!   recursion below works on slots of that copy (`state::Soup`), so every partition
+//!   and leaf reads a few hundred kilobytes in ascending order instead of gathering
+//!   from the whole scene by id. Slots keep the order of the scene's ids and keys carry
+//!   the scene's ids, so the lists, tests and ties are the same. (Dragon, 512², one
+//!   thread on the 2-core VM: the groups' time −5 to −14 % on primary, shadow and
+//!   mirror rays, −1 to −8 % on AO.)
 //! * **Ray order and packets.** The batch's valid rays are sorted by a coherence key (a
 //!   Morton code over origin and direction) and copied in that order, so nearby rays
 //!   sit together in memory, at any thread count (the conference room's AO rays at
@@ -76,11 +84,11 @@ mod routes;
 mod stages;
 mod state;
 mod top;
-use planes::{centroid_median, sah_plane};
+use planes::{centroid_median, partition_triangles, sah_plane};
 use stages::{Stages, timed};
-use state::Trace;
 pub(crate) use state::leaf_pairs;
 pub use state::{Dacrt, DacrtParams};
+use state::{Soup, Trace};
 use top::Scratch;
 
 impl Dacrt {
@@ -103,24 +111,35 @@ impl Dacrt {
         self
     }
 
-    fn recurse(&self, tr: &Trace, bounds: Aabb, rays: &mut [u32], tris: &mut [u32], spare: &mut Vec<u32>, depth: u32) {
+    /// One node: `tris` are slots of `soup`.
+    #[allow(clippy::too_many_arguments)]
+    fn recurse(
+        &self,
+        tr: &Trace,
+        soup: Soup,
+        bounds: Aabb,
+        rays: &mut [u32],
+        tris: &mut [u32],
+        spare: &mut Vec<u32>,
+        depth: u32,
+    ) {
         if rays.is_empty() || tris.is_empty() {
             return;
         }
         if self.is_leaf(rays.len(), tris.len(), depth) {
-            return self.leaf(tr, rays, tris);
+            return self.leaf(tr, soup, rays, tris);
         }
-        let Some((axis, pos)) = self.choose_split(tr, (&self.boxes, 1), &bounds, rays, tris) else {
-            return self.leaf(tr, rays, tris);
+        let Some((axis, pos)) = self.choose_split(tr, (soup.boxes, 1), &bounds, rays, tris) else {
+            return self.leaf(tr, soup, rays, tris);
         };
         let (lo, hi) = bounds.split(axis, pos);
         // Near child first, judged by the rays' mean direction along the split axis.
         let (near, far) = if tr.toward_hi(rays, axis) { (lo, hi) } else { (hi, lo) };
         if tr.forks(rays.len()) {
-            return self.fork(tr, near, far, rays, tris, spare, depth);
+            return self.fork(tr, soup, [near, far], rays, tris, spare, depth);
         }
-        self.child(tr, near, rays, tris, spare, depth);
-        self.child(tr, far, rays, tris, spare, depth);
+        self.child(tr, soup, near, rays, tris, spare, depth);
+        self.child(tr, soup, far, rays, tris, spare, depth);
     }
 
     /// The leaf rule: few triangles, or few rays *and* few ray–triangle pairs (a node
@@ -171,14 +190,24 @@ impl Dacrt {
 
     /// Partitions the parent's lists for `child`, shrinks its box to its triangles,
     /// and recurses.
-    fn child(&self, tr: &Trace, child: Aabb, rays: &mut [u32], tris: &mut [u32], spare: &mut Vec<u32>, depth: u32) {
-        let (nt, union) = self.partition_triangles(tr.lanes, tris, &child, spare);
+    #[allow(clippy::too_many_arguments)]
+    fn child(
+        &self,
+        tr: &Trace,
+        soup: Soup,
+        child: Aabb,
+        rays: &mut [u32],
+        tris: &mut [u32],
+        spare: &mut Vec<u32>,
+        depth: u32,
+    ) {
+        let (nt, union) = partition_triangles(tr.lanes, soup.boxes, tris, &child, spare);
         if nt == 0 {
             return;
         }
         let tight = child.intersection(union);
         let nr = tr.partition_rays(rays, &tight, spare);
-        self.recurse(tr, tight, &mut rays[..nr], &mut tris[..nt], spare, depth + 1)
+        self.recurse(tr, soup, tight, &mut rays[..nr], &mut tris[..nt], spare, depth + 1)
     }
 
     /// Runs the recursion for one batch; returns the per-ray keys (in the batch's

@@ -1,7 +1,7 @@
 //! Split planes that do not depend on the rays: a binned SAH over a subsample of a
 //! node's triangles, and the median of their centroids; and a child's triangle test.
 
-use super::state::{Dacrt, SAH_BINS, SAH_SAMPLES, place, stable_partition};
+use super::state::{SAH_BINS, SAH_SAMPLES, place, stable_partition};
 use crate::geometry::Aabb;
 use crate::geometry::lane_compact::compact;
 use crate::geometry::lane_ops::{first_lanes, splat3};
@@ -57,41 +57,39 @@ impl Grower {
     }
 }
 
-impl Dacrt {
-    /// Partitions `tris` so those whose boxes overlap `child` come first, both parts in
-    /// their order (`aside` holds the others meanwhile); returns their count and the
-    /// union of their boxes. On wide lanes the boxes are tested sixteen or eight at a
-    /// time (`partition_wide`), with the same answers, order and union as the
-    /// [`Grower`] one at a time.
-    #[inline]
-    pub(super) fn partition_triangles(
-        &self,
-        lanes: Option<Width>,
-        tris: &mut [u32],
-        child: &Aabb,
-        aside: &mut Vec<u32>,
-    ) -> (usize, Aabb) {
-        let mut union = Aabb::EMPTY;
-        let n = stable_partition(tris, aside, |tris, aside| {
-            let (n, m, u) = match lanes {
-                Some(width) => {
-                    type Loop = unsafe fn(&[Aabb], &mut [u32], &Aabb, &mut [u32]) -> (usize, usize, Aabb);
-                    let wide = width.pick::<Loop>([partition_avx512, partition_avx2]);
-                    // SAFETY: the loop is compiled for the width's extension, which the
-                    // CPU has (`pick` checked).
-                    unsafe { wide(&self.boxes, tris, child, aside) }
-                }
-                None => {
-                    let mut g = Grower::new(child);
-                    let (n, m) = partition_tail(&self.boxes, tris, 0, (0, 0), &mut g, aside);
-                    (n, m, g.union())
-                }
-            };
-            union = u;
-            (n, m)
-        });
-        (n, union)
-    }
+/// Partitions `tris` (slots of `boxes`) so those whose boxes overlap `child` come
+/// first, both parts in their order (`aside` holds the others meanwhile); returns their
+/// count and the union of their boxes. On wide lanes the boxes are tested sixteen or
+/// eight at a time (`partition_wide`), with the same answers, order and union as the
+/// [`Grower`] one at a time.
+#[inline]
+pub(super) fn partition_triangles(
+    lanes: Option<Width>,
+    boxes: &[Aabb],
+    tris: &mut [u32],
+    child: &Aabb,
+    aside: &mut Vec<u32>,
+) -> (usize, Aabb) {
+    let mut union = Aabb::EMPTY;
+    let n = stable_partition(tris, aside, |tris, aside| {
+        let (n, m, u) = match lanes {
+            Some(width) => {
+                type Loop = unsafe fn(&[Aabb], &mut [u32], &Aabb, &mut [u32]) -> (usize, usize, Aabb);
+                let wide = width.pick::<Loop>([partition_avx512, partition_avx2]);
+                // SAFETY: the loop is compiled for the width's extension, which the CPU
+                // has (`pick` checked).
+                unsafe { wide(boxes, tris, child, aside) }
+            }
+            None => {
+                let mut g = Grower::new(child);
+                let (n, m) = partition_tail(boxes, tris, 0, (0, 0), &mut g, aside);
+                (n, m, g.union())
+            }
+        };
+        union = u;
+        (n, m)
+    });
+    (n, union)
 }
 
 #[target_feature(enable = "avx512f")]
@@ -221,7 +219,7 @@ pub(super) fn centroid_median(boxes: &[Aabb], tris: &[u32], axis: usize) -> Opti
 #[cfg(test)]
 mod tests {
     use super::super::cases::widths;
-    use super::super::state::DacrtParams;
+    use super::super::state::{Dacrt, DacrtParams};
     use super::*;
     use crate::sampling::Rng;
     use glam::Vec3;
@@ -259,8 +257,8 @@ mod tests {
                 let len = (trial as usize * 13) % 121;
                 let ids: Vec<u32> = (0..len as u32).map(|i| (i * 53 + trial as u32) % 120).collect();
                 let (mut w_ids, mut s_ids) = (ids.clone(), ids);
-                let (wn, wu) = d.partition_triangles(Some(width), &mut w_ids, &child, &mut Vec::new());
-                let (sn, su) = d.partition_triangles(None, &mut s_ids, &child, &mut Vec::new());
+                let (wn, wu) = partition_triangles(Some(width), &d.boxes, &mut w_ids, &child, &mut Vec::new());
+                let (sn, su) = partition_triangles(None, &d.boxes, &mut s_ids, &child, &mut Vec::new());
                 assert_eq!((wn, &w_ids), (sn, &s_ids), "{width:?}, trial {trial}");
                 let bits = |b: Aabb| b.as_floats().map(f32::to_bits);
                 assert_eq!(bits(wu), bits(su), "{width:?}, trial {trial}: union {wu:?} against {su:?}");

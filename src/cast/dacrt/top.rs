@@ -5,8 +5,9 @@
 
 use super::routes::{Plan, Routes};
 use super::stages::Stages;
-use super::state::{Dacrt, Trace};
+use super::state::{Dacrt, Soup, Trace};
 use crate::geometry::Aabb;
+use glam::Vec3;
 use rayon::prelude::*;
 
 /// Every triangle's box, in order, is read in chunks of this many by the shared top's
@@ -18,12 +19,15 @@ const ROUTE_CHUNK: usize = 1 << 14;
 /// ray–triangle tests within 1 % on its primary, shadow and mirror batches).
 const TOP_SAMPLES_PER_CELL: usize = 64;
 
-/// A ray group's reusable buffers: the copy of a cell's triangle ids, and the rays a
-/// partition sets aside.
+/// A ray group's reusable buffers: the list of a cell's triangles, the rays a partition
+/// sets aside, and with [`DacrtParams::cell_layout`](super::state::DacrtParams::cell_layout)
+/// the copies of the cell's boxes and corners.
 #[derive(Default)]
 pub(super) struct Scratch {
     pub(super) tris: Vec<u32>,
     pub(super) rays: Vec<u32>,
+    boxes: Vec<Aabb>,
+    corners: Vec<[Vec3; 3]>,
 }
 
 /// The top levels of the recursion, whose triangle partitions do not depend on the
@@ -257,11 +261,28 @@ impl Dacrt {
                 if range.is_empty() {
                     return;
                 }
-                scratch.tris.clear();
-                scratch.tris.extend_from_slice(&top.ids[range.clone()]);
-                tr.alloc(range.len() * 4);
-                self.recurse(tr, *bounds, rays, &mut scratch.tris, &mut scratch.rays, depth);
-                tr.free(range.len() * 4);
+                let Scratch { tris, rays: aside, boxes, corners } = scratch;
+                let ids = &top.ids[range.clone()];
+                tris.clear();
+                // The cell's triangles laid out side by side (one gather here; the
+                // partitions and leaves below then read them in ascending order), or
+                // gathered from the scene by id at every step. A single cell is the
+                // scene itself, already in order.
+                let (soup, bytes) = if self.params.cell_layout && range.len() < self.tris.len() {
+                    boxes.clear();
+                    boxes.extend(ids.iter().map(|&t| self.boxes[t as usize]));
+                    corners.clear();
+                    corners.extend(ids.iter().map(|&t| self.tris[t as usize]));
+                    tris.extend(0..ids.len() as u32);
+                    let soup = Soup { boxes, corners, ids: Some(ids) };
+                    (soup, ids.len() * (4 + std::mem::size_of::<Aabb>() + std::mem::size_of::<[Vec3; 3]>()))
+                } else {
+                    tris.extend_from_slice(ids);
+                    (self.soup(), ids.len() * 4)
+                };
+                tr.alloc(bytes);
+                self.recurse(tr, soup, *bounds, rays, tris, aside, depth);
+                tr.free(bytes);
             }
             Top::Split { axis, kids, .. } => {
                 let order = if tr.toward_hi(rays, *axis) { [0, 1] } else { [1, 0] };
