@@ -7,7 +7,7 @@
 //! ```text
 //! cargo run --release --features embree --example animated -- [--triangles 1000000]
 //!     [--size 1024] [--frames 5] [--threads 1,2,4,8,16] [--secondary shadow|diffuse]
-//!     [--casters bvh,bvh4,dacrt,dacrt-sse,dacrt-by-id,pdacrt,embree,embree-fast,embree-refit] [--json]
+//!     [--casters bvh,bvh4,dacrt,dacrt-sse,dacrt-by-id,dacrt-median,pdacrt,embree,embree-fast,embree-refit] [--json]
 //!     [--dacrt-groups-per-thread N]
 //! ```
 //!
@@ -93,10 +93,20 @@ struct FrameRow {
 
 /// The casters this build can measure.
 #[cfg(feature = "embree")]
-const KNOWN: &[&str] =
-    &["bvh", "bvh4", "dacrt", "dacrt-sse", "dacrt-by-id", "pdacrt", "embree", "embree-fast", "embree-refit"];
+const KNOWN: &[&str] = &[
+    "bvh",
+    "bvh4",
+    "dacrt",
+    "dacrt-sse",
+    "dacrt-by-id",
+    "dacrt-median",
+    "pdacrt",
+    "embree",
+    "embree-fast",
+    "embree-refit",
+];
 #[cfg(not(feature = "embree"))]
-const KNOWN: &[&str] = &["bvh", "bvh4", "dacrt", "dacrt-sse", "dacrt-by-id", "pdacrt"];
+const KNOWN: &[&str] = &["bvh", "bvh4", "dacrt", "dacrt-sse", "dacrt-by-id", "dacrt-median", "pdacrt"];
 
 /// A caster kept across frames and told each frame's triangles, or rebuilt each frame.
 enum Live {
@@ -152,6 +162,8 @@ fn build(name: &str, tris: Vec<[Vec3; 3]>, dacrt: DacrtParams) -> Result<Box<dyn
         // DACRT gathering every cell's triangles from the scene by id (no per-call
         // layout): what the layout is worth.
         "dacrt-by-id" => Box::new(Dacrt::from_triangles(tris, DacrtParams { cell_layout: false, ..dacrt })),
+        // DACRT splitting every node at the spatial median (no ray-sampled planes).
+        "dacrt-median" => Box::new(Dacrt::from_triangles(tris, DacrtParams { sampled_min_pairs: 0, ..dacrt })),
         "pdacrt" => Box::new(Pdacrt::from_triangles(&tris, Default::default())),
         #[cfg(feature = "embree")]
         "embree" | "embree-fast" => {

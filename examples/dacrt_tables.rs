@@ -83,6 +83,9 @@ struct Args {
     /// DACRT's `fork_min_rays` (0: no forks; default: DACRT's own).
     #[arg(long)]
     dacrt_fork: Option<usize>,
+    /// DACRT's `sampled_min_pairs` (0: no ray-sampled planes; default: DACRT's own).
+    #[arg(long)]
+    dacrt_sampled: Option<u64>,
 }
 
 /// Tunables given on the command line, over the casters' defaults.
@@ -93,6 +96,7 @@ struct Tunables {
     dacrt_groups_per_thread: Option<usize>,
     dacrt_packet: Option<usize>,
     dacrt_fork: Option<usize>,
+    dacrt_sampled: Option<u64>,
 }
 
 /// One measured (scene, batch, caster, threads) cell.
@@ -176,7 +180,7 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
         "bvh4" => Box::new(Bvh4::new(s)),
         "bvh4-8" => Box::new(Bvh4::new(s).max_packet(8)),
         "bvh4-single" => Box::new(Bvh4::new(s).single_rays()),
-        "dacrt" | "dacrt-sse" | "dacrt-by-id" => {
+        "dacrt" | "dacrt-sse" | "dacrt-by-id" | "dacrt-median" => {
             let mut d = Dacrt::new(s);
             d.params.lanes = name != "dacrt-sse";
             d.params.cell_layout = name != "dacrt-by-id";
@@ -185,6 +189,10 @@ fn build(name: &str, s: &Scene) -> Result<Box<dyn RayCaster>, String> {
             d.params.groups_per_thread = t.dacrt_groups_per_thread.unwrap_or(d.params.groups_per_thread);
             d.params.packet_rays = t.dacrt_packet.unwrap_or(d.params.packet_rays);
             d.params.fork_min_rays = t.dacrt_fork.unwrap_or(d.params.fork_min_rays);
+            d.params.sampled_min_pairs = t.dacrt_sampled.unwrap_or(d.params.sampled_min_pairs);
+            if name == "dacrt-median" {
+                d.params.sampled_min_pairs = 0;
+            }
             Box::new(d)
         }
         "pdacrt" => {
@@ -216,6 +224,7 @@ const OWN: &[&str] = &[
     "dacrt",
     "dacrt-sse",
     "dacrt-by-id",
+    "dacrt-median",
     "pdacrt",
 ];
 #[cfg(feature = "embree")]
@@ -403,6 +412,7 @@ fn run(a: Args) -> Result<(), String> {
         dacrt_groups_per_thread: a.dacrt_groups_per_thread,
         dacrt_packet: a.dacrt_packet,
         dacrt_fork: a.dacrt_fork,
+        dacrt_sampled: a.dacrt_sampled,
     };
     TUNABLES.set(tunables).map_err(|_| "tunables set twice".to_string())?;
     let mut pool = rayon::ThreadPoolBuilder::new();

@@ -24,10 +24,17 @@ fn casters_under_test(scene: &Scene, measured: bool) -> Vec<Box<dyn RayCaster>> 
             scene.triangle_vertices(),
             DacrtParams { packet_rays: 32, lanes: false, cell_layout: false, ..DacrtParams::serial() },
         )),
-        // Tiny leaves force deep recursion; small packets are tested at every level.
+        // Tiny leaves force deep recursion; small packets are tested at every level, and
+        // every node prices its planes on samples of its rays (`sampled_min_pairs`).
         Box::new(Dacrt::from_triangles(
             scene.triangle_vertices(),
-            DacrtParams { leaf_rays: 1, leaf_triangles: 1, packet_rays: 8, ..DacrtParams::default() },
+            DacrtParams {
+                leaf_rays: 1,
+                leaf_triangles: 1,
+                packet_rays: 8,
+                sampled_min_pairs: 1,
+                ..DacrtParams::default()
+            },
         )),
         // Forks at nearly every node of a batch from many origins (far halves run as
         // tasks, taken over by idle threads), in a pool of its own of 4 threads so that
@@ -400,7 +407,8 @@ fn dacrt_pdacrt_and_both_bvhs_keep_the_smallest_key_where_triangles_tie() {
         let mut want = vec![Hit::MISS; rays.len()];
         BruteForce::new(&scene).closest(&rays, &mut want);
         let tiny = PdacrtParams { leaf_rays: 4, leaf_triangles: 2, ..PdacrtParams::default() };
-        let tiny_dacrt = DacrtParams { leaf_rays: 1, leaf_triangles: 1, ..DacrtParams::default() };
+        let tiny_dacrt =
+            DacrtParams { leaf_rays: 1, leaf_triangles: 1, sampled_min_pairs: 1, ..DacrtParams::default() };
         // Shared-top cells of 64 triangles, laid out for the call or gathered by id: a
         // cell's slots are not the scene's ids, and its ties must still go to the
         // smaller scene id.

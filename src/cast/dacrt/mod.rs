@@ -10,8 +10,16 @@
 //!   the geometry's box leave early.
 //! * **Split choice.** Nodes with at least [`DacrtParams::sah_min_triangles`]
 //!   triangles take the plane of a binned SAH over a subsample of their triangles
-//!   (Mora's choice near the root); smaller ones the spatial median of the longest
-//!   axis. A plane that leaves some child with all of the node's rays and triangles
+//!   (Mora's choice near the root). Below them, nodes holding at least
+//!   [`DacrtParams::sampled_min_pairs`] ray–triangle pairs price nine candidate planes
+//!   on 32 of their rays and 64 of their triangles (rays entering a child's tight box
+//!   times the triangles it keeps: `sampled.rs`, after Nabata et al. 2013), so that
+//!   rays crossing one part of a node stay out of the rest; smaller ones take the
+//!   spatial median of the longest axis. (The conference room at 512², one thread on
+//!   the 2-core VM: tests per ray 8.0 → 4.0 on primary rays, 15.5 → 9.5 on mirror
+//!   rays, 17.7 → 12.9 on AO, 13–19 % less time; the dragon and the bunny, whose
+//!   triangles are small and even, gain no tests and pay 1–5 %.) A plane that leaves
+//!   some child with all of the node's rays and triangles
 //!   separates nothing: then the other axes are tried, then the median of the
 //!   triangle centroids. Only when no plane of any kind helps (coincident or huge
 //!   triangles) does the node become a leaf. The depth is capped.
@@ -57,7 +65,7 @@
 //!
 //! Files: `state.rs` is the floor (the caster, its tunables, a call's `Trace`, the
 //! shared constants); this file is the recursion's driver, and `top`, `planes`,
-//! `partition`, `leaf`, `fork` and `stages` are its steps, importing only the floor
+//! `sampled`, `partition`, `leaf`, `fork` and `stages` are its steps, importing only the floor
 //! (and `top` the plan and routes of `routes`, which import nothing of DACRT's).
 //!
 //! Every call counts its ray–triangle tests ([`CastStats::tests`]).
@@ -81,6 +89,7 @@ mod packets;
 mod partition;
 mod planes;
 mod routes;
+mod sampled;
 mod stages;
 mod state;
 mod top;
@@ -173,7 +182,8 @@ impl Dacrt {
             0 => {
                 (tris.len() * stride >= self.params.sah_min_triangles).then(|| sah_plane(boxes, bounds, tris)).flatten()
             }
-            1..=3 => (ext[axes[k - 1]] > 0.0).then_some((axes[k - 1], centre[axes[k - 1]])),
+            1 => self.sampled_plane(tr, boxes, bounds, rays, tris),
+            2..=4 => (ext[axes[k - 2]] > 0.0).then_some((axes[k - 2], centre[axes[k - 2]])),
             _ => centroid_median(boxes, tris, axes[0]),
         };
         // True when every triangle overlaps `child` and every ray enters it (stops at
@@ -182,7 +192,7 @@ impl Dacrt {
             let grown = tr.grown(child);
             tris.iter().all(|&t| boxes[t as usize].overlaps(child)) && rays.iter().all(|&r| tr.enters(r, &grown))
         };
-        (0..5).filter_map(candidate).find(|&(axis, pos)| {
+        (0..6).filter_map(candidate).find(|&(axis, pos)| {
             let (lo, hi) = bounds.split(axis, pos);
             !keeps_all(&lo) && !keeps_all(&hi)
         })

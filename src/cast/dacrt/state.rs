@@ -57,6 +57,10 @@ pub struct DacrtParams {
     /// below a cell read a few hundred kilobytes in ascending order instead of
     /// gathering from the whole scene by id. The answers are the same either way.
     pub cell_layout: bool,
+    /// Nodes with at least this many ray–triangle pairs choose their plane by pricing
+    /// candidates on samples of their rays and triangles (`sampled.rs`); 0: never.
+    /// The answers are the same either way.
+    pub sampled_min_pairs: u64,
 }
 
 impl Default for DacrtParams {
@@ -73,6 +77,7 @@ impl Default for DacrtParams {
             packet_rays: 0,
             lanes: true,
             cell_layout: true,
+            sampled_min_pairs: 1 << 20,
         }
     }
 }
