@@ -5,8 +5,9 @@
 
 Prints markdown: the page's table (DACRT, BVH4 and Embree in interleaved processes,
 ratios within each process), each batch's build + trace per caster and the ratios to
-Embree's default and fastest settings; DACRT's 1 -> 16 thread scaling by stage; the
-animated grid.
+Embree's default and fastest settings; DACRT's steps (its variants without the
+ray-sampled planes and without the cells' layout, where the processes ran them); DACRT's
+1 -> 16 thread scaling by stage; the animated grid.
 """
 import json
 import statistics
@@ -62,6 +63,30 @@ if procs:
                   f"{cell('embree')} | {cell('embree-fast')} | {ratio('dacrt', 'embree'):.2f}× | "
                   f"{ratio('dacrt', 'embree-fast'):.2f}× | "
                   + (f"{ratio('bvh4', 'embree'):.2f}× |" if has_bvh4 else "- |"))
+
+# DACRT's own steps, where the processes ran its variants: without the ray-sampled
+# planes (`dacrt-median`) and without the cells' layout (`dacrt-by-id`), each against
+# DACRT as it is, within each process.
+steps = [("dacrt-median", "ray-sampled planes"), ("dacrt-by-id", "cell layout")]
+if any(v in p for by in procs.values() for p in by.values() for v, _ in steps):
+    med = statistics.median
+    print("\nDACRT's steps: each variant without one step, against DACRT with both "
+          "(ms and tests per ray, medians over processes; ratio within each process):\n")
+    print("| scene | batch | DACRT | tests per ray | " + " | ".join(
+        f"without {what} | tests per ray | DACRT ÷ without" for _, what in steps) + " |")
+    print("|---|---|---:|---:|" + "---:|---:|---:|" * len(steps))
+    for scene in ["bunny", "conference", "dragon"]:
+        for batch in ["primary", "shadow", "specular", "ao"]:
+            by = procs.get((scene, batch))
+            full = [p for p in (by or {}).values() if all(c in p for c in ["dacrt"] + [v for v, _ in steps])]
+            if not full:
+                continue
+            tpr = lambda c: med(p[c]["tests"] / max(p[c]["rays"], 1) for p in full)
+            line = f"| {scene} | {batch} | {med(p['dacrt']['total_ms'] for p in full):.1f} | {tpr('dacrt'):.1f} |"
+            for v, _ in steps:
+                line += (f" {med(p[v]['total_ms'] for p in full):.1f} | {tpr(v):.1f} | "
+                         f"{med(p['dacrt']['total_ms'] / p[v]['total_ms'] for p in full):.2f}× |")
+            print(line)
 
 machine, t = rows("casting-1024-16t.jsonl")
 if t:
@@ -124,7 +149,7 @@ for sec in ["shadow", "diffuse"]:
     print("|---:|---|---:|---:|---:|---:|---:|")
     for th in sorted({r["threads"] for r in a}):
         med = {}
-        for c in ["bvh", "bvh4", "dacrt", "pdacrt", "embree", "embree-fast", "embree-refit"]:
+        for c in ["bvh", "bvh4", "dacrt", "dacrt-median", "dacrt-by-id", "pdacrt", "embree", "embree-fast", "embree-refit"]:
             m = [r for r in a if r["threads"] == th and r["caster"] == c]
             if m:
                 med[c] = {k: statistics.median(r[k] for r in m) for k in ["setup_ms", "primary_ms", "secondary_ms", "total_ms"]}

@@ -16,13 +16,15 @@ mkdir -p "$out"
 step=${STEP:-all}
 if [ "$step" = all ] || [ "$step" = tables ]; then
     # docs/dacrt.md's method: PROCESSES interleaved processes (default 5) of 3 rounds
-    # each, DACRT, BVH4 and both Embree settings in every process; the summary takes each
-    # ratio within its process and gives the median over processes.
+    # each, DACRT (with its variants without the ray-sampled planes and without the
+    # cells' layout), BVH4 and both Embree settings in every process; the summary takes
+    # each ratio within its process and gives the median over processes.
     p=1
     while [ "$p" -le "${PROCESSES:-5}" ]; do
         for scenes in dragon bunny,conference; do
             "$bin/dacrt_tables" --size 1024 --scenes $scenes --threads 16 \
-                --casters dacrt,bvh4,embree,embree-fast --rounds 3 --json > "$out/casting-1024-16t-process-$p-$scenes.jsonl"
+                --casters dacrt,dacrt-median,dacrt-by-id,bvh4,embree,embree-fast --rounds 3 --json \
+                > "$out/casting-1024-16t-process-$p-$scenes.jsonl"
         done
         p=$((p + 1))
     done
@@ -35,7 +37,8 @@ fi
 if [ "$step" = all ] || [ "$step" = animated ]; then
     for s in shadow diffuse; do
         "$bin/animated" --threads 16 --frames 7 --secondary $s \
-            --casters bvh,bvh4,dacrt,dacrt-sse,pdacrt,embree,embree-fast,embree-refit --json > "$out/animated-$s-16t.jsonl"
+            --casters bvh,bvh4,dacrt,dacrt-median,dacrt-by-id,dacrt-sse,pdacrt,embree,embree-fast,embree-refit \
+            --json > "$out/animated-$s-16t.jsonl"
         "$bin/animated" --threads 1,4 --frames 3 --secondary $s \
             --casters bvh,bvh4,dacrt,pdacrt,embree,embree-fast,embree-refit --json > "$out/animated-$s-1-4t.jsonl"
     done
