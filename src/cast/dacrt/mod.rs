@@ -12,13 +12,14 @@
 //!   triangles take the plane of a binned SAH over a subsample of their triangles
 //!   (Mora's choice near the root). Below them, nodes holding at least
 //!   [`DacrtParams::sampled_min_pairs`] ray–triangle pairs price nine candidate planes
-//!   on 32 of their rays and 64 of their triangles (rays entering a child's tight box
+//!   on 16 of their rays and 32 of their triangles (rays entering a child's tight box
 //!   times the triangles it keeps: `sampled.rs`, after Nabata et al. 2013), so that
 //!   rays crossing one part of a node stay out of the rest; smaller ones take the
 //!   spatial median of the longest axis. (The conference room at 512², one thread on
-//!   the 2-core VM: tests per ray 8.0 → 4.0 on primary rays, 15.5 → 9.5 on mirror
-//!   rays, 17.7 → 12.9 on AO, 13–19 % less time; the dragon and the bunny, whose
-//!   triangles are small and even, gain no tests and pay 1–5 %.) A plane that leaves
+//!   the 2-core VM: tests per ray 8.0 → 4.0 on primary and shadow rays, 15.5 → 10.2
+//!   on mirror rays, 17.7 → 12.2 on AO, 10–19 % less time; the dragon and the bunny,
+//!   whose triangles are small and even, gain no tests and pay 0–6 %.
+//!   `docs/measured/dacrt-512-1t-2core-amd-avx2-cell-layout-and-ray-sampled-planes-each-off.jsonl`.) A plane that leaves
 //!   some child with all of the node's rays and triangles
 //!   separates nothing: then the other axes are tried, then the median of the
 //!   triangle centroids. Only when no plane of any kind helps (coincident or huge
@@ -45,8 +46,8 @@
 //!   and leaf reads a few hundred kilobytes in ascending order instead of gathering
 //!   from the whole scene by id. Slots keep the order of the scene's ids and keys carry
 //!   the scene's ids, so the lists, tests and ties are the same. (Dragon, 512², one
-//!   thread on the 2-core VM: the groups' time −5 to −14 % on primary, shadow and
-//!   mirror rays, −1 to −8 % on AO.)
+//!   thread on the 2-core VM: 7–12 % less time per call; the bunny and the conference
+//!   room, whose cells' triangles already lie close in the scene's order, within 3 %.)
 //! * **Ray order and packets.** The batch's valid rays are sorted by a coherence key (a
 //!   Morton code over origin and direction) and copied in that order, so nearby rays
 //!   sit together in memory, at any thread count (the conference room's AO rays at

@@ -15,8 +15,8 @@ use super::state::{Dacrt, Trace};
 use crate::geometry::Aabb;
 
 /// Triangles and rays sampled per decision.
-const TRIANGLE_SAMPLES: usize = 64;
-const RAY_SAMPLES: usize = 32;
+const TRIANGLE_SAMPLES: usize = 32;
+const RAY_SAMPLES: usize = 16;
 /// Candidate planes per axis: at `k / (CANDIDATES + 1)` of the node's extent.
 const CANDIDATES: usize = 3;
 
