@@ -8,7 +8,7 @@
 //! cargo run --release --features embree --example animated -- [--triangles 1000000]
 //!     [--size 1024] [--frames 5] [--threads 1,2,4,8,16] [--secondary shadow|diffuse]
 //!     [--casters bvh,bvh4,dacrt,dacrt-sse,dacrt-by-id,dacrt-median,pdacrt,embree,embree-fast,embree-refit] [--json]
-//!     [--dacrt-groups-per-thread N]
+//!     [--dacrt-groups-per-thread N] [--dacrt-leaf N]
 //! ```
 //!
 //! Secondary rays: `shadow` (segments to a point light above the grid: coherent, the
@@ -54,6 +54,9 @@ struct Args {
     /// DACRT's ray groups per thread for one-origin batches (default: the library's).
     #[arg(long, value_parser = clap::value_parser!(u64).range(0..=1024))]
     dacrt_groups_per_thread: Option<u64>,
+    /// DACRT's leaf size: `leaf_rays` and `leaf_triangles` both (default: the library's).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=4096))]
+    dacrt_leaf: Option<u64>,
 }
 
 /// One cosine-weighted diffuse bounce from every primary hit (seeded by pixel).
@@ -182,6 +185,9 @@ fn run(a: Args) -> Result<(), String> {
     let diffuse = a.secondary == "diffuse";
     let mut dacrt = DacrtParams::default();
     dacrt.groups_per_thread = a.dacrt_groups_per_thread.map_or(dacrt.groups_per_thread, |g| g as usize);
+    if let Some(leaf) = a.dacrt_leaf {
+        (dacrt.leaf_rays, dacrt.leaf_triangles) = (leaf as usize, leaf as usize);
+    }
     let n = ((a.triangles / 2) as f64).sqrt().round().max(1.0) as usize;
     let camera = waving_grid_camera();
     let primary = primary_rays(&camera, a.size, a.size);
