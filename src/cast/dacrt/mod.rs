@@ -30,7 +30,7 @@
 //! * **Cores.** The top levels' triangle partitions do not depend on the rays, so each
 //!   call computes them once, down to cells of about
 //!   [`DacrtParams::top_cell_triangles`] triangles: the planes are chosen on a sample
-//!   (every 64th triangle for cells of 4,096, by the same rules as below), then every
+//!   (every 128th triangle for cells of 4,096, by the same rules as below), then every
 //!   triangle is routed down them and gathered by cell (a counting sort: two parallel,
 //!   streaming passes over the triangles' boxes). With more than one thread the
 //!   batch's rays are cut into groups (in coherence order, below); each group walks
