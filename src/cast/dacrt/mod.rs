@@ -46,7 +46,7 @@
 //!   and leaf reads a few hundred kilobytes in ascending order instead of gathering
 //!   from the whole scene by id. Slots keep the order of the scene's ids and keys carry
 //!   the scene's ids, so the lists, tests and ties are the same. (Dragon, 512², one
-//!   thread on the 2-core VM: 7–12 % less time per call; the bunny and the conference
+//!   thread on the 2-core VM: 7–11 % less time per call; the bunny and the conference
 //!   room, whose cells' triangles already lie close in the scene's order, within 3 %.)
 //! * **Ray order and packets.** The batch's valid rays are sorted by a coherence key (a
 //!   Morton code over origin and direction) and copied in that order, so nearby rays

@@ -1,7 +1,7 @@
 //! Split planes that do not depend on the rays: a binned SAH over a subsample of a
 //! node's triangles, and the median of their centroids; and a child's triangle test.
 
-use super::state::{SAH_BINS, SAH_SAMPLES, place, stable_partition};
+use super::state::{SAH_BINS, SAH_SAMPLES, place, spread, stable_partition};
 use crate::geometry::Aabb;
 use crate::geometry::lane_compact::compact;
 use crate::geometry::lane_ops::{first_lanes, splat3};
@@ -175,13 +175,12 @@ fn partition_in<L: Packed>(boxes: &[Aabb], tris: &mut [u32], child: &Aabb, aside
 /// Binned SAH over a subsample of the triangles (their boxes clipped to the node):
 /// cost of a plane = area(left)·n(left) + area(right)·n(right).
 pub(super) fn sah_plane(boxes: &[Aabb], bounds: &Aabb, tris: &[u32]) -> Option<(usize, f32)> {
-    let step = tris.len().div_ceil(SAH_SAMPLES).max(1);
     let (ext, min) = (bounds.extent(), bounds.min);
     let bin = |axis: usize, x: f32| (((x - min[axis]) / ext[axis] * SAH_BINS as f32) as usize).min(SAH_BINS - 1);
     // Each sampled box is clipped once and binned on every axis of some extent.
     let (mut starts, mut ends) = ([[0u32; SAH_BINS]; 3], [[0u32; SAH_BINS]; 3]);
     let axes = || (0..3).filter(|&a| ext[a] > 0.0);
-    for &t in tris.iter().step_by(step) {
+    for &t in spread(tris, SAH_SAMPLES) {
         let b = boxes[t as usize].intersection(*bounds);
         for axis in axes() {
             starts[axis][bin(axis, b.min[axis])] += 1;
@@ -206,8 +205,7 @@ pub(super) fn sah_plane(boxes: &[Aabb], bounds: &Aabb, tris: &[u32]) -> Option<(
 
 /// The median of (a subsample of) the triangle centroids along `axis`.
 pub(super) fn centroid_median(boxes: &[Aabb], tris: &[u32], axis: usize) -> Option<(usize, f32)> {
-    let step = tris.len().div_ceil(SAH_SAMPLES).max(1);
-    let mut c: Vec<f32> = tris.iter().step_by(step).map(|&t| boxes[t as usize].center()[axis]).collect();
+    let mut c: Vec<f32> = spread(tris, SAH_SAMPLES).map(|&t| boxes[t as usize].center()[axis]).collect();
     if c.is_empty() {
         return None;
     }

@@ -11,7 +11,7 @@
 //! Only the choice of plane changes: the partitions that follow test every ray and
 //! triangle, so the hits are the same whatever plane is chosen.
 
-use super::state::{Dacrt, Trace};
+use super::state::{Dacrt, Trace, spread};
 use crate::geometry::Aabb;
 
 /// Triangles and rays sampled per decision.
@@ -41,15 +41,16 @@ impl Dacrt {
         // (On the stack: a decision costs a few microseconds, an allocation would show.)
         let mut box_buf = [Aabb::EMPTY; TRIANGLE_SAMPLES];
         let mut ray_buf = [0u32; RAY_SAMPLES];
-        let nb = fill(&mut box_buf, sample(tris, TRIANGLE_SAMPLES).map(|&t| boxes[t as usize]));
-        let nr = fill(&mut ray_buf, sample(rays, RAY_SAMPLES).copied());
+        let nb = fill(&mut box_buf, spread(tris, TRIANGLE_SAMPLES).map(|&t| boxes[t as usize]));
+        let nr = fill(&mut ray_buf, spread(rays, RAY_SAMPLES).copied());
         let (sample_boxes, sample_rays) = (&box_buf[..nb], &ray_buf[..nr]);
         let (ext, min) = (bounds.extent(), bounds.min);
         let mut best: Option<(u64, usize, f32)> = None;
         for axis in (0..3).filter(|&a| ext[a] > 0.0) {
             for k in 1..=CANDIDATES {
                 let pos = min[axis] + ext[axis] * k as f32 / (CANDIDATES + 1) as f32;
-                let cost: u64 = [bounds.split(axis, pos).0, bounds.split(axis, pos).1]
+                let (lo, hi) = bounds.split(axis, pos);
+                let cost: u64 = [lo, hi]
                     .iter()
                     .map(|child| {
                         let (kept, union) = sample_boxes
@@ -75,11 +76,6 @@ impl Dacrt {
 /// Writes `items` into `buf` (at most its length); returns how many.
 fn fill<T>(buf: &mut [T], items: impl Iterator<Item = T>) -> usize {
     buf.iter_mut().zip(items).map(|(slot, v)| *slot = v).count()
-}
-
-/// At most `n` elements spread evenly over `list`.
-fn sample<T>(list: &[T], n: usize) -> impl Iterator<Item = &T> {
-    list.iter().step_by(list.len().div_ceil(n).max(1))
 }
 
 #[cfg(test)]

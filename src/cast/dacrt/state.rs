@@ -143,6 +143,12 @@ const LEAF_PAIRS_FACTOR: u64 = 4;
 pub(crate) fn leaf_pairs(leaf_rays: u64, leaf_triangles: u64) -> u64 {
     LEAF_PAIRS_FACTOR * leaf_rays * leaf_triangles
 }
+/// At most `n` elements of `list`, spread evenly over it (every `⌈len / n⌉`-th): the
+/// samples the plane choices and the near-child test read.
+pub(super) fn spread<T>(list: &[T], n: usize) -> impl Iterator<Item = &T> {
+    list.iter().step_by(list.len().div_ceil(n).max(1))
+}
+
 /// Rays whose directions choose which child is near (`Trace::toward_hi`).
 pub(super) const NEAR_SAMPLES: usize = 32;
 /// SAH bins per axis, and triangles sampled per SAH decision.
@@ -231,8 +237,7 @@ impl Trace {
     /// [`NEAR_SAMPLES`] of them spread over the list (the near child is visited first;
     /// the choice changes the order of work, never the hits).
     pub(super) fn toward_hi(&self, rays: &[u32], axis: usize) -> bool {
-        let step = rays.len().div_ceil(NEAR_SAMPLES).max(1);
-        let sum: f32 = rays.iter().step_by(step).map(|&r| self.rays[r as usize].dir[axis].signum()).sum();
+        let sum: f32 = spread(rays, NEAR_SAMPLES).map(|&r| self.rays[r as usize].dir[axis].signum()).sum();
         sum >= 0.0
     }
 
