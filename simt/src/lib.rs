@@ -58,6 +58,7 @@ mod limits;
 mod memory;
 pub mod meter;
 pub mod prims;
+mod runs;
 pub mod seq;
 pub mod stats;
 pub mod timing;

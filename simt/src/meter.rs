@@ -21,14 +21,15 @@
 //! sectors touched (the launch's and each block's distinct ones) and each warp's chain
 //! of instructions and loads.
 //!
-//! About 820 lines on purpose: the matching of lanes into warp instructions, the
+//! About 870 lines on purpose: the matching of lanes into warp instructions, the
 //! memory traffic, the footprints and the race check share the per-lane and per-warp
 //! state kept private here.
 
 use crate::limits::{
-    FOOTPRINT_HASH, MAX_PATHS, MAX_REGIONS, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES, WARP_SIZE, footprint_sampled,
-    footprint_weight, host_sector,
+    MAX_PATHS, MAX_REGIONS, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES, WARP_SIZE, footprint_sampled, footprint_weight,
+    host_sector,
 };
+use crate::runs::Runs;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
@@ -152,6 +153,9 @@ pub(crate) struct Counters {
     /// sector of host memory read by shared code (`limits::host_sector`), with repeats:
     /// sorted and deduplicated when the launch is recorded.
     pub footprint: Vec<u64>,
+    /// Ranges of sectors touched whole (`Meter::owned_block`), kept as runs rather
+    /// than as their sampled sectors.
+    pub runs: Runs,
     /// Distinct loaded sectors per block, summed (estimated from the sampled ones): the
     /// loads that reach L2 when a block's repeated loads hit its SM's L1.
     pub block_sectors: u64,
@@ -178,19 +182,21 @@ impl Counters {
             std::mem::swap(&mut self.footprint, &mut o.footprint);
         }
         self.footprint.extend_from_slice(&o.footprint);
+        self.runs.append(&mut o.runs);
         self.block_sectors += o.block_sectors;
         self.longest_warp = self.longest_warp.max(o.longest_warp);
         self.waits.add(&o.waits);
         self
     }
 
-    /// Distinct sectors the launch touched, estimated from the sampled ones (sorts
-    /// the sample in place).
+    /// Distinct sectors the launch touched, estimated from the sampled ones and the
+    /// runs (sorts the sample in place).
     pub fn footprint_sectors(&mut self) -> u64 {
         use rayon::slice::ParallelSliceMut;
         self.footprint.par_sort_unstable();
         self.footprint.dedup();
-        self.footprint.iter().map(|&s| footprint_weight(s)).sum()
+        let runs = self.runs.union();
+        runs + self.footprint.iter().filter(|&&s| !self.runs.contains(s)).map(|&s| footprint_weight(s)).sum::<u64>()
     }
 }
 
@@ -283,6 +289,10 @@ pub(crate) struct Meter {
     spins: Vec<((usize, usize, u32), u32)>,
     /// The current block's sampled sectors, with repeats.
     block_sampled: Vec<u64>,
+    /// The current block's ranges of sectors loaded, and stored, whole
+    /// ([`Meter::owned_block`]).
+    block_loaded: Runs,
+    block_written: Runs,
     /// Per warp of the current block: its chain.
     warp_chain: Vec<WarpChain>,
     /// Per warp of the current block: sectors it wrote since its last fence.
@@ -295,11 +305,11 @@ pub(crate) struct Meter {
     groups: Vec<u32>,
     /// The (group, sector) pairs of a closing warp phase's grouped loads (scratch).
     round_pairs: Vec<(u32, u64)>,
-    /// Instructions and load requests counted at once (`global_lanes`) in the current
-    /// warp phase, added to its warp's chain when the phase closes.
-    phase_chain: WarpChain,
     /// Whether to gather footprints and warp chains (for the GPU time model).
     predicting: bool,
+    /// The lane running now, where a launch sets it without starting the lane
+    /// ([`Meter::set_lane`]): the meter starts it when the lane first records something.
+    lane: u32,
 }
 
 impl Meter {
@@ -358,6 +368,7 @@ impl Meter {
     }
 
     fn op_keyed(&mut self, key: usize, kind: Kind, parts: u32, units: u32) -> u32 {
+        self.sync_lane();
         let id = self.intern(key) as usize;
         let occ = self.next_occurrence(id);
         let per_site = &mut self.slot_of[id];
@@ -421,53 +432,70 @@ impl Meter {
         }
     }
 
-    /// What [`Meter::global`] records for `lanes` lanes that each access their own
-    /// element of one array, lane `k` element `k` at `addr + k · size`, in one warp
-    /// phase, counted at once: `size / width` instructions, each one request of every
-    /// lane, and the distinct sectors its lanes touch (ascending with the lane, so a
-    /// sector is new exactly when it lies past the last one counted).
-    pub fn global_lanes(&mut self, kind: Kind, addr: u64, lanes: u32, size: u64, width: u64) {
+    /// What [`Meter::global`] records for the `lanes` threads of a block that each
+    /// access their own element of one array, thread `k` element `k` at
+    /// `addr + k · size`, each warp in one lane phase, counted for the whole block at
+    /// once: per warp, `size / width` instructions, each one request of every lane of
+    /// the warp, and the distinct sectors its lanes touch (ascending with the lane, so
+    /// a sector is new exactly when it lies past the last one counted).
+    pub fn owned_block(&mut self, kind: Kind, addr: u64, lanes: u32, size: u64, width: u64) {
         if lanes == 0 {
             return;
         }
         let parts = (size / width).max(1);
-        let (lo, hi) = (addr / SECTOR_BYTES, (addr + lanes as u64 * size - 1) / SECTOR_BYTES);
-        // Every sector of the lanes' elements is touched (by some part), so the sampled
-        // footprint is that of the whole range.
+        let warps = lanes.div_ceil(WARP_SIZE) as usize;
+        let warp_lanes = |w: usize| (lanes - w as u32 * WARP_SIZE).min(WARP_SIZE) as u64;
+        let sectors: u64 = (0..warps)
+            .map(|w| {
+                let (first, count) = (addr + (w as u64 * WARP_SIZE as u64) * size, warp_lanes(w));
+                if parts == 1 && width == size {
+                    // Whole elements side by side: one contiguous byte range.
+                    (first + count * size - 1) / SECTOR_BYTES - first / SECTOR_BYTES + 1
+                } else {
+                    // Part `p` of every lane's element: `width` bytes every `size` bytes.
+                    (0..parts)
+                        .map(|p| {
+                            let (mut sectors, mut last) = (0, None);
+                            for lane in 0..count {
+                                let a = first + lane * size + p * width;
+                                let (lo, hi) = (a / SECTOR_BYTES, (a + width - 1) / SECTOR_BYTES);
+                                let from = last.map_or(lo, |l: u64| lo.max(l + 1));
+                                if hi >= from {
+                                    sectors += hi - from + 1;
+                                    last = Some(hi);
+                                }
+                            }
+                            sectors
+                        })
+                        .sum::<u64>()
+                }
+            })
+            .sum();
         if self.predicting {
-            self.sample_range(lo, hi, kind != Kind::Load);
-            self.phase_chain.instructions += parts;
-            self.phase_chain.load_rounds += if kind == Kind::Load { parts } else { 0 };
+            // Every sector of the lanes' elements is touched (by some part).
+            let (lo, hi) = (addr / SECTOR_BYTES, (addr + lanes as u64 * size - 1) / SECTOR_BYTES);
+            let runs = if kind == Kind::Load { &mut self.block_loaded } else { &mut self.block_written };
+            runs.join(lo, hi);
+            // Each warp's chain gains the instructions and, for loads, as many rounds.
+            let rounds = if kind == Kind::Load { parts } else { 0 };
+            if self.warp_chain.len() < warps {
+                self.warp_chain.resize(warps, WarpChain::default());
+            }
+            for c in &mut self.warp_chain[..warps] {
+                c.instructions += parts;
+                c.load_rounds += rounds;
+            }
+            self.totals.waits.instructions += parts * warps as u64;
+            self.totals.waits.load_rounds += rounds * warps as u64;
         }
-        let sectors = if parts == 1 && width == size {
-            // Whole elements side by side: one contiguous byte range.
-            hi - lo + 1
-        } else {
-            // Part `p` of every lane's element: `width` bytes every `size` bytes.
-            (0..parts)
-                .map(|p| {
-                    let (mut sectors, mut last) = (0, None);
-                    for lane in 0..lanes as u64 {
-                        let a = addr + lane * size + p * width;
-                        let (lo, hi) = (a / SECTOR_BYTES, (a + width - 1) / SECTOR_BYTES);
-                        let from = last.map_or(lo, |l: u64| lo.max(l + 1));
-                        if hi >= from {
-                            sectors += hi - from + 1;
-                            last = Some(hi);
-                        }
-                    }
-                    sectors
-                })
-                .sum()
-        };
-        self.totals.ops_issued += parts;
+        self.totals.ops_issued += parts * warps as u64;
         self.totals.ops_active += parts * lanes as u64;
         let traffic = match kind {
             Kind::Load => &mut self.totals.loads,
             Kind::Store => &mut self.totals.stores,
             _ => &mut self.totals.atomics,
         };
-        traffic.requests += parts;
+        traffic.requests += parts * warps as u64;
         traffic.sectors += sectors;
         traffic.lanes += parts * lanes as u64;
     }
@@ -482,26 +510,10 @@ impl Meter {
         }
     }
 
-    /// The sampled sectors of `lo..=hi`: the hash of consecutive sectors steps by the
-    /// multiplier, so each test is an add and a compare.
-    #[cold]
-    #[inline(never)]
-    fn sample_range(&mut self, lo: u64, hi: u64, written: bool) {
-        let (k, top) = (FOOTPRINT_HASH, u64::MAX >> crate::limits::FOOTPRINT_SAMPLE_BITS);
-        let mark = if written { WRITTEN } else { 0 };
-        let mut h = lo.wrapping_mul(k);
-        for s in lo..hi + 1 {
-            if h <= top {
-                self.block_sampled.push(s | mark);
-            }
-            h = h.wrapping_add(k);
-        }
-    }
-
     /// Adds one warp phase's chain to its warp's in this block, and its waits to the
     /// launch's.
     fn chain(&mut self, phase: WarpChain) {
-        if !self.predicting {
+        if !self.predicting || phase == WarpChain::default() {
             return;
         }
         self.totals.waits.add(&phase);
@@ -515,17 +527,33 @@ impl Meter {
     /// Closes the current block: its distinct sectors and its longest warp go into the
     /// totals. Called when the next block begins and by [`Meter::finish`].
     pub fn close_block(&mut self) {
+        if !self.block_loaded.is_empty() {
+            self.totals.block_sectors += self.block_loaded.union();
+        }
         if !self.block_sampled.is_empty() {
             self.block_sampled.sort_unstable();
             self.block_sampled.dedup();
             // Loaded sectors sort before written ones (the mark is the top bit).
             let loaded = self.block_sampled.partition_point(|&s| s & WRITTEN == 0);
-            self.totals.block_sectors += self.block_sampled[..loaded].iter().map(|&s| footprint_weight(s)).sum::<u64>();
+            let runs = &self.block_loaded;
+            self.totals.block_sectors += self.block_sampled[..loaded]
+                .iter()
+                .filter(|&&s| !runs.contains(s))
+                .map(|&s| footprint_weight(s))
+                .sum::<u64>();
             // The launch's footprint gathers each block's distinct samples, loaded or
             // written.
             self.totals.footprint.extend(self.block_sampled.iter().map(|&s| s & !WRITTEN));
             self.block_sampled.clear();
         }
+        if !self.block_written.is_empty() {
+            self.block_written.union();
+        }
+        for run in self.block_loaded.iter().chain(self.block_written.iter()) {
+            self.totals.runs.add(*run);
+        }
+        self.block_loaded.clear();
+        self.block_written.clear();
         for c in self.warp_chain.drain(..) {
             self.totals.longest_warp = self.totals.longest_warp.max(c);
         }
@@ -548,6 +576,7 @@ impl Meter {
     /// tries to swap in the sum (two shared-memory instructions). Counted when the
     /// block's warps have all run ([`Meter::end_spins`]).
     pub fn spin(&mut self, site: usize, word: usize) {
+        self.sync_lane();
         let key = (self.salted(site), word, self.now.thread / WARP_SIZE);
         match self.spins.iter_mut().find(|(k, _)| *k == key) {
             Some((_, n)) => *n += 1,
@@ -597,6 +626,7 @@ impl Meter {
     /// many times this lane entered it before, so the lanes' n-th entries are matched
     /// with each other, whatever each did in its earlier ones. Returns the copy it was in.
     pub fn enter_scope(&mut self, site: usize) -> usize {
+        self.sync_lane();
         let key = self.salted(site).wrapping_mul(16) + 1;
         let id = self.intern(key) as usize;
         let occ = self.next_occurrence(id);
@@ -648,14 +678,33 @@ impl Meter {
 
     pub fn begin_lane(&mut self, thread: u32) {
         self.now.thread = thread;
+        self.lane = thread;
         for &id in &self.lane_touched {
             self.lane_occ[id as usize] = 0;
         }
         self.lane_touched.clear();
     }
 
+    /// Sets the lane running now, a lane of the warp whose first lane was started by
+    /// [`Meter::begin_lane`], without starting it: a launch whose lanes mostly record
+    /// nothing of their own (`Device::transform`) sets each lane with one store, and the
+    /// lane is started only if it records.
+    #[inline(always)]
+    pub fn set_lane(&mut self, thread: u32) {
+        self.lane = thread;
+    }
+
+    /// Starts the lane [`Meter::set_lane`] set, if it is not the current one.
+    #[inline(always)]
+    fn sync_lane(&mut self) {
+        if self.lane != self.now.thread {
+            self.begin_lane(self.lane);
+        }
+    }
+
     /// A shared-memory access of words `first..first + n` by the current lane.
     pub fn shared(&mut self, first: usize, n: usize, write: bool) {
+        self.sync_lane();
         let now = self.now;
         for w in first..first + n {
             let s = &mut self.shadow[w];
@@ -687,7 +736,12 @@ impl Meter {
 
     /// Closes a lane phase of a warp: its warp instructions go into the totals.
     pub fn end_warp_phase(&mut self) {
-        let mut phase = std::mem::take(&mut self.phase_chain);
+        if self.slots.is_empty() {
+            // Nothing recorded: no instruction, access or wait to add.
+            debug_assert!(self.sectors.is_empty() && self.warp_touched.is_empty());
+            return;
+        }
+        let mut phase = WarpChain::default();
         for s in &self.slots {
             phase.instructions += s.max_units as u64;
             match s.kind {

@@ -15,7 +15,7 @@
 use crate::device::{Device, ELEMENT_BLOCK, LaunchConfig};
 use crate::exec::{Thread, access_width};
 use crate::limits::WARP_SIZE;
-use crate::memory::{DeviceBuffer, DeviceCopy, Readable};
+use crate::memory::{DeviceBuffer, DeviceCopy, Readable, prefetch_host};
 use crate::meter::{Counters, Kind, Meter};
 use crate::stats::LaunchRecord;
 use rayon::prelude::*;
@@ -137,9 +137,9 @@ impl Device {
     /// The measured owned launch: the same blocks and lane order, each lane with a
     /// measuring thread, so whatever `f` loads, stores or declares through it is
     /// recorded lane by lane; the owned accesses (the input element, the old output
-    /// element when `reads`, the output store) are counted a warp at a time by
-    /// [`Meter::global_lanes`], which gives the same requests and sectors as recording
-    /// each lane's address and matching them.
+    /// element when `reads`, the output store) are counted a block at a time by
+    /// [`Meter::owned_block`], which gives the same requests, sectors and warp chains
+    /// as recording each lane's address and matching them.
     /// `out` is the output's elements, at device address `out_addr`.
     fn owned_measured<I: DeviceCopy, O: DeviceCopy>(
         &self,
@@ -154,32 +154,46 @@ impl Device {
         let predicting = self.predicting();
         let (in_size, in_width) = (std::mem::size_of::<I>() as u64, access_width::<I>());
         let (out_size, out_width) = (std::mem::size_of::<O>() as u64, access_width::<O>());
+        // The lanes run one by one, too slowly for the CPU's prefetchers to keep ahead
+        // of the stream: each warp asks for the elements of the warp `AHEAD` further on.
+        const AHEAD: usize = 8 * WARP;
+        let (n, out_ptr) = (out.len(), out.as_ptr() as usize);
         let run_block = |meter: RefCell<Meter>, (b, chunk): (usize, &mut [O])| {
             for (w, lanes) in chunk.chunks_mut(WARP).enumerate() {
                 let first = b * BLOCK + w * WARP;
+                if first + AHEAD < n {
+                    input.prefetch(first + AHEAD, WARP);
+                    let ahead = (out_ptr as *const O).wrapping_add(first + AHEAD);
+                    prefetch_host(ahead, WARP.min(n - first - AHEAD));
+                }
                 {
                     let mut m = meter.borrow_mut();
                     m.begin_warp_call();
                     m.begin_lane_phase();
+                    m.begin_lane((w * WARP) as u32);
                 }
                 for (k, o) in lanes.iter_mut().enumerate() {
                     let thread_idx = (w * WARP + k) as u32;
-                    meter.borrow_mut().begin_lane(thread_idx);
+                    // SAFETY: no borrow of the meter lives between two lanes (whatever `f`
+                    // records borrows it and lets go before returning). The lane is only
+                    // set, with one store and no RefCell flag, so that a loop whose `f`
+                    // records nothing compiles to a plain loop; the meter starts the lane
+                    // when it records something.
+                    unsafe { (*meter.as_ptr()).set_lane(thread_idx) };
                     let t = Thread::measured(thread_idx, b as u32, BLOCK as u32, grid, &meter);
                     // SAFETY: first + k < n <= input.len(), checked by the caller.
                     f(&t, first + k, unsafe { input.read_unchecked(first + k) }, o);
                 }
-                let mut m = meter.borrow_mut();
-                let count = lanes.len() as u32;
-                m.global_lanes(Kind::Load, input.address(first), count, in_size, in_width);
-                let at = out_addr + first as u64 * out_size;
-                if reads {
-                    m.global_lanes(Kind::Load, at, count, out_size, out_width);
-                }
-                m.global_lanes(Kind::Store, at, count, out_size, out_width);
-                m.end_warp_phase();
+                meter.borrow_mut().end_warp_phase();
             }
             let mut m = meter.borrow_mut();
+            let (first, count) = (b * BLOCK, chunk.len() as u32);
+            m.owned_block(Kind::Load, input.address(first), count, in_size, in_width);
+            let at = out_addr + first as u64 * out_size;
+            if reads {
+                m.owned_block(Kind::Load, at, count, out_size, out_width);
+            }
+            m.owned_block(Kind::Store, at, count, out_size, out_width);
             m.totals.threads += BLOCK as u64;
             m.close_block();
             drop(m);

@@ -60,22 +60,24 @@ unsafe impl DeviceCopy for Quad {}
 struct Record([f32; 12]);
 unsafe impl DeviceCopy for Record {}
 
-/// A measured owned launch counts its owned accesses a warp at a time. Its statistics
+/// A measured owned launch counts its owned accesses a block at a time. Its statistics
 /// equal those of the `for_each` kernel that loads and stores the same elements itself
 /// (recorded lane by lane), for elements of 4, 8, 12, 16 and 48 bytes, inputs that
 /// start inside a sector, partial warps, and a closure that makes accesses of its own
-/// (a scattered load on every third thread).
+/// (a scattered load on every third thread, of the input's buffer, inside and outside
+/// the input); with a GPU profile, so do the footprints and the warps' chains that the
+/// time model reads, which the owned launch keeps as runs of sectors.
 #[test]
 fn owned_launches_count_what_the_lane_by_lane_kernel_counts() {
     fn check<T: DeviceCopy + PartialEq + std::fmt::Debug>(make: fn(usize) -> T) {
         let dev = measured();
-        for (n, offset) in [(1000, 0), (77, 3), (4096, 1), (5, 2)] {
+        dev.set_gpu_profile(Some(simt::GpuProfile::named("h200").unwrap()));
+        for (n, offset) in [(1000, 0), (77, 3), (4096, 1), (5, 2), (20_000, 5)] {
             let data: Vec<T> = (0..n + offset + 40).map(make).collect();
-            let other = dev.alloc_from(&data[..37]);
             let xb = dev.alloc_from(&data);
             let xv = xb.slice(offset, n);
-            let ov = other.view();
-            let gather = |i: usize| (i * 7) % 37;
+            let ov = xb.view();
+            let gather = |i: usize| (i * 7919) % data.len();
             for in_place in [false, true] {
                 let start: Vec<T> = (0..n).map(|i| make(i + 5)).collect();
                 let mut yb = dev.alloc_from(&start);
@@ -88,9 +90,12 @@ fn owned_launches_count_what_the_lane_by_lane_kernel_counts() {
                 } else {
                     dev.transform("owned", &xv, &mut yb, |t, i, x| if i % 3 == 0 { t.load(&ov, gather(i)) } else { x })
                 };
-                let mut zb = dev.alloc_from(&start);
+                // The kernel by hand stores to the same buffer, from the same start, so
+                // that the footprints' samples are of the same addresses.
+                let owned = yb.as_slice().to_vec();
+                yb.as_mut_slice().copy_from_slice(&start);
                 let hand = {
-                    let zv = zb.view_mut();
+                    let zv = yb.view_mut();
                     dev.for_each("by_hand", n, |t, i| {
                         let x = t.load(&xv, i);
                         let old = if in_place { t.load(&zv, i) } else { zv.read(i) };
@@ -103,14 +108,19 @@ fn owned_launches_count_what_the_lane_by_lane_kernel_counts() {
                     })
                 };
                 let what = format!("{} bytes, n {n}, offset {offset}, in place {in_place}", size_of::<T>());
-                assert_eq!(yb.as_slice(), zb.as_slice(), "{what}");
+                assert_eq!(owned, yb.as_slice(), "{what}");
                 assert_eq!((rec.loads, rec.stores, rec.atomics), (hand.loads, hand.stores, hand.atomics), "{what}");
                 assert_eq!(
                     (rec.ops.issued, rec.ops.active, rec.threads),
                     (hand.ops.issued, hand.ops.active, hand.threads),
                     "{what}"
                 );
-                assert!(rec.measured && rec.loads.requests > 0, "{what}");
+                assert_eq!(
+                    (rec.footprint_sectors, rec.block_sectors, rec.longest_warp, rec.waits),
+                    (hand.footprint_sectors, hand.block_sectors, hand.longest_warp, hand.waits),
+                    "{what}"
+                );
+                assert!(rec.measured && rec.loads.requests > 0 && (n < 100 || rec.footprint_sectors > 0), "{what}");
             }
         }
     }
