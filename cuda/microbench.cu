@@ -332,6 +332,78 @@ __global__ void hbm_random_word(const uint32_t* __restrict__ a, uint32_t mask, i
     }
     if (s == 12345u) out[0] = s;
 }
+
+// Instruction fetch shared by an SM's warps (`microbench icache`): one block a SM of W
+// warps, each running passes over K pieces of code, every piece its own dependent chain
+// of 256 multiply-adds (4 KiB of instructions, called, not inlined); warp w starts at
+// piece w mod K, so the warps of an SM run different code at once, as the warps of a
+// large kernel do. The code they share is K · 4 KiB; cycles per instruction a warp
+// (clock64 of each block's thread 0 over the instructions its warp ran) against K = 1
+// tell what fetching instructions costs when that code does not stay cached.
+template <int J>
+__device__ __noinline__ float icache_piece(float x, float m, float b) {
+    const float c = b + (float)J;
+#pragma unroll
+    for (int i = 0; i < 256; ++i) x = x * m + c;
+    return x;
+}
+template <int LO, int HI>
+__device__ __forceinline__ float icache_call(int k, float x, float m, float b) {
+    if constexpr (HI - LO == 1) {
+        return icache_piece<LO>(x, m, b);
+    } else {
+        constexpr int MID = (LO + HI) / 2;
+        return k < MID ? icache_call<LO, MID>(k, x, m, b) : icache_call<MID, HI>(k, x, m, b);
+    }
+}
+template <int K>
+__global__ void icache(float* out, float m, float b, int passes, long long* cycles) {
+    float x = threadIdx.x;
+    const int w = threadIdx.x / 32;
+    const long long start = clock64();
+    for (int p = 0; p < passes; ++p)
+        for (int s = 0; s < K; ++s) x = icache_call<0, K>((s + w) % K, x, m, b);
+    const long long end = clock64();
+    out[blockIdx.x * blockDim.x + threadIdx.x] = x;
+    if (threadIdx.x == 0) cycles[blockIdx.x] = end - start;
+}
+
+
+// The same with jumps (`microbench icache`, rows `icache_jump`): K pieces of 16
+// multiply-adds each, inlined at the leaves of a binary tree of branches on the piece's
+// number, so the code is K pieces spread over about K · 300 bytes; every warp runs
+// pieces in its own pseudo-random order (the same for its lanes), as the warps of a
+// branchy kernel jump about its code. Cycles per piece a warp (clock64, as above).
+template <int J>
+__device__ __forceinline__ float jump_piece(float x, float m, float b) {
+    const float c = b + (float)J;
+#pragma unroll
+    for (int i = 0; i < 16; ++i) x = x * m + c;
+    return x;
+}
+template <int LO, int HI>
+__device__ __forceinline__ float jump_call(int k, float x, float m, float b) {
+    if constexpr (HI - LO == 1) {
+        return jump_piece<LO>(x, m, b);
+    } else {
+        constexpr int MID = (LO + HI) / 2;
+        return k < MID ? jump_call<LO, MID>(k, x, m, b) : jump_call<MID, HI>(k, x, m, b);
+    }
+}
+template <int K>
+__global__ void icache_jump(float* out, float m, float b, int pieces, long long* cycles) {
+    float x = threadIdx.x;
+    uint32_t h = (threadIdx.x / 32 + 1) * 2654435761u + blockIdx.x;
+    const long long start = clock64();
+    for (int p = 0; p < pieces; ++p) {
+        h = h * 1664525u + 1013904223u;
+        x = jump_call<0, K>((int)((h >> 8) % K), x, m, b);
+    }
+    const long long end = clock64();
+    out[blockIdx.x * blockDim.x + threadIdx.x] = x;
+    if (threadIdx.x == 0) cycles[blockIdx.x] = end - start;
+}
+
 }  // namespace micro
 
 // A chain over `n` words whose next index is `stride` words on (mod n): every hop
@@ -506,6 +578,61 @@ static int round_probes(int sms) {
     return 0;
 }
 
+
+// The instruction-fetch probes (`microbench icache`): for every K (pieces of 4 KiB) and
+// W (warps a SM), prints the cycles per multiply-add of a warp, the mean over the SMs'
+// first warps (clock64), each probe once after a warm-up launch.
+template <int K>
+static int icache_row(int sms, float* out, long long* cycles, int warps) {
+    const int passes = 2048 / K;  // 512K multiply-adds a warp
+    micro::icache<K><<<sms, 32 * warps>>>(out, 1.0001f, 0.5f, passes, cycles);  // warm-up
+    micro::icache<K><<<sms, 32 * warps>>>(out, 1.0001f, 0.5f, passes, cycles);
+    CHECK(cudaDeviceSynchronize());
+    std::vector<long long> c(sms);
+    CHECK(cudaMemcpy(c.data(), cycles, sms * sizeof(long long), cudaMemcpyDeviceToHost));
+    double mean = 0;
+    for (long long v : c) mean += (double)v / sms;
+    const double fmas = 256.0 * K * passes;
+    printf("timed\ticache\tcode_kib\t%d\twarps_per_sm\t%d\tcycles_per_fma\t%.3f\n", 4 * K, warps, mean / fmas);
+    return 0;
+}
+
+template <int K>
+static int icache_jump_row(int sms, float* out, long long* cycles, int warps) {
+    const int pieces = 16384;
+    micro::icache_jump<K><<<sms, 32 * warps>>>(out, 1.0001f, 0.5f, pieces, cycles);  // warm-up
+    micro::icache_jump<K><<<sms, 32 * warps>>>(out, 1.0001f, 0.5f, pieces, cycles);
+    CHECK(cudaDeviceSynchronize());
+    std::vector<long long> c(sms);
+    CHECK(cudaMemcpy(c.data(), cycles, sms * sizeof(long long), cudaMemcpyDeviceToHost));
+    double mean = 0;
+    for (long long v : c) mean += (double)v / sms;
+    printf("timed\ticache_jump\tpieces\t%d\twarps_per_sm\t%d\tcycles_per_piece\t%.3f\n", K, warps, mean / pieces);
+    return 0;
+}
+static int icache_probes(int sms) {
+    float* out;
+    long long* cycles;
+    CHECK(cudaMalloc(&out, (size_t)sms * 1024 * 4));
+    CHECK(cudaMalloc(&cycles, (size_t)sms * 8));
+    for (int warps : {1, 4, 8, 12, 16, 32}) {
+        if (icache_row<1>(sms, out, cycles, warps) || icache_row<2>(sms, out, cycles, warps) ||
+            icache_row<4>(sms, out, cycles, warps) || icache_row<8>(sms, out, cycles, warps) ||
+            icache_row<16>(sms, out, cycles, warps) || icache_row<32>(sms, out, cycles, warps) ||
+            icache_row<64>(sms, out, cycles, warps))
+            return 1;
+    }
+    for (int warps : {1, 4, 12, 16}) {
+        if (icache_jump_row<16>(sms, out, cycles, warps) || icache_jump_row<64>(sms, out, cycles, warps) ||
+            icache_jump_row<256>(sms, out, cycles, warps) || icache_jump_row<1024>(sms, out, cycles, warps) ||
+            icache_jump_row<2048>(sms, out, cycles, warps))
+            return 1;
+    }
+    cudaFree(out);
+    cudaFree(cycles);
+    return 0;
+}
+
 int main(int argc, char** argv) {
     cudaDeviceProp p;
     CHECK(cudaGetDeviceProperties(&p, 0));
@@ -520,6 +647,10 @@ int main(int argc, char** argv) {
     if (argc > 1 && std::string(argv[1]) == "start") {
         printf("device\tname\t%s\n", p.name);
         return start_probes();
+    }
+    if (argc > 1 && std::string(argv[1]) == "icache") {
+        printf("device\tname\t%s\n", p.name);
+        return icache_probes(p.multiProcessorCount);
     }
     if (argc > 1 && std::string(argv[1]) == "rounds") {
         printf("device\tname\t%s\n", p.name);

@@ -13,6 +13,9 @@
 # (lines `timed`), not read by `gpu_check calibrate` (docs/simt.md, "PDACRT's rounds").
 # MODE=start runs the start-of-a-kernel probes alone (stores, parameters, cold code).
 # MODE=hbm runs the random HBM reads alone (a sector at a time over 1 GiB).
+# MODE=icache runs the instruction-fetch probes alone: cycles per instruction of warps
+# sharing straight-line code of 4-256 KiB, and per piece of warps jumping about 16-2048
+# pieces of branchy code (lines `timed`; docs/simt.md, the megakernel's passes).
 #
 # ncu runs with --clock-control none (the GPU's own clocks, as in cuda/check.sh) and its
 # default --cache-control all (caches flushed before each kernel), as the checked
