@@ -9,7 +9,7 @@
 //! the output with one bounds check for the launch, which compiles to what a rayon zip
 //! loop compiles to. Measured, its statistics are those of the `for_each` kernel whose
 //! lanes load the input (and, in place, the old output) and store the output through
-//! `simt`; the launch counts those owned accesses a warp at a time, since it knows
+//! `simt`; the launch counts those owned accesses a block at a time, since it knows
 //! their addresses, and records only what `f` itself does lane by lane.
 
 use crate::device::{Device, ELEMENT_BLOCK, LaunchConfig};
