@@ -9,7 +9,8 @@
 #   python3 docs/reproduce/hot-code.py gpu-out/source-*.csv.gz
 #
 # The bedroom at 512² (12 resident warps a SM for the megakernel) and 128² (4), one
-# launch each; CIS-LBDPT's first two shading launches at 512².
+# launch each (SKIP_128=1 leaves the 128² one out); CIS-LBDPT's first two shading
+# launches at 512².
 set -eu
 cd "$(dirname "$0")/.."
 BIN=${BIN:-target/release/examples}
