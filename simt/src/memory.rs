@@ -370,12 +370,6 @@ pub trait Readable<T: DeviceCopy>: Copy + Send + Sync {
         let _ = (start, len);
         None
     }
-    /// [`prefetch_host`] for elements `start..start + n`, clipped to the view: a hint
-    /// for the emulator's speed that measures nothing.
-    #[inline(always)]
-    fn prefetch(&self, start: usize, n: usize) {
-        let _ = (start, n);
-    }
 }
 
 impl<T: DeviceCopy> Global<'_, T> {
@@ -419,10 +413,6 @@ impl<T: DeviceCopy> Readable<T> for Global<'_, T> {
         // SAFETY: the caller keeps the range in bounds; nothing stores while 'a lives.
         Some(unsafe { std::slice::from_raw_parts(self.ptr.add(start), len) })
     }
-    #[inline(always)]
-    fn prefetch(&self, start: usize, n: usize) {
-        Global::prefetch(self, start, n)
-    }
 }
 
 /// A read-write view reads word by word with relaxed atomic loads (another thread
@@ -439,10 +429,6 @@ impl<T: DeviceCopy> Readable<T> for GlobalMut<'_, T> {
     fn read(&self, i: usize) -> T {
         assert!(i < self.len, "load of element {i} from a buffer of {}", self.len);
         unsafe { read_words(self.ptr.add(i)) }
-    }
-    #[inline(always)]
-    fn prefetch(&self, start: usize, n: usize) {
-        GlobalMut::prefetch(self, start, n)
     }
 }
 

@@ -685,10 +685,12 @@ impl Meter {
         self.lane_touched.clear();
     }
 
-    /// Sets the lane running now, a lane of the warp whose first lane was started by
-    /// [`Meter::begin_lane`], without starting it: a launch whose lanes mostly record
-    /// nothing of their own (`Device::transform`) sets each lane with one store, and the
-    /// lane is started only if it records.
+    /// Sets the lane running now without starting it: a launch whose lanes mostly
+    /// record nothing of their own (`Device::transform`) sets each lane with one store,
+    /// and the lane is started ([`Meter::begin_lane`]) only if it records. A lane left
+    /// set as current from an earlier warp phase or block starts with stale occurrence
+    /// counts only if it is the first to record in its phase, where the phase's slots
+    /// are still empty and are taken in order whatever the counts.
     #[inline(always)]
     pub fn set_lane(&mut self, thread: u32) {
         self.lane = thread;

@@ -15,7 +15,7 @@
 use crate::device::{Device, ELEMENT_BLOCK, LaunchConfig};
 use crate::exec::{Thread, access_width};
 use crate::limits::WARP_SIZE;
-use crate::memory::{DeviceBuffer, DeviceCopy, Readable, prefetch_host};
+use crate::memory::{DeviceBuffer, DeviceCopy, Readable};
 use crate::meter::{Counters, Kind, Meter};
 use crate::stats::LaunchRecord;
 use rayon::prelude::*;
@@ -154,23 +154,13 @@ impl Device {
         let predicting = self.predicting();
         let (in_size, in_width) = (std::mem::size_of::<I>() as u64, access_width::<I>());
         let (out_size, out_width) = (std::mem::size_of::<O>() as u64, access_width::<O>());
-        // The lanes run one by one, too slowly for the CPU's prefetchers to keep ahead
-        // of the stream: each warp asks for the elements of the warp `AHEAD` further on.
-        const AHEAD: usize = 8 * WARP;
-        let (n, out_ptr) = (out.len(), out.as_ptr() as usize);
         let run_block = |meter: RefCell<Meter>, (b, chunk): (usize, &mut [O])| {
             for (w, lanes) in chunk.chunks_mut(WARP).enumerate() {
                 let first = b * BLOCK + w * WARP;
-                if first + AHEAD < n {
-                    input.prefetch(first + AHEAD, WARP);
-                    let ahead = (out_ptr as *const O).wrapping_add(first + AHEAD);
-                    prefetch_host(ahead, WARP.min(n - first - AHEAD));
-                }
                 {
                     let mut m = meter.borrow_mut();
                     m.begin_warp_call();
                     m.begin_lane_phase();
-                    m.begin_lane((w * WARP) as u32);
                 }
                 for (k, o) in lanes.iter_mut().enumerate() {
                     let thread_idx = (w * WARP + k) as u32;
