@@ -9,7 +9,7 @@
 // The probes are deliberately unlike the checked kernels (PDACRT, CIS): the model is
 // calibrated on these only, then checked on those.
 //
-// About 620 lines on purpose: one probe per profile quantity, each with its launch, in
+// About 810 lines on purpose: one probe per profile quantity, each with its launch, in
 // one program that `cuda/microbench.sh` profiles in one pass.
 //
 //   nvcc -std=c++17 -O3 -arch=sm_90 -o target/cuda/microbench cuda/microbench.cu
@@ -18,6 +18,9 @@
 //   target/cuda/microbench rounds   rounds of loads issued together, alone
 //   target/cuda/microbench start    the start of a short kernel: stores, parameters, cold code
 //   target/cuda/microbench hbm      HBM read at random, a sector at a time
+//   target/cuda/microbench stream   first touches in order: chases through fresh memory
+//   target/cuda/microbench icache   instruction fetch: straight-line and branchy code
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <string>
@@ -406,6 +409,21 @@ __global__ void icache_jump(float* out, float m, float b, int pieces, long long*
     if (threadIdx.x == 0) cycles[blockIdx.x] = end - start;
 }
 
+// First touches in order (`microbench stream`): each lane follows its own chain through
+// a fresh buffer, every load's address the value the previous one returned, so each
+// step is one waited-for load, as in the HBM chase; only the chain's layout differs.
+// `stream_lane`: one thread stepping a sector at a time (a new sector each step, the
+// next one in memory); `stream_line`: one warp stepping a 128-byte line at a time, its
+// lanes' words of one line per step (a coalesced request of four new sectors, the next
+// line in memory); `stream_far`: the same warp stepping 8,320 bytes (a new DRAM page a
+// step, as the HBM chase); `stream_sm`: one such sequential warp a SM, each in its own
+// part of the buffer.
+__global__ void stream_chase(const uint32_t* __restrict__ a, int steps, uint32_t* out) {
+    uint32_t i = blockIdx.x * (uint32_t)steps * 32u + threadIdx.x;
+    for (int s = 0; s < steps; ++s) i = __ldcg(&a[i]);
+    if (i == 12345u) out[0] = i;
+}
+
 }  // namespace micro
 
 // A chain over `n` words whose next index is `stride` words on (mod n): every hop
@@ -471,6 +489,38 @@ static int hbm_probes(int sms) {
     CHECK(cudaDeviceSynchronize());
     printf("probe\thbm_random_sector\tsectors\t%lld\n", (long long)grid * threads * iters);
     printf("probe\thbm_random_word\tsectors\t%lld\n", (long long)grid * threads * iters);
+    cudaFree(a);
+    cudaFree(out);
+    return 0;
+}
+
+// The first-touches-in-order probes (`microbench stream`), each launch on a buffer just
+// written by the host (Nsight flushes the caches before each kernel); ncu's durations
+// over the steps are the latencies.
+static int stream_probes(int sms) {
+    const int steps = 20000;
+    // Enough for the widest form: a warp a SM (steps lines each) or 2,080 words a step.
+    const size_t words = std::max((size_t)sms * steps * 32, (size_t)steps * 2080) + 64;
+    uint32_t *a, *out;
+    CHECK(cudaMalloc(&a, words * 4));
+    CHECK(cudaMalloc(&out, 64));
+    struct Form {
+        const char* name;
+        size_t stride;  // words from a lane's word to its next
+        int blocks, threads;
+    } forms[] = {{"stream_lane", 8, 1, 1}, {"stream_line", 32, 1, 32}, {"stream_far", 2080, 1, 32}, {"stream_sm", 32, sms, 32}};
+    std::vector<uint32_t> v(words);
+    for (auto& f : forms) {
+        // Block b's lanes start at b * steps * 32 (+ lane); each word names the one
+        // `stride` on.
+        for (size_t k = 0; k < words; ++k) v[k] = (uint32_t)std::min(k + f.stride, words - 1);
+        for (int r = 0; r < PROBE_LAUNCHES; ++r) {
+            CHECK(cudaMemcpy(a, v.data(), words * 4, cudaMemcpyHostToDevice));
+            micro::stream_chase<<<f.blocks, f.threads>>>(a, steps, out);
+            CHECK(cudaDeviceSynchronize());
+        }
+        printf("probe\t%s\tsteps\t%d\n", f.name, steps);
+    }
     cudaFree(a);
     cudaFree(out);
     return 0;
@@ -645,6 +695,10 @@ int main(int argc, char** argv) {
     if (argc > 1 && std::string(argv[1]) == "hbm") {
         printf("device\tname\t%s\n", p.name);
         return hbm_probes(p.multiProcessorCount);
+    }
+    if (argc > 1 && std::string(argv[1]) == "stream") {
+        printf("device\tname\t%s\n", p.name);
+        return stream_probes(p.multiProcessorCount);
     }
     if (argc > 1 && std::string(argv[1]) == "start") {
         printf("device\tname\t%s\n", p.name);

@@ -13,6 +13,8 @@
 # (lines `timed`), not read by `gpu_check calibrate` (docs/simt.md, "PDACRT's rounds").
 # MODE=start runs the start-of-a-kernel probes alone (stores, parameters, cold code).
 # MODE=hbm runs the random HBM reads alone (a sector at a time over 1 GiB).
+# MODE=stream runs the first-touches-in-order chases alone (a lane, a warp, a warp a SM
+# stepping through fresh memory in order, and a warp stepping a DRAM page at a time).
 # MODE=icache runs the instruction-fetch probes alone: cycles per instruction of warps
 # sharing straight-line code of 4-256 KiB, and per piece of warps jumping about 16-2048
 # pieces of branchy code (lines `timed`; docs/simt.md, the megakernel's passes).
