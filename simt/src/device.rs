@@ -282,6 +282,7 @@ impl Device {
         measured: bool,
         mut counters: Counters,
     ) -> LaunchRecord {
+        let (footprint, loaded_footprint) = if measured { counters.footprints() } else { (0, 0) };
         let record = LaunchRecord {
             name,
             grid: cfg.grid,
@@ -302,7 +303,8 @@ impl Device {
             stores: counters.stores,
             atomics: counters.atomics,
             barriers: counters.barriers,
-            footprint_sectors: if measured { counters.footprint_sectors() } else { 0 },
+            footprint_sectors: footprint,
+            loaded_footprint_sectors: loaded_footprint,
             block_sectors: counters.block_sectors,
             longest_warp: counters.longest_warp,
             waits: counters.waits,
@@ -417,6 +419,7 @@ impl Device {
             atomics: Default::default(),
             barriers: 0,
             footprint_sectors: 0,
+            loaded_footprint_sectors: 0,
             block_sectors: 0,
             longest_warp: WarpChain::default(),
             waits: WarpChain::default(),

@@ -150,12 +150,15 @@ pub(crate) struct Counters {
     pub barriers: u64,
     pub threads: u64,
     /// The sampled sectors (`limits::footprint_sampled`) of global accesses, and every
-    /// sector of host memory read by shared code (`limits::host_sector`), with repeats:
-    /// sorted and deduplicated when the launch is recorded.
+    /// sector of host memory read by shared code (`limits::host_sector`), with repeats,
+    /// those a store or an atomic touched marked `WRITTEN`: sorted and deduplicated
+    /// when the launch is recorded.
     pub footprint: Vec<u64>,
     /// Ranges of sectors touched whole (`Meter::owned_block`), kept as runs rather
     /// than as their sampled sectors.
     pub runs: Runs,
+    /// The runs of [`Counters::runs`] that were loaded.
+    pub loaded_runs: Runs,
     /// Distinct loaded sectors per block, summed (estimated from the sampled ones): the
     /// loads that reach L2 when a block's repeated loads hit its SM's L1.
     pub block_sectors: u64,
@@ -183,20 +186,38 @@ impl Counters {
         }
         self.footprint.extend_from_slice(&o.footprint);
         self.runs.append(&mut o.runs);
+        self.loaded_runs.append(&mut o.loaded_runs);
         self.block_sectors += o.block_sectors;
         self.longest_warp = self.longest_warp.max(o.longest_warp);
         self.waits.add(&o.waits);
         self
     }
 
-    /// Distinct sectors the launch touched, estimated from the sampled ones and the
-    /// runs (sorts the sample in place).
-    pub fn footprint_sectors(&mut self) -> u64 {
+    /// Distinct sectors the launch touched, and those of them it loaded, estimated from
+    /// the sampled ones and the runs (sorts the sample in place).
+    pub fn footprints(&mut self) -> (u64, u64) {
         use rayon::slice::ParallelSliceMut;
         self.footprint.par_sort_unstable();
         self.footprint.dedup();
+        // Loaded sectors sort before written ones (the mark is the top bit), each part
+        // in order of its sectors.
+        let split = self.footprint.partition_point(|&s| s & WRITTEN == 0);
+        let (loaded, written) = self.footprint.split_at(split);
+        let loaded_runs = self.loaded_runs.union();
         let runs = self.runs.union();
-        runs + self.footprint.iter().filter(|&&s| !self.runs.contains(s)).map(|&s| footprint_weight(s)).sum::<u64>()
+        let weigh = |set: &Runs, s: u64| if set.contains(s) { 0 } else { footprint_weight(s) };
+        let loaded_sectors = loaded_runs + loaded.iter().map(|&s| weigh(&self.loaded_runs, s)).sum::<u64>();
+        // Every distinct sector of both parts: a written one counts unless also loaded.
+        let mut all = runs + loaded.iter().map(|&s| weigh(&self.runs, s)).sum::<u64>();
+        let mut l = 0;
+        for &w in written {
+            let s = w & !WRITTEN;
+            l += loaded[l..].partition_point(|&x| x < s);
+            if loaded.get(l) != Some(&s) {
+                all += weigh(&self.runs, s);
+            }
+        }
+        (all, loaded_sectors)
     }
 }
 
@@ -542,14 +563,18 @@ impl Meter {
                 .map(|&s| footprint_weight(s))
                 .sum::<u64>();
             // The launch's footprint gathers each block's distinct samples, loaded or
-            // written.
-            self.totals.footprint.extend(self.block_sampled.iter().map(|&s| s & !WRITTEN));
+            // written (marked).
+            self.totals.footprint.extend_from_slice(&self.block_sampled);
             self.block_sampled.clear();
         }
         if !self.block_written.is_empty() {
             self.block_written.union();
         }
-        for run in self.block_loaded.iter().chain(self.block_written.iter()) {
+        for run in self.block_loaded.iter() {
+            self.totals.runs.add(*run);
+            self.totals.loaded_runs.add(*run);
+        }
+        for run in self.block_written.iter() {
             self.totals.runs.add(*run);
         }
         self.block_loaded.clear();

@@ -1,5 +1,6 @@
 //! Known answers for what the GPU time model reads from a measured launch
-//! (`simt::timing`): the launch's distinct sectors (its footprint), each block's
+//! (`simt::timing`): the launch's distinct sectors (its footprint) and those its loads
+//! touched (the first touches a load waits for HBM on), each block's
 //! distinct loaded sectors (what its loads bring from L2 when its repeated loads hit
 //! L1; stores reach L2 every time and are counted as stores), and the longest warp's
 //! instructions and load rounds. The sector counts are estimated from 1 address in 16,
@@ -41,8 +42,31 @@ fn a_stream_touches_each_sector_once_per_launch_and_per_block() {
     // The owned-element form records the same.
     let own = dev.transform("stream_owned", &x.view(), &mut y, |_, _, v| v);
     assert!(near(own.footprint_sectors, sectors) && near(own.block_sectors, loaded), "{own:?}");
+    // The loads touched the input only: the output's first touches are stores.
+    for r in [&rec, &own] {
+        assert!(near(r.loaded_footprint_sectors, loaded), "{} vs {loaded}", r.loaded_footprint_sectors);
+    }
     assert_eq!(own.longest_warp, chain(2, 1));
     assert_eq!(rec.longest_warp, chain(2, 1));
+}
+
+#[test]
+fn a_sector_loaded_and_stored_counts_once_in_the_footprint_and_as_loaded() {
+    let dev = measured();
+    let n = 1 << 20; // 131,072 sectors each.
+    let x = dev.alloc_from(&vec![1.0f32; n]);
+    let mut y = dev.alloc_from(&vec![2.0f32; n]);
+    let sectors = 2 * (n as u64 * 4 / 32);
+    {
+        let (xv, yv) = (x.view(), y.view_mut());
+        let rec = dev.for_each("axpy", n, |t, i| t.store(&yv, i, t.load(&xv, i) + t.load(&yv, i)));
+        assert!(near(rec.footprint_sectors, sectors), "{} vs {sectors}", rec.footprint_sectors);
+        assert!(near(rec.loaded_footprint_sectors, sectors), "{} vs {sectors}", rec.loaded_footprint_sectors);
+    }
+    let own = dev.transform_in_place("axpy_owned", &x.view(), &mut y, |_, _, a, b| a + b);
+    assert!(near(own.footprint_sectors, sectors), "{} vs {sectors}", own.footprint_sectors);
+    assert!(near(own.loaded_footprint_sectors, sectors), "{} vs {sectors}", own.loaded_footprint_sectors);
+    assert!(y.as_slice().iter().all(|&v| v == 4.0));
 }
 
 #[test]
@@ -68,6 +92,7 @@ fn a_table_every_block_reads_is_one_footprint_and_one_l2_read_per_block() {
     let (table_sectors, out_sectors) = (n as u64 * 4 / 32, 64 * 256 * 4 / 32);
     let footprint = table_sectors + out_sectors;
     assert!(near(rec.footprint_sectors, footprint), "{} vs {footprint}", rec.footprint_sectors);
+    assert!(near(rec.loaded_footprint_sectors, table_sectors), "{}", rec.loaded_footprint_sectors);
     let per_block = 64 * table_sectors;
     assert!(near(rec.block_sectors, per_block), "{} vs {per_block}", rec.block_sectors);
     // Every warp: 1,024 loads and a store, each with its issue slot.

@@ -50,10 +50,8 @@ fn runs() -> Vec<CheckedRun> {
     out
 }
 
-/// Whether the model meets the bars the documentation states: kernels' mean absolute
-/// error ≤ 20 % (the issue's goal), no kernel past 50 % (its goal), and every PDACRT
-/// pipeline within 20 % (the issue's goal is 15 %; the conference room's +17 % misses
-/// it, docs/simt.md says so).
+/// Whether the model meets the issue's bars on these runs: kernels' mean absolute
+/// error ≤ 20 %, no kernel past 50 %, and every PDACRT pipeline within 15 %.
 fn meets_bars(runs: &[CheckedRun], p: &GpuProfile) -> Result<(), String> {
     let (rows, pipes) = check(runs, p);
     let (mape, worst) = errors(&rows);
@@ -64,7 +62,7 @@ fn meets_bars(runs: &[CheckedRun], p: &GpuProfile) -> Result<(), String> {
     if worst.error().abs() > 0.50 {
         return Err(format!("{} off by {:+.0} %", worst.name, worst.error() * 100.0));
     }
-    if let Some(e) = pipes.iter().find(|e| e.abs() > 0.20) {
+    if let Some(e) = pipes.iter().find(|e| e.abs() > 0.15) {
         return Err(format!("a pipeline off by {:+.0} %", e * 100.0));
     }
     Ok(())
@@ -163,11 +161,15 @@ fn the_gpu_bvh_traversal_is_predicted_within_20_percent_with_its_loads_in_rounds
 fn planted_errors_in_the_terms_that_bind_are_caught_by_the_check() {
     let runs = runs();
     let p = GpuProfile::named("h200").unwrap();
-    let planted: [(&str, GpuProfile); 4] = [
+    // Each way for the HBM latency and the launch cost: the model errs short on the
+    // pipelines, so an error that lengthens them is caught by the kernels it moves past
+    // a bar (filter_triangles), one that shortens them by the pipelines.
+    let planted: [(&str, GpuProfile); 5] = [
         ("HBM latency x 1.25", GpuProfile { hbm_latency_s: p.hbm_latency_s * 1.25, ..p.clone() }),
-        ("L2 latency x 1.25", GpuProfile { l2_latency_s: p.l2_latency_s * 1.25, ..p.clone() }),
+        ("HBM latency x 0.8", GpuProfile { hbm_latency_s: p.hbm_latency_s * 0.8, ..p.clone() }),
         ("arithmetic latency x 2", GpuProfile { alu_latency_cycles: p.alu_latency_cycles * 2.0, ..p.clone() }),
         ("launch cost x 2", GpuProfile { launch_s: p.launch_s * 2.0, ..p.clone() }),
+        ("launch cost x 0.8", GpuProfile { launch_s: p.launch_s * 0.8, ..p.clone() }),
     ];
     for (what, bad) in planted {
         assert!(meets_bars(&runs, &bad).is_err(), "a planted error ({what}) passed the check");
@@ -175,10 +177,12 @@ fn planted_errors_in_the_terms_that_bind_are_caught_by_the_check() {
 }
 
 /// What the check cannot see, said as a test: at these sizes, with caches flushed
-/// before each kernel, the model finds every checked kernel latency-bound, so an error
+/// before each kernel, the model finds the checked kernels latency-bound, so an error
 /// in a bandwidth or issue rate (the issue's example, HBM bandwidth x 2) moves the
-/// kernels' mean error by under half a point and is not caught. If this starts
-/// failing, some kernel became bandwidth-bound and the doc's sensitivity table is stale.
+/// kernels' mean error by under half a point and is not caught; nor is the L2 latency
+/// x 1.25, as the chains' waits that set these times are mostly first touches, at HBM's.
+/// If this starts failing, a kernel's bound moved and the doc's sensitivity table is
+/// stale.
 #[test]
 fn bandwidth_errors_are_invisible_to_these_latency_bound_kernels() {
     let runs = runs();
@@ -189,6 +193,7 @@ fn bandwidth_errors_are_invisible_to_these_latency_bound_kernels() {
         GpuProfile { hbm_bytes_per_s: p.hbm_bytes_per_s * 2.0, ..p.clone() },
         GpuProfile { l2_bytes_per_s: p.l2_bytes_per_s * 2.0, ..p.clone() },
         GpuProfile { issue_per_cycle_per_sm: p.issue_per_cycle_per_sm * 2.0, ..p.clone() },
+        GpuProfile { l2_latency_s: p.l2_latency_s * 1.25, ..p.clone() },
     ] {
         assert!((mape(&q) - base).abs() < 0.005, "{} -> {}", base, mape(&q));
     }

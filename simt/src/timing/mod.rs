@@ -351,10 +351,11 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
     // load request, or loads the kernel issues together), each atomic whose value it
     // uses for L2's answer (and HBM's for first touches), each fence for its own and
     // for the sectors beyond one that the warp wrote before it.
-    // The share of waits that go to HBM: first touches over the sectors waited for (a
-    // sector that several loads of one round request is waited for once).
-    let waited = sectors - r.waits.round_repeats as f64;
-    let miss = if waited > 0.0 { (footprint / waited).min(1.0) } else { 0.0 };
+    // The share of waits that go to HBM: the loads' first touches over the loaded
+    // sectors waited for (a sector that several loads of one round request is waited
+    // for once). What only stores touched is never waited for and misses no load.
+    let waited = r.loads.sectors.saturating_sub(r.waits.round_repeats) as f64;
+    let miss = if waited > 0.0 { (r.loaded_footprint_sectors as f64 / waited).min(1.0) } else { 0.0 };
     let mem_latency = miss * p.hbm_latency_s + (1.0 - miss) * p.l2_latency_s;
     let atomic_latency = p.atomic_latency_s + miss * (p.hbm_latency_s - p.l2_latency_s).max(0.0);
     let chain = |c: &WarpChain, over: f64| {

@@ -28,6 +28,7 @@ fn launch(grid: u32, issued: u64, loads: u64, sectors: u64, footprint: u64) -> L
         atomics: Traffic::default(),
         barriers: 0,
         footprint_sectors: footprint,
+        loaded_footprint_sectors: footprint,
         block_sectors: sectors,
         longest_warp: WarpChain { instructions: issued, load_rounds: loads, ..WarpChain::default() },
         waits: WarpChain { instructions: warps * issued, load_rounds: warps * loads, ..WarpChain::default() },
@@ -160,6 +161,28 @@ fn a_sector_repeated_within_a_round_is_waited_for_once() {
     let diluted = chain(&predict(&r, &p).unwrap());
     let mixed = 0.25 * p.hbm_latency_s + 0.75 * p.l2_latency_s + 4.0 * p.alu_latency_cycles / p.clock_hz;
     assert!((diluted - mixed).abs() <= 1e-3 * mixed, "{diluted} against {mixed}");
+}
+
+#[test]
+fn only_the_loads_first_touches_make_them_wait_for_hbm() {
+    // One block whose warps load 64 sectors already in L2 (two rounds each) and store
+    // 64 fresh ones: the stores' first touches are written back (the HBM bound counts
+    // them) but no load waits for them. The launch's whole footprint over every sector
+    // touched (the model's share before it counted the loads' own) would send half of
+    // the rounds to HBM, which the first check catches.
+    let p = profile();
+    let mut r = launch(1, 4, 2, 64, 64);
+    r.loaded_footprint_sectors = 0;
+    r.stores = Traffic { requests: 2, sectors: 64, lanes: 64 };
+    let t = predict(&r, &p).unwrap();
+    let l2_rounds = 2.0 * p.l2_latency_s + 4.0 * p.alu_latency_cycles / p.clock_hz;
+    assert!((t.latency - l2_rounds).abs() <= 1e-3 * l2_rounds, "{} against {l2_rounds}", t.latency);
+    assert!((t.hbm - 64.0 * SECTOR_BYTES as f64 / p.hbm_bytes_per_s).abs() < 1e-15);
+    // Half the loaded sectors first touched: half the rounds' waits go to HBM.
+    r.loaded_footprint_sectors = 32;
+    let half = predict(&r, &p).unwrap().latency;
+    let mixed = p.hbm_latency_s + p.l2_latency_s + 4.0 * p.alu_latency_cycles / p.clock_hz;
+    assert!((half - mixed).abs() <= 1e-3 * mixed, "{half} against {mixed}");
 }
 
 #[test]

@@ -158,7 +158,14 @@ pub(crate) fn node_bounds(
             current = node;
             acc = Aabb::EMPTY;
         }
-        acc = acc.union(Aabb::from_points(&corners(t.load(tris, t.load(tri_ids, i) as usize))));
+        // Three rounds a trip, as the twin's SASS issues them: the node (above), the
+        // id, the triangle's nine words.
+        let id = t.load(tri_ids, i) as usize;
+        let tri = {
+            let _together = t.loads_together();
+            t.load(tris, id)
+        };
+        acc = acc.union(Aabb::from_points(&corners(tri)));
         t.work(0, 0, BOUNDS_TRIP_UNION);
     }
     t.work(0, 0, BOUNDS_TAIL);
@@ -196,9 +203,12 @@ pub(crate) fn split_node(
     children: &GlobalMut<Aabb>,
     n: usize,
 ) {
+    // Every load in one round, as the twin's SASS issues them.
+    let together = t.loads_together();
     let mut node = t.load(nodes, n);
     let w = |a: usize| unordered(t.load(tight, n * 6 + a));
     let union = Aabb { min: Vec3::new(w(0), w(1), w(2)), max: Vec3::new(w(3), w(4), w(5)) };
+    drop(together);
     node.bounds = node.bounds.intersection(union);
     t.store(nodes, n, node);
     let axis = node.bounds.axes_by_extent()[(node.tries % MAX_TRIES) as usize];
@@ -227,8 +237,16 @@ pub(crate) fn filter_triangle(
     codes: &GlobalMut<u32>,
     i: usize,
 ) {
-    let node = t.load(tri_node, i);
-    let b = Aabb::from_points(&corners(t.load(tris, t.load(tri_ids, i) as usize)));
+    // As the twin's SASS issues them: the node with the id, then the triangle's nine
+    // words, then each box word on its own between the overlap test's compares.
+    let together = t.loads_together();
+    let (node, id) = (t.load(tri_node, i), t.load(tri_ids, i) as usize);
+    drop(together);
+    let tri = {
+        let _together = t.loads_together();
+        t.load(tris, id)
+    };
+    let b = Aabb::from_points(&corners(tri));
     let overlaps = |k: usize| b.overlaps(&t.load(children, k));
     let code = code_of(overlaps(2 * node as usize), overlaps(2 * node as usize + 1));
     t.store(codes, i, node << 2 | code);
@@ -250,16 +268,31 @@ pub(crate) fn filter_ray(
     codes: &GlobalMut<u32>,
     i: usize,
 ) {
+    // Seven rounds, as the twin's SASS issues them: the node with the id; the key; the
+    // ray's origin, interval and first direction word; each further direction word;
+    // each child's box.
+    let together = t.loads_together();
     let node = t.load(ray_node, i);
     let id = t.load(ray_ids, i) as usize;
+    drop(together);
     let key = t.load(keys, id);
     let code = if any_hit && key == BLOCKED {
         NEITHER
     } else {
-        let r = t.load(rays, id);
+        let together = t.loads_together();
+        let o = |f: fn(&Ray) -> &f32| t.load_field(rays, id, f);
+        let origin = Vec3::new(o(|r| &r.origin.x), o(|r| &r.origin.y), o(|r| &r.origin.z));
+        let (t_min, t_max, dx) = (o(|r| &r.t_min), o(|r| &r.t_max), o(|r| &r.dir.x));
+        drop(together);
+        let dir = Vec3::new(dx, o(|r| &r.dir.y), o(|r| &r.dir.z));
+        let r = Ray { origin, dir, t_min, t_max };
         let inv = inv_dir(r.dir);
         let far = cull_distance(t_far(&r, key));
-        let enters = |k: usize| t.load(children, k).grown(grow).intersect(r.origin, inv, r.t_min, far).is_some();
+        let child = |k: usize| {
+            let _together = t.loads_together();
+            t.load(children, k)
+        };
+        let enters = |k: usize| child(k).grown(grow).intersect(r.origin, inv, r.t_min, far).is_some();
         code_of(enters(2 * node as usize), enters(2 * node as usize + 1))
     };
     t.store(codes, i, node << 2 | code);
@@ -306,13 +339,18 @@ pub(crate) fn count_node_codes(
 ) {
     // Only the two fields read are loaded, as compiled code does (`Thread::load_field`).
     let field = |f: fn(&NodeData) -> &u32| t.load_field(nodes, n, f);
+    // Two rounds, as the twin's SASS issues them: the two fields, then both ranks.
+    let together = t.loads_together();
     let (start, count) = if rays {
         (field(|x| &x.ray_start), field(|x| &x.ray_count))
     } else {
         (field(|x| &x.tri_start), field(|x| &x.tri_count))
     };
+    drop(together);
+    let together = t.loads_together();
     let first = rank_at(t, ranks, codes, start as usize);
     let end = rank_at(t, ranks, codes, (start + count) as usize);
+    drop(together);
     let mut entering = 0;
     for c in 0..3 {
         t.store(counts, n * 4 + c, end[c] - first[c]);
@@ -369,16 +407,19 @@ pub(crate) fn classify_child(
 ) {
     let n = c / 2;
     let right = c % 2 == 1;
-    // The eight loads come first, before any branch, as in the twin's SASS: the node's
-    // two sizes and its counts of the three codes that enter a child. `tries` is loaded
+    // The eight loads come first, before any branch, as in the twin's SASS, issued as
+    // one round: the node's two sizes and its counts of the three codes that enter a
+    // child. `tries` is loaded
     // only where it is read. The arithmetic is declared arm by arm with the counts of
     // that SASS (`CLASSIFY_*`).
     let field = |f: fn(&NodeData) -> &u32| t.load_field(nodes, n, f);
+    let together = t.loads_together();
     let (ray_count, tri_count) = (field(|x| &x.ray_count), field(|x| &x.tri_count));
     let rc = |code: u32| t.load(ray_counts, n * 4 + code as usize);
     let tc = |code: u32| t.load(tri_counts, n * 4 + code as usize);
     let [rays_left, rays_both, rays_right] = [rc(LEFT), rc(BOTH), rc(RIGHT)];
     let [tris_left, tris_both, tris_right] = [tc(LEFT), tc(BOTH), tc(RIGHT)];
+    drop(together);
     t.work(0, 0, CLASSIFY_HEAD);
     let (left_rays, left_tris) = (rays_left + rays_both, tris_left + tris_both);
     let (right_rays, right_tris) = (rays_both + rays_right, tris_both + tris_right);
@@ -458,16 +499,22 @@ pub(crate) fn emit_child(
     c: usize,
 ) {
     // The four fields read, each loaded on its own and all before the branch, as nvcc
-    // compiles it (the destinations are written, not read).
+    // compiles it (the destinations are written, not read): one round, as are the
+    // scan's triple and the box below.
     let field = |f: fn(&ChildData) -> &u32| t.load_field(children, c, f);
+    let together = t.loads_together();
     let (kind, rays, tris, whole) = (field(|x| &x.kind), field(|x| &x.rays), field(|x| &x.tris), field(|x| &x.whole));
+    drop(together);
     // The scan's source is if-converted too: one load after the arms pick the array.
     let (scan, out) = match kind {
         INNER => (Place::of(inner_scan, c), next_nodes),
         TERMINAL => (Place::of(terminal_scan, c), terminal_nodes),
         _ => return,
     };
-    let scan = t.load_place(scan);
+    let scan = {
+        let _together = t.loads_together();
+        t.load_place(scan)
+    };
     let cd = ChildData { kind, rays, tris, dest_node: scan[0], dest_ray: scan[1], dest_tri: scan[2], whole };
     t.store(children, c, cd);
     // So is the box's: each arm picks an address (and the parent's arm loads `tries`),
@@ -478,7 +525,10 @@ pub(crate) fn emit_child(
     } else {
         (Place::of(child_boxes, c), 0)
     };
-    let bounds = t.load_place(place);
+    let bounds = {
+        let _together = t.loads_together();
+        t.load_place(place)
+    };
     let node = NodeData {
         bounds,
         ray_start: cd.dest_ray,
@@ -527,30 +577,52 @@ pub(crate) fn scatter_ref(
     if code == NEITHER {
         return;
     }
-    let node = t.load(&sp.node_of, i) as usize;
-    // One word of each triple (the code's), as compiled code loads it.
     let c = code as usize;
-    let rank = t.load_field(&sp.ranks, i, |r| &r[c]) - t.load_field(&sp.base, node, |r| &r[c]);
+    // Rounds of loads as the twin's SASS issues them: the node with this element's
+    // rank (one word of the triple, the code's); the node's base rank and the id with
+    // the left child's two flags; then per child taken, its two destinations, then the
+    // counts of the codes before this one.
+    let together = t.loads_together();
+    let node = t.load(&sp.node_of, i) as usize;
+    let rank_i = t.load_field(&sp.ranks, i, |r| &r[c]);
+    drop(together);
+    let flags = |side: usize| {
+        let field = |f: fn(&ChildData) -> &u32| t.load_field(children, 2 * node + side, f);
+        (field(|x| &x.whole) == 1, field(|x| &x.kind))
+    };
+    let together = t.loads_together();
+    let rank = rank_i - t.load_field(&sp.base, node, |r| &r[c]);
     let id = t.load(&sp.ids, i);
+    let left = flags(0);
+    drop(together);
     // Two trips, which compiled code unrolls: each side's accesses are its own
     // instructions, executed by the lanes whose reference goes to that side.
     for side in 0..2 {
         let _side = t.unroll(side);
-        // The child's fields, each loaded where it is first read (as compiled code does).
-        let field = |f: fn(&ChildData) -> &u32| t.load_field(children, 2 * node + side, f);
-        let whole = field(|x| &x.whole) == 1;
+        let (whole, kind) = if side == 0 {
+            left
+        } else {
+            let _together = t.loads_together();
+            flags(1)
+        };
         let takes = whole || if side == 0 { code != RIGHT } else { code != LEFT };
-        let kind = field(|x| &x.kind);
         if !takes || kind == DROPPED {
             continue;
         }
-        let first_code = if whole || side == 0 { LEFT } else { BOTH };
-        let before: u32 = (first_code..code).map(|c| t.load(&sp.counts, node * 4 + c as usize)).sum();
+        let field = |f: fn(&ChildData) -> &u32| t.load_field(children, 2 * node + side, f);
+        let together = t.loads_together();
         let dst = if rays { field(|x| &x.dest_ray) } else { field(|x| &x.dest_tri) };
+        let dest_node = field(|x| &x.dest_node);
+        drop(together);
+        let first_code = if whole || side == 0 { LEFT } else { BOTH };
+        let before: u32 = {
+            let _together = t.loads_together();
+            (first_code..code).map(|c| t.load(&sp.counts, node * 4 + c as usize)).sum()
+        };
         let pos = (dst + before + rank) as usize;
         if kind == INNER {
             t.store(&dest.next_ids, pos, id);
-            t.store(&dest.next_node, pos, field(|x| &x.dest_node));
+            t.store(&dest.next_node, pos, dest_node);
         } else {
             t.store(&dest.terminal_ids, pos, id);
         }
@@ -653,6 +725,8 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
         if k < ray_count {
             let id = t.load(&a.ray_ids, ray_start + k);
             t.set(ray_id, id);
+            // The ray's eight words and its key in one round (the twin's SASS).
+            let _together = t.loads_together();
             t.set(ray_reg, t.load(&a.rays, id as usize));
             t.set(best, t.load(&a.keys, id as usize));
         }
@@ -667,7 +741,11 @@ pub(crate) fn brute_force(blk: &mut Block, a: &BruteForceArgs) {
                 t.work(0, 3, STAGE_STEP_INSTRUCTIONS);
                 let tri = t.load(&a.tri_ids, tri_start + first + s);
                 t.store_shared(stage_ids, s, tri);
-                t.store_shared(stage, s, t.load(&a.tris, tri as usize));
+                let words = {
+                    let _together = t.loads_together();
+                    t.load(&a.tris, tri as usize)
+                };
+                t.store_shared(stage, s, words);
                 s += t.block_dim() as usize;
             }
         });

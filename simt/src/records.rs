@@ -1,0 +1,233 @@
+//! Launch records as tab-separated text, one launch a line: a measured run kept to be
+//! predicted later (`gpu_check time`), and files written before later columns were
+//! added read with those columns' defaults.
+
+use crate::meter::{Traffic, WarpChain};
+use crate::stats::{LaunchRecord, RegionStats};
+use std::fmt::Write;
+
+/// The columns of [`records_to_tsv`].
+const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors\tround_repeats\tloaded_footprint";
+
+/// Columns of [`RECORD_HEADER`] that files written before them lack, newest first: the
+/// loaded footprint (read as the whole footprint), the sectors repeated within rounds
+/// of loads, the sectors fences waited for, the atomics
+/// and fences waited for (all read as none), and load rounds (read as one per load
+/// request).
+const LATER_COLUMNS: &[&str] = &[
+    "\tloaded_footprint",
+    "\tround_repeats",
+    "\tlongest_fenced_sectors\tfenced_sectors",
+    "\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences",
+    "\tload_rounds",
+];
+
+/// Launch records as tab-separated lines, one per launch, to keep a measured run and
+/// predict from it later ([`crate::timing::predict`]). Declared regions are summed into
+/// one region named `work`.
+pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
+    let mut s = format!("{RECORD_HEADER}\n");
+    for r in records {
+        let mut work = RegionStats::default();
+        r.regions.iter().for_each(|x| work.add(x));
+        let t = |x: &Traffic| format!("{}\t{}\t{}", x.requests, x.sectors, x.lanes);
+        let _ = writeln!(
+            s,
+            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+            r.name,
+            r.grid,
+            r.block,
+            r.shared_bytes,
+            r.seconds,
+            r.measured as u8,
+            r.threads,
+            r.ops.issued,
+            r.ops.active,
+            work.issued,
+            work.active,
+            t(&r.loads),
+            t(&r.stores),
+            t(&r.atomics),
+            r.barriers,
+            r.footprint_sectors,
+            r.block_sectors,
+            r.longest_warp.instructions,
+            r.longest_warp.load_rounds,
+            r.waits.load_rounds,
+            r.longest_warp.atomic_rounds,
+            r.longest_warp.fences,
+            r.waits.atomic_rounds,
+            r.waits.fences,
+            r.longest_warp.fenced_sectors,
+            r.waits.fenced_sectors,
+            r.waits.round_repeats,
+            r.loaded_footprint_sectors
+        );
+    }
+    s
+}
+
+/// A kernel name read from a file, kept for the program's life (each distinct name
+/// once).
+fn intern(name: &str) -> &'static str {
+    use std::sync::Mutex;
+    static NAMES: Mutex<Vec<&'static str>> = Mutex::new(Vec::new());
+    let mut names = NAMES.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(n) = names.iter().find(|n| **n == name) {
+        return n;
+    }
+    let n: &'static str = Box::leak(name.to_string().into_boxed_str());
+    names.push(n);
+    n
+}
+
+/// Reads what [`records_to_tsv`] wrote; errors name the line and field.
+pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
+    let mut lines = text.lines().enumerate();
+    let header = match lines.next() {
+        Some((_, h)) if is_record_header(h) => h,
+        _ => return Err("not a simt launch-record file (its header differs)".into()),
+    };
+    let columns: Vec<&str> = header.split('\t').collect();
+    let mut out = Vec::new();
+    for (i, line) in lines {
+        let f: Vec<&str> = line.split('\t').collect();
+        if f.len() != columns.len() {
+            return Err(format!("line {}: {} fields, expected {}", i + 1, f.len(), columns.len()));
+        }
+        let n = |k: usize| f[k].parse::<u64>().map_err(|_| format!("line {}: {}: '{}'", i + 1, columns[k], f[k]));
+        let traffic = |k: usize| -> Result<Traffic, String> {
+            Ok(Traffic { requests: n(k)?, sectors: n(k + 1)?, lanes: n(k + 2)? })
+        };
+        let seconds: f64 = f[4].parse().map_err(|_| format!("line {}: seconds: '{}'", i + 1, f[4]))?;
+        out.push(LaunchRecord {
+            name: intern(f[0]),
+            grid: n(1)? as u32,
+            block: n(2)? as u32,
+            shared_bytes: n(3)? as usize,
+            registers: 0,
+            seconds,
+            measured: n(5)? != 0,
+            threads: n(6)?,
+            ops: RegionStats { name: "ops", issued: n(7)?, active: n(8)? },
+            regions: vec![RegionStats { name: "work", issued: n(9)?, active: n(10)? }],
+            loads: traffic(11)?,
+            stores: traffic(14)?,
+            atomics: traffic(17)?,
+            barriers: n(20)?,
+            footprint_sectors: n(21)?,
+            loaded_footprint_sectors: if columns.len() > 33 { n(33)? } else { n(21)? },
+            block_sectors: n(22)?,
+            longest_warp: WarpChain {
+                instructions: n(23)?,
+                load_rounds: n(24)?,
+                atomic_rounds: if columns.len() > 26 { n(26)? } else { 0 },
+                fences: if columns.len() > 26 { n(27)? } else { 0 },
+                fenced_sectors: if columns.len() > 30 { n(30)? } else { 0 },
+                round_repeats: 0,
+            },
+            waits: WarpChain {
+                instructions: n(7)? + n(9)?,
+                load_rounds: if columns.len() > 25 { n(25)? } else { n(11)? },
+                atomic_rounds: if columns.len() > 26 { n(28)? } else { 0 },
+                fences: if columns.len() > 26 { n(29)? } else { 0 },
+                fenced_sectors: if columns.len() > 30 { n(31)? } else { 0 },
+                round_repeats: if columns.len() > 32 { n(32)? } else { 0 },
+            },
+        });
+    }
+    Ok(out)
+}
+
+/// The current header, or one that lacks only the [`LATER_COLUMNS`] added after it
+/// was written.
+fn is_record_header(h: &str) -> bool {
+    let mut current = RECORD_HEADER;
+    for later in std::iter::once("").chain(LATER_COLUMNS.iter().copied()) {
+        match current.strip_suffix(later) {
+            Some(older) => current = older,
+            None => return false,
+        }
+        if h == current {
+            return true;
+        }
+    }
+    false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record() -> LaunchRecord {
+        let t = |k: u64| Traffic { requests: k, sectors: 2 * k, lanes: 32 * k };
+        LaunchRecord {
+            name: "test::kernel",
+            grid: 3,
+            block: 64,
+            shared_bytes: 128,
+            registers: 0,
+            seconds: 0.25,
+            measured: true,
+            threads: 192,
+            ops: RegionStats { name: "ops", issued: 40, active: 1000 },
+            regions: vec![RegionStats { name: "work", issued: 60, active: 1500 }],
+            loads: t(5),
+            stores: t(3),
+            atomics: t(2),
+            barriers: 4,
+            footprint_sectors: 9,
+            loaded_footprint_sectors: 7,
+            block_sectors: 8,
+            longest_warp: WarpChain {
+                instructions: 20,
+                load_rounds: 3,
+                atomic_rounds: 2,
+                fences: 1,
+                fenced_sectors: 9,
+                round_repeats: 0,
+            },
+            waits: WarpChain {
+                instructions: 100,
+                load_rounds: 12,
+                atomic_rounds: 7,
+                fences: 5,
+                fenced_sectors: 40,
+                round_repeats: 11,
+            },
+        }
+    }
+
+    #[test]
+    fn records_read_back_as_written_and_older_files_without_their_later_columns() {
+        let text = records_to_tsv(&[record()]);
+        let back = &records_from_tsv(&text).unwrap()[0];
+        assert_eq!((back.longest_warp, back.waits), (record().longest_warp, record().waits));
+        assert_eq!((back.loads, back.atomics, back.block_sectors), (record().loads, record().atomics, 8));
+        assert_eq!((back.footprint_sectors, back.loaded_footprint_sectors), (9, 7));
+        // Cut the later columns off, newest first: the loaded footprint is then the
+        // whole footprint, round repeats are none, then
+        // fenced sectors, then atomics and fences, and then load rounds are one per load
+        // request.
+        let cut = |text: &str, columns: usize| -> String {
+            text.lines().map(|l| l.split('\t').take(columns).collect::<Vec<_>>().join("\t") + "\n").collect()
+        };
+        let before_loaded = &records_from_tsv(&cut(&text, 33)).unwrap()[0];
+        assert_eq!((before_loaded.loaded_footprint_sectors, before_loaded.waits), (9, record().waits));
+        let before_repeats = &records_from_tsv(&cut(&text, 32)).unwrap()[0];
+        assert_eq!(before_repeats.waits, WarpChain { round_repeats: 0, ..record().waits });
+        let before_fenced = &records_from_tsv(&cut(&text, 30)).unwrap()[0];
+        assert_eq!(before_fenced.longest_warp, WarpChain { fenced_sectors: 0, ..record().longest_warp });
+        assert_eq!(before_fenced.waits, WarpChain { fenced_sectors: 0, round_repeats: 0, ..record().waits });
+        let before_atomics = &records_from_tsv(&cut(&text, 26)).unwrap()[0];
+        let none = WarpChain { atomic_rounds: 0, fences: 0, fenced_sectors: 0, ..WarpChain::default() };
+        assert_eq!(before_atomics.longest_warp, WarpChain { instructions: 20, load_rounds: 3, ..none });
+        assert_eq!(before_atomics.waits, WarpChain { instructions: 100, load_rounds: 12, ..none });
+        let before_rounds = &records_from_tsv(&cut(&text, 25)).unwrap()[0];
+        assert_eq!(before_rounds.waits.load_rounds, 5);
+        // Any other header is refused.
+        for columns in [24, 27, 31] {
+            assert!(records_from_tsv(&cut(&text, columns)).unwrap_err().contains("header differs"));
+        }
+    }
+}
