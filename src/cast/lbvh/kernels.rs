@@ -116,8 +116,13 @@ pub(crate) fn morton_code(
     ids: &GlobalMut<u32>,
     i: usize,
 ) {
+    // The box's six words and the triangle's nine are issued back to back and waited
+    // for once (the twin's SASS).
+    let together = t.loads_together();
     let b = t.load(bounds, 0);
-    let c = centroid(&t.load(tris, i));
+    let tri = t.load(tris, i);
+    drop(together);
+    let c = centroid(&tri);
     t.work(0, 0, MORTON);
     t.store(codes, i, morton(c, &b));
     t.store(ids, i, i as u32);
@@ -132,7 +137,12 @@ pub(crate) fn gather_triangle(
     leaf_boxes: &GlobalMut<Aabb>,
     i: usize,
 ) {
-    let tri = t.load(tris, t.load(ids, i) as usize);
+    // The id, then the triangle's nine words in one round (the twin's SASS).
+    let id = t.load(ids, i) as usize;
+    let tri = {
+        let _together = t.loads_together();
+        t.load(tris, id)
+    };
     t.work(0, 0, GATHER);
     t.store(sorted, i, tri);
     let [a, b, c] = corners(tri);
@@ -151,8 +161,11 @@ fn delta(t: &Thread, codes: &Global<u32>, (i, j): (i64, i64), weights: (u32, u32
         t.work(0, 1, weights.1);
         return -1;
     }
-    // Both codes are loaded again at every site (nvcc keeps no copy of `codes[i]`).
+    // Both codes are loaded again at every site (nvcc keeps no copy of `codes[i]`), back
+    // to back and waited for once.
+    let together = t.loads_together();
     let (a, b) = (t.load(codes, i as usize), t.load(codes, j as usize));
+    drop(together);
     t.work(0, 0, weights.0);
     if a == b { 32 + (i as u32 ^ j as u32).leading_zeros() as i32 } else { (a ^ b).leading_zeros() as i32 }
 }
