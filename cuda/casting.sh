@@ -9,11 +9,7 @@
 # gpu_casting) and, optionally, gpu_tests (the suite's test binary, as in check.sh).
 # ROUNDS and FRAMES (default 5) set the medians' rounds and the grid's frames.
 set -eu
-cd "$(dirname "$0")/.."
-BIN=${BIN:-target/release/examples}
-OUT=${OUT:-gpu-out}
-mkdir -p "$OUT"
-[ -f target/cuda/libwarpray_cuda.so ] || sh cuda/build.sh
+. "$(dirname "$0")/common.sh"
 if [ -x "$BIN/gpu_tests" ]; then
     "$BIN/gpu_tests" gpu:: --include-ignored >"$OUT/casting_tests.txt" 2>&1 || { tail -30 "$OUT/casting_tests.txt"; exit 1; }
     grep "test result" "$OUT/casting_tests.txt"

@@ -9,14 +9,10 @@
 # optionally, gpu_tests (the suite's test binary, `cargo test --release --features cuda
 # --test suite --no-run`; its `gpu::` tests run). Results go to $OUT.
 set -eu
-cd "$(dirname "$0")/.."
-BIN=${BIN:-target/release/examples}
-OUT=${OUT:-gpu-out}
+. "$(dirname "$0")/common.sh"
 MODEL=${1:-bunny}
 SIZE=${2:-512}
 BATCHES=${BATCHES:-primary,shadow}
-mkdir -p "$OUT"
-[ -f target/cuda/libwarpray_cuda.so ] || sh cuda/build.sh
 if [ -x "$BIN/gpu_tests" ]; then
     "$BIN/gpu_tests" gpu:: --include-ignored >"$OUT/tests.txt" 2>&1 || true
     tail -5 "$OUT/tests.txt"

@@ -9,13 +9,9 @@
 # optionally, cis_tests (the suite's test binary, `cargo test --release --features cuda
 # --test suite --no-run`; its `cis_twin::` tests run). Results go to $OUT.
 set -eu
-cd "$(dirname "$0")/.."
-BIN=${BIN:-target/release/examples}
-OUT=${OUT:-gpu-out}
+. "$(dirname "$0")/common.sh"
 SCENES=${1:-cornell,assets/scenes/materials.toml,assets/scenes/bedroom.toml}
 SIZE=${2:-128}
-mkdir -p "$OUT"
-[ -f target/cuda/libwarpray_cuda.so ] || sh cuda/build.sh
 if [ -x "$BIN/cis_tests" ]; then
     "$BIN/cis_tests" cis_twin:: --include-ignored >"$OUT/cis_tests.txt" 2>&1 || true
     tail -5 "$OUT/cis_tests.txt"

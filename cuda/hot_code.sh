@@ -12,11 +12,7 @@
 # launch each (SKIP_128=1 leaves the 128² one out); CIS-LBDPT's first two shading
 # launches at 512².
 set -eu
-cd "$(dirname "$0")/.."
-BIN=${BIN:-target/release/examples}
-OUT=${OUT:-gpu-out}
-mkdir -p "$OUT"
-[ -f target/cuda/libwarpray_cuda.so ] || sh cuda/build.sh
+. "$(dirname "$0")/common.sh"
 profile() { # name kernel-regex count gpu_render-arguments...
     name=$1 kernel=$2 count=$3
     shift 3

@@ -13,13 +13,9 @@
 # exporting takes about 25 s per launch, so the exports run side by side. Results go to
 # $OUT/source_*.md; the raw exports are kept gzipped.
 set -eu
-cd "$(dirname "$0")/.."
-BIN=${BIN:-target/release/examples}
-OUT=${OUT:-gpu-out}
+. "$(dirname "$0")/common.sh"
 SCENES=${1-cornell assets/scenes/materials.toml assets/scenes/bedroom.toml}
 N=${2:-2}
-mkdir -p "$OUT"
-[ -f target/cuda/libwarpray_cuda.so ] || sh cuda/build.sh
 PDACRT_KERNELS=${PDACRT_KERNELS:-brute_force|node_bounds|classify_children|emit_children|scatter_rays|scatter_triangles}
 PDACRT_LAUNCHES=${PDACRT_LAUNCHES:-14}
 PDACRT_MODELS=${PDACRT_MODELS:-bunny}
