@@ -1,19 +1,20 @@
-//! The GPU BVH's kernels (`cuda/bvh.cu`, one for one). Each takes a thread and plain
-//! `Copy` data; none allocates or launches. `mod.rs` launches them in the build's
+//! The GPU BVH's kernels (`cuda/bvh.cu`, one for one). Each takes a thread (the fit a
+//! block, whose climb it runs a level at a time) and plain `Copy` data; none allocates
+//! or launches. `mod.rs` launches them in the build's
 //! order.
 //!
 //! The arithmetic each lane does besides its loads, stores and atomics is declared with
 //! [`Thread::work`] in the weights at the bottom of this file, counted from the twin's
 //! SASS (`docs/measured/bvh-kernels-sm90.sass`; the test in `tests.rs` walks it).
 //!
-//! About 520 lines on purpose: the five kernels in their launch order, sharing the node
+//! About 590 lines on purpose: the five kernels in their launch order, sharing the node
 //! layout, and the weights of all five in one block that reads against the SASS listing.
 
 use crate::cast::flat::corners;
 use crate::geometry::hit_key::{self, BLOCKED, NONE};
 use crate::geometry::{Aabb, Ray, RayShear, cull_distance, inv_dir, triangle_test};
 use glam::Vec3;
-use simt::{DeviceCopy, Global, GlobalMut, Readable, Thread, Warp};
+use simt::{Block, DeviceCopy, Global, GlobalMut, Readable, Thread, Warp};
 
 /// Eight bytes stored as one vector (`STG.E.64`): two floats of a box.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -246,55 +247,92 @@ pub(crate) fn emit_node(
     }
 }
 
-/// `bvh::fit_boxes`: leaf `i` carries its box up the tree, writing it into its
-/// parent's slot; the first reference to reach a node stops there, the second unites
-/// both slots and goes on.
-pub(crate) fn fit_leaf(
-    t: &Thread,
+/// `bvh::fit_boxes` as one block runs it: each leaf carries its box up the tree, writing
+/// it into its parent's slot; the first reference to reach a node stops there, the
+/// second unites both slots and goes on.
+///
+/// One phase per level of the climb: every lane still climbing goes up one node before
+/// any goes up the next, as the lanes of a warp do in lockstep and the block's warps do
+/// side by side on a GPU. Which reference reaches a node first then follows the levels
+/// climbed, as on the GPU, where the lane from the deeper side arrives later and goes on;
+/// a thread running its whole climb before the next thread starts would instead hand
+/// every node to the later thread, and its warps would climb in fewer, fuller steps
+/// than the GPU's (docs/simt.md, "The GPU BVH's build").
+pub(crate) fn fit_boxes(
+    blk: &mut Block,
     leaf_boxes: &Global<Aabb>,
     leaf_parent: &Global<u32>,
     inner_parent: &Global<u32>,
     nodes: &GlobalMut<Node>,
     arrivals: &GlobalMut<u32>,
-    i: usize,
+    n: usize,
 ) {
-    let mut up = t.load(leaf_parent, i);
-    // The box's six words are issued back to back and waited for once (as are the
-    // parent's index and the sibling's box below: the SASS has them so).
-    let mut b = {
-        let _together = t.loads_together();
-        t.load(leaf_boxes, i)
-    };
-    t.work(0, 0, FIT_HEAD);
-    let mut level = 0;
-    while up != NO_PARENT {
-        let _level = t.unroll(level);
-        level += 1;
-        let (p, side) = ((up >> 1) as usize, (up & 1) as usize);
-        t.work(0, 0, FIT_STEP);
-        // Three 8-byte stores into the parent's slot (`Aabb box[2]` is 8-aligned at
-        // either side).
-        let v = [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z];
-        for k in 0..3 {
-            t.store_field(nodes, p, |n| pair_of(&n.boxes, 3 * side + k), Pair([v[2 * k], v[2 * k + 1]]));
-        }
-        t.thread_fence();
-        let first = t.atomic_add(arrivals, p, 1) == 0;
-        t.work(0, 0, FIT_ARRIVAL);
-        if first {
+    let up = blk.local(NO_PARENT);
+    let carried = blk.local(Aabb::EMPTY);
+    blk.for_each_thread(|t| {
+        let i = t.global_idx();
+        if i >= n {
             return;
         }
-        t.thread_fence();
-        let together = t.loads_together();
-        up = t.load(inner_parent, p);
-        // The sibling's slot, written by the reference that arrived first: six
-        // `volatile` single-float loads (past L1).
-        let f = |k: usize| t.load_field(nodes, p, |n| float_of(&n.boxes, 6 * (side ^ 1) + k));
-        let other = Aabb { min: Vec3::new(f(0), f(1), f(2)), max: Vec3::new(f(3), f(4), f(5)) };
-        drop(together);
-        b = b.union(other);
-        t.work(0, 0, FIT_UNION);
+        t.set(up, t.load(leaf_parent, i));
+        // The box's six words are issued back to back and waited for once (as are the
+        // parent's index and the sibling's box below: the SASS has them so).
+        let _together = t.loads_together();
+        t.set(carried, t.load(leaf_boxes, i));
+        t.work(0, 0, FIT_HEAD);
+    });
+    loop {
+        let mut climbing = false;
+        blk.for_each_thread(|t| {
+            let at = t.get(up);
+            if at == NO_PARENT {
+                return;
+            }
+            climbing = true;
+            let (next, b) = fit_level(t, inner_parent, nodes, arrivals, at, t.get(carried));
+            t.set(up, next);
+            t.set(carried, b);
+        });
+        if !climbing {
+            break;
+        }
     }
+}
+
+/// One level of a reference's climb from its box `b` into node `up >> 1`'s slot
+/// `up & 1`: returns where it goes next (`NO_PARENT`: it stops) and the box it carries.
+fn fit_level(
+    t: &Thread,
+    inner_parent: &Global<u32>,
+    nodes: &GlobalMut<Node>,
+    arrivals: &GlobalMut<u32>,
+    up: u32,
+    b: Aabb,
+) -> (u32, Aabb) {
+    let (p, side) = ((up >> 1) as usize, (up & 1) as usize);
+    t.work(0, 0, FIT_STEP);
+    // Three 8-byte stores into the parent's slot (`Aabb box[2]` is 8-aligned at either
+    // side).
+    let v = [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z];
+    for k in 0..3 {
+        t.store_field(nodes, p, |n| pair_of(&n.boxes, 3 * side + k), Pair([v[2 * k], v[2 * k + 1]]));
+    }
+    t.thread_fence();
+    let first = t.atomic_add(arrivals, p, 1) == 0;
+    t.work(0, 0, FIT_ARRIVAL);
+    if first {
+        return (NO_PARENT, b);
+    }
+    t.thread_fence();
+    let together = t.loads_together();
+    let next = t.load(inner_parent, p);
+    // The sibling's slot, written by the reference that arrived first: six `volatile`
+    // single-float loads (past L1).
+    let f = |k: usize| t.load_field(nodes, p, |n| float_of(&n.boxes, 6 * (side ^ 1) + k));
+    let other = Aabb { min: Vec3::new(f(0), f(1), f(2)), max: Vec3::new(f(3), f(4), f(5)) };
+    drop(together);
+    t.work(0, 0, FIT_UNION);
+    (next, b.union(other))
 }
 
 /// A built tree as the traversal reads it.

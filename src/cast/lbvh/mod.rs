@@ -9,7 +9,8 @@
 //! 3. `sort_codes`: a stable radix sort of the codes' 30 bits, carrying the ids;
 //! 4. `gather_triangles`: triangles in code order, and their boxes;
 //! 5. `emit_hierarchy`: one thread per inner node finds its range and split;
-//! 6. `fit_boxes`: one thread per leaf climbs, the second arrival at a node going on.
+//! 6. `fit_boxes`: one thread per leaf climbs, the second arrival at a node going on,
+//!    the whole block a level at a time (as the GPU's lanes and warps climb).
 //!
 //! Then `trace`: one thread per ray, nearer child first, closest hit as the smallest key
 //! (`geometry::hit_key`) or any hit. One triangle per leaf; the keys equal brute
@@ -110,7 +111,9 @@ impl Lbvh {
             let mut arrivals = dev.alloc_filled::<u32>(n - 1, 0);
             let (bv, lp, ip, nv, av) =
                 (leaf_boxes.view(), leaf_parent.view(), inner_parent.view(), nodes.view_mut(), arrivals.view_mut());
-            dev.for_each_in("bvh::fit_boxes", &["climb"], n, |t, i| fit_leaf(t, &bv, &lp, &ip, &nv, &av, i));
+            let cfg = LaunchConfig::linear(n, BLOCK).with_regions(&["climb"]);
+            let fit = dev.launch("bvh::fit_boxes", cfg, |blk| fit_boxes(blk, &bv, &lp, &ip, &nv, &av, n));
+            fit.expect("the fit's launch shape is valid");
         }
         (self.sorted, self.ids, self.nodes) = (sorted, ids, nodes);
     }
