@@ -9,7 +9,7 @@
 // The probes are deliberately unlike the checked kernels (PDACRT, CIS): the model is
 // calibrated on these only, then checked on those.
 //
-// About 810 lines on purpose: one probe per profile quantity, each with its launch, in
+// About 870 lines on purpose: one probe per profile quantity, each with its launch, in
 // one program that `cuda/microbench.sh` profiles in one pass.
 //
 //   nvcc -std=c++17 -O3 -arch=sm_90 -o target/cuda/microbench cuda/microbench.cu
@@ -20,6 +20,7 @@
 //   target/cuda/microbench hbm      HBM read at random, a sector at a time
 //   target/cuda/microbench stream   first touches in order: chases through fresh memory
 //   target/cuda/microbench icache   instruction fetch: straight-line and branchy code
+//   target/cuda/microbench l2size   load latency by the size of the data chased
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
@@ -685,6 +686,64 @@ static int icache_probes(int sms) {
     return 0;
 }
 
+// The L2-latency-by-size probes (`microbench l2size`): one thread chases a chain that
+// steps 33 words (a new 128-byte line each hop) over 8 KiB to 56 MiB with `cg` (past
+// L1), and 64 MiB to 1 GiB (past L2), timed with clock64 after two passes over the
+// lines, so what is timed is the latency of a hit in L2 (or of HBM past it) for
+// data of that size. Prints each size's cycles a hop, PROBE_LAUNCHES times, and for
+// sizes within L2 the nanoseconds a hop of the profile's `chase_l2` form (no clock read
+// in the loop), timed by CUDA events, to tell the form from the size.
+static int l2size_probes() {
+    const size_t max_words = (size_t)1 << 28;  // 1 GiB
+    uint32_t *buf, *out;
+    long long* cycles;
+    CHECK(cudaMalloc(&buf, max_words * 4));
+    CHECK(cudaMalloc(&out, 64));
+    CHECK(cudaMalloc(&cycles, 8 * PROBE_LAUNCHES));
+    const int hops = 20000;
+    const size_t sizes_kib[] = {8,     32,    128,   512,   1024,  2048,  4096,   8192,   16384,
+                                24576, 32768, 40960, 49152, 57344, 65536, 131072, 262144, 1048576};
+    for (size_t kib : sizes_kib) {
+        const size_t words = kib * 256;
+        auto v = chain(words, 33);
+        CHECK(cudaMemcpy(buf, v.data(), words * 4, cudaMemcpyHostToDevice));
+        // Two passes over the lines (2 words / 33 hops), at most 2M hops, warm the chain.
+        const int warm = (int)std::min<size_t>(2 * words / 33 + 64, (size_t)2 << 20);
+        const int timed = kib > (64u << 10) ? hops / 4 : hops;
+        for (int l = 0; l < PROBE_LAUNCHES; ++l) micro::chase_l2_cg<<<1, 1>>>(buf, warm, timed, cycles + l, out);
+        CHECK(cudaDeviceSynchronize());
+        std::vector<long long> c(PROBE_LAUNCHES);
+        CHECK(cudaMemcpy(c.data(), cycles, PROBE_LAUNCHES * 8, cudaMemcpyDeviceToHost));
+        for (int l = 0; l < PROBE_LAUNCHES; ++l)
+            printf("timed\tchase_cg\tkib\t%zu\tcycles_per_hop\t%.2f\n", kib, (double)c[l] / timed);
+        // The profile's own form (`chase_l2`: no clock in the loop), timed by events
+        // over 200,000 hops after a warm-up launch, for the sizes within L2.
+        if (kib <= (16u << 10)) {
+            const int many = 200000;
+            cudaEvent_t e0, e1;
+            CHECK(cudaEventCreate(&e0));
+            CHECK(cudaEventCreate(&e1));
+            micro::chase_l2<<<1, 1>>>(buf, many, out);
+            for (int l = 0; l < PROBE_LAUNCHES; ++l) {
+                CHECK(cudaEventRecord(e0));
+                micro::chase_l2<<<1, 1>>>(buf, many, out);
+                CHECK(cudaEventRecord(e1));
+                CHECK(cudaEventSynchronize(e1));
+                float ms = 0;
+                CHECK(cudaEventElapsedTime(&ms, e0, e1));
+                printf("timed\tchase_l2_events\tkib\t%zu\tns_per_hop\t%.2f\n", kib, ms * 1e6 / many);
+            }
+            cudaEventDestroy(e0);
+            cudaEventDestroy(e1);
+        }
+        fflush(stdout);
+    }
+    cudaFree(buf);
+    cudaFree(out);
+    cudaFree(cycles);
+    return 0;
+}
+
 int main(int argc, char** argv) {
     cudaDeviceProp p;
     CHECK(cudaGetDeviceProperties(&p, 0));
@@ -707,6 +766,10 @@ int main(int argc, char** argv) {
     if (argc > 1 && std::string(argv[1]) == "icache") {
         printf("device\tname\t%s\n", p.name);
         return icache_probes(p.multiProcessorCount);
+    }
+    if (argc > 1 && std::string(argv[1]) == "l2size") {
+        printf("device\tname\t%s\n", p.name);
+        return l2size_probes();
     }
     if (argc > 1 && std::string(argv[1]) == "rounds") {
         printf("device\tname\t%s\n", p.name);

@@ -18,6 +18,8 @@
 # MODE=icache runs the instruction-fetch probes alone: cycles per instruction of warps
 # sharing straight-line code of 4-256 KiB, and per piece of warps jumping about 16-2048
 # pieces of branchy code (lines `timed`; docs/simt.md, the megakernel's passes).
+# MODE=l2size runs the load-latency-by-data-size chases alone: one thread's chase over
+# 8 KiB to 1 GiB (lines `timed`, cycles a hop; docs/simt.md, "A default-cached chase").
 #
 # ncu runs with --clock-control none (the GPU's own clocks, as in cuda/check.sh) and its
 # default --cache-control all (caches flushed before each kernel), as the checked
