@@ -84,6 +84,7 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
                     seconds: k.seconds / n,
                     inst: k.inst / n,
                     dram_bytes: k.dram_bytes / n,
+                    dram_read_bytes: k.dram_read_bytes / n,
                     l2_sectors: k.l2_sectors / n,
                     loads: simt::Traffic {
                         requests: k.loads.requests / n as u64,
@@ -129,8 +130,10 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
 
     let hbm_latency = busy(&chase_hbm) / amount("chase_hbm")?;
     // The L2 chase's first pass misses (caches are flushed before each kernel): those
-    // hops are charged at the HBM latency.
-    let l2_misses = (chase_l2.dram_bytes / 32.0).min(amount("chase_l2")? - 1.0);
+    // hops, at most the sectors read from HBM, are charged at the HBM latency. The
+    // sectors written back meanwhile (lines other kernels left dirty) are no misses of
+    // the chase.
+    let l2_misses = (chase_l2.dram_read_bytes / 32.0).min(amount("chase_l2")? - 1.0);
     let l2_latency = (busy(&chase_l2) - l2_misses * hbm_latency) / (amount("chase_l2")? - l2_misses);
     // A fence's cost is a line in the sectors it waits for, `own + sectors * per_sector`,
     // through two probes' (sectors, seconds) per fence, the sectors from their store
@@ -152,7 +155,7 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         per_fence("fence_scattered_warp", &scattered_warp)?,
     )?;
     // The atomic chase runs over the L2 chase's 8 KiB, and its first pass misses alike.
-    let atomic_misses = (chase_atomic.dram_bytes / 32.0).min(amount("chase_atomic")? - 1.0);
+    let atomic_misses = (chase_atomic.dram_read_bytes / 32.0).min(amount("chase_atomic")? - 1.0);
     let atomic_latency =
         (busy(&chase_atomic) - atomic_misses * hbm_latency) / (amount("chase_atomic")? - atomic_misses);
     let profile = GpuProfile {
@@ -169,7 +172,7 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         l1_sectors_per_cycle_per_sm: l1.loads.sectors as f64 / (busy(&l1) * clock * sms),
         l2_bytes_per_s: l2.loads.sectors as f64 * 32.0 / busy(&l2),
         l2_scattered_bytes_per_s: l2_scatter.loads.sectors as f64 * 32.0 / busy(&l2_scatter),
-        hbm_bytes_per_s: hbm.dram_bytes / busy(&hbm),
+        hbm_bytes_per_s: hbm.dram_read_bytes / busy(&hbm),
         l2_latency_s: l2_latency,
         hbm_latency_s: hbm_latency,
         atomic_latency_s: atomic_latency,
@@ -248,7 +251,7 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
     let notes = vec![
         format!(
             "hbm_write: {:.0} GB/s written (dram__bytes_write / time)",
-            hbm_write.dram_bytes / busy(&hbm_write) / 1e9
+            (hbm_write.dram_bytes - hbm_write.dram_read_bytes) / busy(&hbm_write) / 1e9
         ),
         format!(
             "shared_rw: {:.2} warp instructions per SM cycle with shared loads and stores",

@@ -48,6 +48,9 @@ pub struct GpuKernel {
     pub seconds: f64,
     /// Bytes read from and written to device memory (HBM), summed.
     pub dram_bytes: f64,
+    /// Of those, the bytes read (a load's miss reads; a write-back of an evicted line
+    /// writes).
+    pub dram_read_bytes: f64,
     /// Sectors the L2 cache served (every source), summed.
     pub l2_sectors: f64,
     /// Registers per thread (the largest of any launch).
@@ -75,6 +78,7 @@ impl GpuKernel {
         self.shared_bytes = self.shared_bytes.max(o.shared_bytes);
         self.seconds += o.seconds;
         self.dram_bytes += o.dram_bytes;
+        self.dram_read_bytes += o.dram_read_bytes;
         self.l2_sectors += o.l2_sectors;
         self.registers = self.registers.max(o.registers);
         self.clock_hz_sum += o.clock_hz_sum;
@@ -228,6 +232,7 @@ pub fn parse_launches(text: &str) -> Result<Vec<GpuKernel>, String> {
                 as u64,
             seconds: get("gpu__time_duration.sum")?,
             dram_bytes: get("dram__bytes_read.sum")? + get("dram__bytes_write.sum")?,
+            dram_read_bytes: get("dram__bytes_read.sum")?,
             l2_sectors: get("lts__t_sectors.sum")?,
             registers: get("launch__registers_per_thread")? as u64,
             clock_hz_sum: get("sm__cycles_elapsed.avg.per_second")?,
