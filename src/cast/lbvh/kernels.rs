@@ -277,8 +277,11 @@ pub(crate) fn fit_boxes(
         t.set(up, t.load(leaf_parent, i));
         // The box's six words are issued back to back and waited for once (as are the
         // parent's index and the sibling's box below: the SASS has them so).
-        let _together = t.loads_together();
-        t.set(carried, t.load(leaf_boxes, i));
+        let b = {
+            let _together = t.loads_together();
+            t.load(leaf_boxes, i)
+        };
+        t.set(carried, b);
         t.work(0, 0, FIT_HEAD);
     });
     loop {
