@@ -83,8 +83,8 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
                 GpuKernel {
                     seconds: k.seconds / n,
                     inst: k.inst / n,
-                    dram_bytes: k.dram_bytes / n,
                     dram_read_bytes: k.dram_read_bytes / n,
+                    dram_write_bytes: k.dram_write_bytes / n,
                     l2_sectors: k.l2_sectors / n,
                     loads: simt::Traffic {
                         requests: k.loads.requests / n as u64,
@@ -251,7 +251,7 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
     let notes = vec![
         format!(
             "hbm_write: {:.0} GB/s written (dram__bytes_write / time)",
-            (hbm_write.dram_bytes - hbm_write.dram_read_bytes) / busy(&hbm_write) / 1e9
+            hbm_write.dram_write_bytes / busy(&hbm_write) / 1e9
         ),
         format!(
             "shared_rw: {:.2} warp instructions per SM cycle with shared loads and stores",

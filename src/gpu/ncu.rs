@@ -46,11 +46,10 @@ pub struct GpuKernel {
     pub shared_bytes: u64,
     /// GPU time, seconds.
     pub seconds: f64,
-    /// Bytes read from and written to device memory (HBM), summed.
-    pub dram_bytes: f64,
-    /// Of those, the bytes read (a load's miss reads; a write-back of an evicted line
-    /// writes).
+    /// Bytes read from device memory (HBM): a load's miss reads.
     pub dram_read_bytes: f64,
+    /// Bytes written to device memory: write-backs of evicted dirty lines.
+    pub dram_write_bytes: f64,
     /// Sectors the L2 cache served (every source), summed.
     pub l2_sectors: f64,
     /// Registers per thread (the largest of any launch).
@@ -61,6 +60,11 @@ pub struct GpuKernel {
 }
 
 impl GpuKernel {
+    /// Bytes read from and written to device memory (HBM).
+    pub fn dram_bytes(&self) -> f64 {
+        self.dram_read_bytes + self.dram_write_bytes
+    }
+
     /// Thread instructions over 32 × warp instructions.
     pub fn simd_efficiency(&self) -> Option<f64> {
         (self.inst > 0.0).then(|| self.thread_inst / (32.0 * self.inst))
@@ -77,8 +81,8 @@ impl GpuKernel {
         self.atomics.add(&o.atomics);
         self.shared_bytes = self.shared_bytes.max(o.shared_bytes);
         self.seconds += o.seconds;
-        self.dram_bytes += o.dram_bytes;
         self.dram_read_bytes += o.dram_read_bytes;
+        self.dram_write_bytes += o.dram_write_bytes;
         self.l2_sectors += o.l2_sectors;
         self.registers = self.registers.max(o.registers);
         self.clock_hz_sum += o.clock_hz_sum;
@@ -231,8 +235,8 @@ pub fn parse_launches(text: &str) -> Result<Vec<GpuKernel>, String> {
             shared_bytes: (get("launch__shared_mem_per_block_static")? + get("launch__shared_mem_per_block_dynamic")?)
                 as u64,
             seconds: get("gpu__time_duration.sum")?,
-            dram_bytes: get("dram__bytes_read.sum")? + get("dram__bytes_write.sum")?,
             dram_read_bytes: get("dram__bytes_read.sum")?,
+            dram_write_bytes: get("dram__bytes_write.sum")?,
             l2_sectors: get("lts__t_sectors.sum")?,
             registers: get("launch__registers_per_thread")? as u64,
             clock_hz_sum: get("sm__cycles_elapsed.avg.per_second")?,

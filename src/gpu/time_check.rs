@@ -75,7 +75,7 @@ pub fn kernel_times(records: &[LaunchRecord], gpu: &[GpuKernel], p: &GpuProfile)
                 predicted: terms.seconds,
                 measured: g.seconds,
                 terms,
-                hbm_bytes: (footprint, g.dram_bytes),
+                hbm_bytes: (footprint, g.dram_bytes()),
             })
         })
         .collect()
