@@ -9,7 +9,7 @@
 // The probes are deliberately unlike the checked kernels (PDACRT, CIS): the model is
 // calibrated on these only, then checked on those.
 //
-// About 870 lines on purpose: one probe per profile quantity, each with its launch, in
+// About 960 lines on purpose: one probe per profile quantity, each with its launch, in
 // one program that `cuda/microbench.sh` profiles in one pass.
 //
 //   nvcc -std=c++17 -O3 -arch=sm_90 -o target/cuda/microbench cuda/microbench.cu
@@ -17,6 +17,8 @@
 //   target/cuda/microbench fences   the atomic-latency and fence probes alone
 //   target/cuda/microbench rounds   rounds of loads issued together, alone
 //   target/cuda/microbench start    the start of a short kernel: stores, parameters, cold code
+//   target/cuda/microbench grid     a short kernel by its blocks (1 to 4 a SM)
+//   target/cuda/microbench scan     CUB's single-pass scan by its tiles (1 to 1,024)
 //   target/cuda/microbench hbm      HBM read at random, a sector at a time
 //   target/cuda/microbench stream   first touches in order: chases through fresh memory
 //   target/cuda/microbench icache   instruction fetch: straight-line and branchy code
@@ -26,6 +28,8 @@
 #include <cstdio>
 #include <string>
 #include <vector>
+
+#include <cub/device/device_scan.cuh>
 
 #define CHECK(x)                                                                        \
     do {                                                                                \
@@ -291,6 +295,12 @@ __global__ void round_full_1_wide(const uint32_t* a, int warm, int steps, long l
 // multiply-adds in straight-line code (N·16 bytes of instructions, each fetched once),
 // against `start_loop`: the same N in a loop of 64 (the loop's body fetched once).
 __global__ void start_store(uint32_t* a) { a[threadIdx.x] = threadIdx.x; }
+// The grid probes: a word stored, or read and stored, by every thread of a grid.
+__global__ void grid_store(uint32_t* a) { a[blockIdx.x * blockDim.x + threadIdx.x] = threadIdx.x; }
+__global__ void grid_copy(const uint32_t* __restrict__ b, uint32_t* a) {
+    const unsigned i = blockIdx.x * blockDim.x + threadIdx.x;
+    a[i] = b[i] + 1u;
+}
 __global__ void start_params(uint32_t* a, const uint32_t* p1, const uint32_t* p2, const uint32_t* p3,
                              const uint32_t* p4, const uint32_t* p5, const uint32_t* p6, const uint32_t* p7) {
     uintptr_t x = (uintptr_t)p1 ^ (uintptr_t)p2 ^ (uintptr_t)p3 ^ (uintptr_t)p4 ^ (uintptr_t)p5 ^ (uintptr_t)p6 ^
@@ -556,6 +566,82 @@ static int start_probes() {
     return 0;
 }
 
+// The grid probes (`microbench grid`): what a short kernel costs by the blocks it has,
+// from one block to four a SM: empty, a word stored a thread, a word read and stored.
+static int grid_probes(int sms) {
+    const int grids[] = {1, 2, 3, 4, 8, 16, 33, 66, 132, 264, 528};
+    const size_t words = (size_t)4 * sms * 256;
+    uint32_t *a, *b;
+    CHECK(cudaMalloc(&a, words * 4));
+    CHECK(cudaMalloc(&b, words * 4));
+    CHECK(cudaMemset(b, 0, words * 4));
+    for (int g : grids) {
+        const int blocks = g > 4 ? g * sms / 132 : g;
+        for (int r = 0; r < PROBE_LAUNCHES; ++r) {
+            micro::empty<<<blocks, 256>>>();
+            micro::grid_store<<<blocks, 256>>>(a);
+            micro::grid_copy<<<blocks, 256>>>(b, a);
+        }
+    }
+    CHECK(cudaDeviceSynchronize());
+    for (int g : grids) {
+        const int blocks = g > 4 ? g * sms / 132 : g;
+        for (const char* n : {"empty", "grid_store", "grid_copy"}) printf("probe\t%s\tblocks\t%d\n", n, blocks);
+    }
+    cudaFree(a);
+    cudaFree(b);
+    return 0;
+}
+
+// A three-word value summed word by word (as PDACRT scans three counts at once).
+struct Add3 {
+    __host__ __device__ uint3 operator()(const uint3& a, const uint3& b) const {
+        return make_uint3(a.x + b.x, a.y + b.y, a.z + b.z);
+    }
+};
+
+// The single-pass scan probes (`microbench scan`): CUB's DeviceScan, a library primitive
+// whose tiles learn their prefix by a decoupled look-back, over 1 to 1,024 tiles of one
+// and of three 4-byte words (nominal tiles of 1,920 and 640 elements; ncu's grid sizes
+// say how many tiles ran): what a scan launch costs by its tiles.
+static int scan_probes() {
+    const int tiles[] = {1, 2, 3, 4, 8, 16, 32, 64, 128, 256, 512, 1024};
+    const size_t max_n = (size_t)1024 * 1920;
+    uint32_t *in, *out;
+    uint3 *in3, *out3;
+    CHECK(cudaMalloc(&in, max_n * 4));
+    CHECK(cudaMalloc(&out, max_n * 4));
+    CHECK(cudaMalloc(&in3, max_n * 12));
+    CHECK(cudaMalloc(&out3, max_n * 12));
+    CHECK(cudaMemset(in, 1, max_n * 4));
+    CHECK(cudaMemset(in3, 1, max_n * 12));
+    size_t bytes = 0, bytes3 = 0;
+    CHECK(cub::DeviceScan::ExclusiveSum(nullptr, bytes, in, out, (int)max_n));
+    CHECK(cub::DeviceScan::ExclusiveScan(nullptr, bytes3, in3, out3, Add3(), make_uint3(0, 0, 0), (int)max_n));
+    const size_t most = std::max(bytes, bytes3);
+    void* temp;
+    CHECK(cudaMalloc(&temp, most));
+    for (int g : tiles) {
+        for (int r = 0; r < PROBE_LAUNCHES; ++r) {
+            size_t t = most;
+            CHECK(cub::DeviceScan::ExclusiveSum(temp, t, in, out, g * 1920));
+            t = most;
+            CHECK(cub::DeviceScan::ExclusiveScan(temp, t, in3, out3, Add3(), make_uint3(0, 0, 0), g * 640));
+        }
+    }
+    CHECK(cudaDeviceSynchronize());
+    for (int g : tiles) {
+        printf("probe\tscan_u32\telements\t%d\n", g * 1920);
+        printf("probe\tscan_u32x3\telements\t%d\n", g * 640);
+    }
+    cudaFree(temp);
+    cudaFree(in);
+    cudaFree(out);
+    cudaFree(in3);
+    cudaFree(out3);
+    return 0;
+}
+
 // The rounds probes (`microbench rounds`): what a round of loads issued together costs
 // one warp, by the loads and sectors in it, alone and with its SM full. Prints each
 // probe's steps and the cycles of its chase (clock64 of thread 0, after warm-up): the
@@ -762,6 +848,14 @@ int main(int argc, char** argv) {
     if (argc > 1 && std::string(argv[1]) == "start") {
         printf("device\tname\t%s\n", p.name);
         return start_probes();
+    }
+    if (argc > 1 && std::string(argv[1]) == "scan") {
+        printf("device\tname\t%s\n", p.name);
+        return scan_probes();
+    }
+    if (argc > 1 && std::string(argv[1]) == "grid") {
+        printf("device\tname\t%s\n", p.name);
+        return grid_probes(p.multiProcessorCount);
     }
     if (argc > 1 && std::string(argv[1]) == "icache") {
         printf("device\tname\t%s\n", p.name);

@@ -20,6 +20,10 @@
 # pieces of branchy code (lines `timed`; docs/simt.md, the megakernel's passes).
 # MODE=l2size runs the load-latency-by-data-size chases alone: one thread's chase over
 # 8 KiB to 1 GiB (lines `timed`, cycles a hop; docs/simt.md, "A default-cached chase").
+# MODE=scan runs CUB's single-pass scan over 1 to 1,024 tiles of one and of three words
+# (what a scan's look-back costs by its tiles; docs/simt.md, "The library primitives").
+# MODE=grid runs a short kernel (empty, a store, a load and a store a thread) by its
+# blocks, 1 to 4 a SM.
 #
 # ncu runs with --clock-control none (the GPU's own clocks, as in cuda/check.sh) and its
 # default --cache-control all (caches flushed before each kernel), as the checked
