@@ -1,4 +1,7 @@
 //! The device: configuration, memory accounting, kernel launches and statistics.
+//!
+//! About 520 lines on purpose: the launch paths (measured, unmeasured, in order) share
+//! the statistics and the serial-cost bookkeeping this file keeps private.
 
 use crate::exec::{Block, Thread, Worker};
 pub use crate::launch::{LaunchConfig, LaunchError, MAX_BLOCK_DIM};
@@ -219,6 +222,32 @@ impl Device {
     where
         K: Fn(&mut Block) + Sync,
     {
+        self.launch_blocks(name, cfg, false, kernel)
+    }
+
+    /// [`Device::launch`] with the blocks run one after another in index order, for a
+    /// single-pass kernel whose blocks read what earlier blocks published (a decoupled
+    /// look-back, as in CUB's scans and onesweep sort): every predecessor has finished,
+    /// where on a GPU a block may wait for one. Counted like any launch.
+    pub fn launch_in_order<K>(
+        &self,
+        name: &'static str,
+        cfg: LaunchConfig,
+        kernel: K,
+    ) -> Result<LaunchRecord, LaunchError>
+    where
+        K: Fn(&mut Block) + Sync,
+    {
+        self.launch_blocks(name, cfg, true, kernel)
+    }
+
+    fn launch_blocks<K: Fn(&mut Block) + Sync>(
+        &self,
+        name: &'static str,
+        cfg: LaunchConfig,
+        in_order: bool,
+        kernel: K,
+    ) -> Result<LaunchRecord, LaunchError> {
         if cfg.block == 0 || cfg.block > MAX_BLOCK_DIM {
             return Err(LaunchError::BlockSize { kernel: name, block: cfg.block });
         }
@@ -240,7 +269,7 @@ impl Device {
         let finish = |w: Worker| w.meter.into_inner().finish();
         let threads = cfg.grid as u64 * cfg.block as u64;
         let ((counters, race), seconds) = self.run_blocks(name, threads, |serial| {
-            if serial {
+            if serial || in_order {
                 finish((0..cfg.grid).fold(Worker::new(shared_words, predicting), run_block))
             } else {
                 (0..cfg.grid)
@@ -257,7 +286,7 @@ impl Device {
         if let Some(region) = (named..MAX_REGIONS).find(|&r| counters.issued[r] > 0) {
             return Err(LaunchError::UnnamedWork { kernel: name, region, named });
         }
-        Ok(self.record_launch(name, &cfg, seconds, measure, counters))
+        Ok(self.record_launch(name, &cfg, seconds, measure, in_order, counters))
     }
 
     /// `run(serial)`, serial when [`Device::runs_serially`] says so (then learning the
@@ -280,6 +309,7 @@ impl Device {
         cfg: &LaunchConfig,
         seconds: f64,
         measured: bool,
+        in_order: bool,
         mut counters: Counters,
     ) -> LaunchRecord {
         let (footprint, loaded_footprint) = if measured { counters.footprints() } else { (0, 0) };
@@ -308,6 +338,7 @@ impl Device {
             block_sectors: counters.block_sectors,
             longest_warp: counters.longest_warp,
             waits: counters.waits,
+            in_order,
         };
         self.add_record(&record);
         record
@@ -423,6 +454,7 @@ impl Device {
             block_sectors: 0,
             longest_warp: WarpChain::default(),
             waits: WarpChain::default(),
+            in_order: false,
         };
         self.add_record(&record);
         (r, record)

@@ -7,14 +7,16 @@ use crate::stats::{LaunchRecord, RegionStats};
 use std::fmt::Write;
 
 /// The columns of [`records_to_tsv`].
-const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors\tround_repeats\tloaded_footprint";
+const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors\tround_repeats\tloaded_footprint\tin_order";
 
-/// Columns of [`RECORD_HEADER`] that files written before them lack, newest first: the
-/// loaded footprint (read as the whole footprint), the sectors repeated within rounds
+/// Columns of [`RECORD_HEADER`] that files written before them lack, newest first:
+/// whether the blocks ran in order (read as not), the loaded footprint (read as the
+/// whole footprint), the sectors repeated within rounds
 /// of loads, the sectors fences waited for, the atomics
 /// and fences waited for (all read as none), and load rounds (read as one per load
 /// request).
 const LATER_COLUMNS: &[&str] = &[
+    "\tin_order",
     "\tloaded_footprint",
     "\tround_repeats",
     "\tlongest_fenced_sectors\tfenced_sectors",
@@ -33,7 +35,7 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
         let t = |x: &Traffic| format!("{}\t{}\t{}", x.requests, x.sectors, x.lanes);
         let _ = writeln!(
             s,
-            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
             r.name,
             r.grid,
             r.block,
@@ -61,7 +63,8 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
             r.longest_warp.fenced_sectors,
             r.waits.fenced_sectors,
             r.waits.round_repeats,
-            r.loaded_footprint_sectors
+            r.loaded_footprint_sectors,
+            r.in_order as u8
         );
     }
     s
@@ -134,6 +137,7 @@ pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
                 fenced_sectors: if columns.len() > 30 { n(31)? } else { 0 },
                 round_repeats: if columns.len() > 32 { n(32)? } else { 0 },
             },
+            in_order: columns.len() > 34 && n(34)? != 0,
         });
     }
     Ok(out)
@@ -195,6 +199,7 @@ mod tests {
                 fenced_sectors: 40,
                 round_repeats: 11,
             },
+            in_order: true,
         }
     }
 
@@ -204,14 +209,17 @@ mod tests {
         let back = &records_from_tsv(&text).unwrap()[0];
         assert_eq!((back.longest_warp, back.waits), (record().longest_warp, record().waits));
         assert_eq!((back.loads, back.atomics, back.block_sectors), (record().loads, record().atomics, 8));
-        assert_eq!((back.footprint_sectors, back.loaded_footprint_sectors), (9, 7));
-        // Cut the later columns off, newest first: the loaded footprint is then the
+        assert_eq!((back.footprint_sectors, back.loaded_footprint_sectors, back.in_order), (9, 7, true));
+        // Cut the later columns off, newest first: the launch is then not in order, the
+        // loaded footprint is then the
         // whole footprint, round repeats are none, then
         // fenced sectors, then atomics and fences, and then load rounds are one per load
         // request.
         let cut = |text: &str, columns: usize| -> String {
             text.lines().map(|l| l.split('\t').take(columns).collect::<Vec<_>>().join("\t") + "\n").collect()
         };
+        let before_order = &records_from_tsv(&cut(&text, 34)).unwrap()[0];
+        assert_eq!((before_order.in_order, before_order.loaded_footprint_sectors), (false, 7));
         let before_loaded = &records_from_tsv(&cut(&text, 33)).unwrap()[0];
         assert_eq!((before_loaded.loaded_footprint_sectors, before_loaded.waits), (9, record().waits));
         let before_repeats = &records_from_tsv(&cut(&text, 32)).unwrap()[0];

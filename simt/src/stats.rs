@@ -84,6 +84,9 @@ pub struct LaunchRecord {
     /// Every warp's chain summed: what the warps wait for one after another (load
     /// rounds, atomics whose value they use, fences). 0 when unmeasured.
     pub waits: WarpChain,
+    /// Whether the blocks ran in index order ([`crate::Device::launch_in_order`]): a
+    /// single-pass kernel whose blocks wait on the blocks before them.
+    pub in_order: bool,
 }
 
 impl LaunchRecord {

@@ -205,6 +205,6 @@ impl Device {
                     .reduce(Counters::default, Counters::merge)
             }
         });
-        self.record_launch(name, &cfg, seconds, true, counters)
+        self.record_launch(name, &cfg, seconds, true, false, counters)
     }
 }

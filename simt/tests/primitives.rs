@@ -1,6 +1,7 @@
 //! Every primitive against its sequential twin in `simt::seq`, at the sizes where tiled
 //! and warp-level code breaks (0, 1, 31, 32, 33, 1023, 1024, 1025, 2^17 + 3 and the tile
-//! edges), on random inputs; plus property tests on arbitrary inputs.
+//! edges: 2,048 for the tiled kernels, 1,920 for a scan of 4-byte values, 6,528 for a
+//! sort pass), on random inputs; plus property tests on arbitrary inputs.
 
 use proptest::prelude::*;
 use simt::{Device, DeviceConfig, seq};
@@ -10,7 +11,7 @@ fn devices() -> [Device; 2] {
     [false, true].map(|measure| Device::new(DeviceConfig { measure, ..Default::default() }))
 }
 
-const SIZES: [usize; 11] = [0, 1, 31, 32, 33, 1023, 1024, 1025, 2048, 2049, (1 << 17) + 3];
+const SIZES: [usize; 15] = [0, 1, 31, 32, 33, 1023, 1024, 1025, 1920, 1921, 2048, 2049, 6528, 6529, (1 << 17) + 3];
 
 /// Deterministic pseudo-random words (splitmix64).
 fn random(n: usize, seed: u64, modulus: u64) -> Vec<u32> {

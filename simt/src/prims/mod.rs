@@ -4,6 +4,7 @@
 //! backend (`native`) instead of the kernels, as Thrust's CPU backends do; their
 //! records are named `simt::<primitive> [cpu]`.
 
+mod look_back;
 pub(crate) mod native;
 pub mod queue;
 mod radix_key;

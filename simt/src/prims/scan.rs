@@ -1,10 +1,15 @@
-//! Scans and reductions over an associative operator with an identity, as kernels:
-//! each block scans a tile of [`TILE`] elements (striped loads into shared memory, a
-//! sequential scan per thread, a shuffle scan across lanes, a scan across warps), the
-//! block totals are scanned recursively, and a last kernel adds each block's offset.
+//! Scans and reductions over an associative operator with an identity, as kernels.
+//! A scan is one pass, as CUB's is: each block scans a tile of [`TILE`] elements
+//! (striped loads into shared memory, a sequential scan per thread, a shuffle scan
+//! across lanes, a scan across warps), learns the total of the tiles before it by a
+//! decoupled look-back ([`super::look_back`]) and writes its elements out; a small launch
+//! clears the tiles' status words first. A reduction reduces tiles, then the tiles'
+//! totals.
 
+use super::look_back::TileStatus;
 use super::{BLOCK, ITEMS, TILE};
 use crate::device::{Device, LaunchConfig};
+use crate::exec::Warp;
 use crate::memory::{DeviceBuffer, DeviceCopy};
 
 /// The identity map of the plain scans (a named function, so the recursion over
@@ -13,49 +18,73 @@ fn same<T>(x: T) -> T {
     x
 }
 
-/// Scans one tile per block. Writes the inclusive (or exclusive) scan of the tile into
-/// `output` and the tile's total into `block_totals`.
+/// Inclusive scan of the warp's 32 values (Hillis–Steele with `shfl_up`).
+pub(super) fn warp_inclusive_scan<T: Copy>(w: &Warp, v: &mut [T; 32], op: impl Fn(T, T) -> T) {
+    let mut d = 1;
+    while d < 32 {
+        let up = w.shfl_up(v, d);
+        for lane in d as usize..32 {
+            v[lane] = op(up[lane], v[lane]);
+        }
+        d *= 2;
+    }
+}
+
+/// Threads of a scan block and elements a thread scans: CUB's scan shape on sm_90, 128
+/// threads of 15 four-byte elements, fewer as the value is larger (its PDACRT scans of
+/// three-word counts run tiles of 128 × 5).
+fn scan_shape<T>() -> (u32, usize) {
+    (128, (60 / std::mem::size_of::<T>().max(1)).clamp(1, 15))
+}
+
+/// Scans `input` (mapped) into `output` in one launch, one tile per block; with `init`,
+/// exclusively, starting from it.
 fn scan_tiles<I, T, M, F>(
     dev: &Device,
     input: &DeviceBuffer<I>,
     map: M,
     output: &mut DeviceBuffer<T>,
+    init: Option<T>,
     identity: T,
     op: F,
-    exclusive: bool,
-) -> DeviceBuffer<T>
-where
+) where
     I: DeviceCopy,
     T: DeviceCopy,
     M: Fn(I) -> T + Sync + Copy,
     F: Fn(T, T) -> T + Sync + Copy,
 {
     let n = input.len();
-    let blocks = n.div_ceil(TILE);
-    let mut totals = dev.alloc_filled(blocks, identity);
-    let (inp, out, tot) = (input.view(), output.view_mut(), totals.view_mut());
-    let shared = (TILE + BLOCK as usize + 32) * std::mem::size_of::<T>();
-    let cfg = LaunchConfig { grid: blocks as u32, block: BLOCK, shared_bytes: shared, regions: &[], registers: 0 };
-    dev.launch("simt::scan_tiles", cfg, |blk| {
-        let base = blk.block_idx() as usize * TILE;
-        let valid = (n - base).min(TILE);
-        let tile = blk.shared::<T>(TILE);
-        let sums = blk.shared::<T>(BLOCK as usize);
+    let (threads, items) = scan_shape::<T>();
+    let tile_len = threads as usize * items;
+    let blocks = n.div_ceil(tile_len);
+    let exclusive = init.is_some();
+    let mut status = TileStatus::new(dev, blocks, 1, identity, Some("simt::scan_init"));
+    let (inp, out, status) = (input.view(), output.view_mut(), status.views());
+    let shared = (tile_len + threads as usize + 32 + 1) * std::mem::size_of::<T>();
+    let cfg = LaunchConfig { grid: blocks as u32, block: threads, shared_bytes: shared, regions: &[], registers: 0 };
+    dev.launch_in_order("simt::scan_tiles", cfg, |blk| {
+        let b = blk.block_idx() as usize;
+        let base = b * tile_len;
+        let valid = (n - base).min(tile_len);
+        let tile = blk.shared::<T>(tile_len);
+        let sums = blk.shared::<T>(threads as usize);
         let warp_sums = blk.shared::<T>(32);
-        // Coalesced striped loads into shared memory.
+        let block_prefix = blk.shared::<T>(1);
+        // Coalesced striped loads into shared memory, issued together (CUB's BlockLoad).
         blk.for_each_thread(|t| {
-            for k in 0..ITEMS {
-                let j = k * BLOCK as usize + t.thread_idx() as usize;
+            let _together = t.loads_together();
+            for k in 0..items {
+                let j = k * threads as usize + t.thread_idx() as usize;
                 let v = if j < valid { map(t.load(&inp, base + j)) } else { identity };
                 t.store_shared(tile, j, v);
             }
         });
         blk.sync_threads();
-        // Each thread scans its ITEMS consecutive elements (inclusive, in place).
+        // Each thread scans its `items` consecutive elements (inclusive, in place).
         blk.for_each_thread(|t| {
-            let start = t.thread_idx() as usize * ITEMS;
+            let start = t.thread_idx() as usize * items;
             let mut acc = identity;
-            for j in start..start + ITEMS {
+            for j in start..start + items {
                 acc = op(acc, t.load_shared(tile, j));
                 t.store_shared(tile, j, acc);
             }
@@ -67,14 +96,7 @@ where
             let first = w.warp_idx() as usize * 32;
             let mut v = [identity; 32];
             w.for_each_lane(|t| v[t.lane_id() as usize] = t.load_shared(sums, first + t.lane_id() as usize));
-            let mut d = 1;
-            while d < 32 {
-                let up = w.shfl_up(&v, d);
-                for lane in d as usize..32 {
-                    v[lane] = op(up[lane], v[lane]);
-                }
-                d *= 2;
-            }
+            warp_inclusive_scan(w, &mut v, op);
             w.for_each_lane(|t| {
                 t.store_shared(sums, first + t.lane_id() as usize, v[t.lane_id() as usize]);
                 if t.lane_id() == 31 {
@@ -83,7 +105,8 @@ where
             });
         });
         blk.sync_threads();
-        // Exclusive scan of the warp totals (8 values) by thread 0; block total out.
+        // Exclusive scan of the warp totals (one a warp) by thread 0, then its look-back
+        // for the total of the tiles before this one.
         let warps = blk.warp_count() as usize;
         blk.for_each_thread(|t| {
             if t.thread_idx() == 0 {
@@ -93,7 +116,8 @@ where
                     t.store_shared(warp_sums, w, acc);
                     acc = op(acc, s);
                 }
-                t.store(&tot, t.block_idx() as usize, acc);
+                let before = status.look_back(t, b, 0, acc, identity, op);
+                t.store_shared(block_prefix, 0, init.map_or(before, |f| op(f, before)));
             }
         });
         blk.sync_threads();
@@ -102,10 +126,10 @@ where
             let ti = t.thread_idx() as usize;
             let warp_prefix = t.load_shared(warp_sums, t.warp_id() as usize);
             let lane_prefix = if t.lane_id() == 0 { identity } else { t.load_shared(sums, ti - 1) };
-            let prefix = op(warp_prefix, lane_prefix);
-            let start = ti * ITEMS;
+            let prefix = op(t.load_shared(block_prefix, 0), op(warp_prefix, lane_prefix));
+            let start = ti * items;
             let mut prev = prefix;
-            for j in start..start + ITEMS {
+            for j in start..start + items {
                 let inc = op(prefix, t.load_shared(tile, j));
                 t.store_shared(tile, j, if exclusive { prev } else { inc });
                 prev = inc;
@@ -113,45 +137,10 @@ where
         });
         blk.sync_threads();
         blk.for_each_thread(|t| {
-            for k in 0..ITEMS {
-                let j = k * BLOCK as usize + t.thread_idx() as usize;
+            for k in 0..items {
+                let j = k * threads as usize + t.thread_idx() as usize;
                 if j < valid {
                     t.store(&out, base + j, t.load_shared(tile, j));
-                }
-            }
-        });
-    })
-    .expect("scan launch shape is valid");
-    totals
-}
-
-/// Combines block `b`'s elements with the scanned totals of blocks before it.
-fn add_block_offsets<T, F>(
-    dev: &Device,
-    output: &mut DeviceBuffer<T>,
-    scanned_totals: &DeviceBuffer<T>,
-    first: Option<T>,
-    op: F,
-) where
-    T: DeviceCopy,
-    F: Fn(T, T) -> T + Sync + Copy,
-{
-    let n = output.len();
-    let (out, tot) = (output.view_mut(), scanned_totals.view());
-    let cfg = LaunchConfig { grid: n.div_ceil(TILE) as u32, block: BLOCK, shared_bytes: 0, regions: &[], registers: 0 };
-    dev.launch("simt::scan_add_offsets", cfg, |blk| {
-        let b = blk.block_idx() as usize;
-        blk.for_each_thread(|t| {
-            let offset = match (b, first) {
-                (0, None) => return,
-                (0, Some(f)) => f,
-                (_, None) => t.load(&tot, b - 1),
-                (_, Some(f)) => op(f, t.load(&tot, b - 1)),
-            };
-            for k in 0..ITEMS {
-                let i = b * TILE + k * BLOCK as usize + t.thread_idx() as usize;
-                if i < n {
-                    t.store(&out, i, op(offset, t.load(&out, i)));
                 }
             }
         });
@@ -182,15 +171,7 @@ fn scan<I, T, M, F>(
             super::native::scan(input.as_slice(), map, output.as_mut_slice(), init, identity, op)
         });
     }
-    let exclusive = init.is_some();
-    let mut totals = scan_tiles(dev, input, map, output, identity, op, exclusive);
-    if totals.len() > 1 || exclusive {
-        let copy = dev.alloc_from(totals.as_slice());
-        if totals.len() > 1 {
-            scan(dev, &copy, same, &mut totals, None, identity, op);
-        }
-        add_block_offsets(dev, output, &totals, init, op);
-    }
+    scan_tiles(dev, input, map, output, init, identity, op);
 }
 
 /// `output[i] = input[0] ⊕ … ⊕ input[i]`. `identity` must be neutral for `op`
@@ -318,7 +299,9 @@ where
             let mut v = [identity; 32];
             w.for_each_lane(|t| {
                 // Each thread folds ITEMS consecutive elements (a blocked arrangement keeps
-                // operand order, so `op` need not commute).
+                // operand order, so `op` need not commute), loaded together as CUB's
+                // unrolled tile loads are.
+                let _together = t.loads_together();
                 let mut acc = identity;
                 for k in 0..ITEMS {
                     let i = base + t.thread_idx() as usize * ITEMS + k;

@@ -1,20 +1,31 @@
-//! Stable LSD radix sort by key, 8 bits a pass, as kernels: a per-block digit histogram,
-//! an exclusive scan of the digit-major count table, and a stable scatter in which each
-//! warp ranks its lanes by digit with ballots (the `match_any` idiom) and the block's
-//! warps are ordered by a per-digit scan in shared memory.
+//! Stable LSD radix sort by key, 8 bits a pass, as CUB's onesweep sort runs it (Adinets
+//! and Merrill, "Onesweep: A Faster Least Significant Digit Radix Sort for GPUs", 2022):
+//! one launch counts every pass's digits, one scans the counts of each pass, and each
+//! pass is one launch that ranks a tile's keys by digit, learns how many keys of each
+//! digit the tiles before it hold by a decoupled look-back ([`super::look_back`], one
+//! per digit), and scatters the tile. Ranking is stable: each warp ranks its lanes by
+//! digit with ballots (the `match_any` idiom) and the block's warps are ordered by a
+//! per-digit scan in shared memory.
 //!
 //! Keys that carry a segment id in their high bits sort segment by segment, which is
 //! how PDACRT runs a segmented sort; [`sort_by_key_bits`] limits the passes to the bits
 //! in use.
 
+use super::look_back::TileStatus;
 pub use super::radix_key::RadixKey;
+use super::scan::warp_inclusive_scan;
 use super::{BLOCK, ITEMS, TILE};
 use crate::device::{Device, LaunchConfig};
 use crate::memory::{DeviceBuffer, DeviceCopy};
-use crate::prims::scan::exclusive_scan;
 
 const RADIX: usize = 256;
-const WARPS: usize = BLOCK as usize / 32;
+/// Threads of a onesweep block and keys a thread ranks: CUB's onesweep shape on sm_90
+/// for 4-byte keys (its launches in the GPU BVH's builds: 384 threads, 6,528 keys a
+/// tile), so the emulated passes have the GPU's tiles.
+const SWEEP_THREADS: u32 = 384;
+const SWEEP_ITEMS: usize = 17;
+const SWEEP_TILE: usize = SWEEP_THREADS as usize * SWEEP_ITEMS;
+const SWEEP_WARPS: usize = SWEEP_THREADS as usize / 32;
 
 /// Sorts `keys` ascending, moving `values` with them; equal keys keep their order.
 ///
@@ -53,87 +64,162 @@ pub fn sort_by_key_bits<K: RadixKey, V: DeviceCopy>(
             })
         });
     }
+    let passes: Vec<(u32, u32)> =
+        (begin_bit..end_bit).step_by(8).map(|shift| (shift, (end_bit - shift).min(8))).collect();
+    let offsets = digit_offsets(dev, keys, &passes);
     let mut keys_tmp = dev.alloc_vec(keys.as_slice().to_vec());
     let mut vals_tmp = dev.alloc_vec(values.as_slice().to_vec());
-    let mut shift = begin_bit;
-    while shift < end_bit {
-        let width = (end_bit - shift).min(8);
-        radix_pass(dev, keys, values, &mut keys_tmp, &mut vals_tmp, shift, width);
+    for (p, &(shift, width)) in passes.iter().enumerate() {
+        onesweep_pass(dev, keys, values, &mut keys_tmp, &mut vals_tmp, &offsets, p, shift, width);
         std::mem::swap(keys, &mut keys_tmp);
         std::mem::swap(values, &mut vals_tmp);
-        shift += width;
     }
 }
 
-fn radix_pass<K: RadixKey, V: DeviceCopy>(
-    dev: &Device,
-    keys_in: &DeviceBuffer<K>,
-    vals_in: &DeviceBuffer<V>,
-    keys_out: &mut DeviceBuffer<K>,
-    vals_out: &mut DeviceBuffer<V>,
-    shift: u32,
-    width: u32,
-) {
-    let n = keys_in.len();
-    let grid = n.div_ceil(TILE);
-    let mut counts = dev.alloc::<u32>(grid * RADIX);
+/// Where each digit's keys start in each pass's output: every pass's digit counts in
+/// one launch (CUB's histogram kernel), then an exclusive scan of each pass's counts,
+/// one block a pass (CUB's exclusive-sum kernel). `RADIX` values a pass.
+fn digit_offsets<K: RadixKey>(dev: &Device, keys: &DeviceBuffer<K>, passes: &[(u32, u32)]) -> DeviceBuffer<u32> {
+    let n = keys.len();
+    let mut counts = dev.alloc::<u32>(passes.len() * RADIX);
     {
-        let (kin, cnt) = (keys_in.view(), counts.view_mut());
-        let cfg = LaunchConfig { grid: grid as u32, block: BLOCK, shared_bytes: RADIX * 4, regions: &[], registers: 0 };
+        let (kin, cnt) = (keys.view(), counts.view_mut());
+        let shared = passes.len() * RADIX * 4;
+        let cfg = LaunchConfig {
+            grid: n.div_ceil(TILE) as u32,
+            block: BLOCK,
+            shared_bytes: shared,
+            regions: &[],
+            registers: 0,
+        };
         dev.launch("simt::radix_histogram", cfg, |blk| {
             let base = blk.block_idx() as usize * TILE;
-            let hist = blk.shared::<u32>(RADIX);
+            let hist = blk.shared::<u32>(passes.len() * RADIX);
             blk.for_each_thread(|t| {
-                for k in 0..ITEMS {
-                    let i = base + k * BLOCK as usize + t.thread_idx() as usize;
-                    if i < n {
-                        let d = t.load(&kin, i).digit(shift, width);
-                        t.atomic_add_shared(hist, d as usize, 1);
+                let mut mine = [K::default(); ITEMS];
+                {
+                    let _together = t.loads_together();
+                    for (k, key) in mine.iter_mut().enumerate() {
+                        let i = base + k * BLOCK as usize + t.thread_idx() as usize;
+                        if i < n {
+                            *key = t.load(&kin, i);
+                        }
+                    }
+                }
+                for (k, key) in mine.iter().enumerate() {
+                    if base + k * BLOCK as usize + (t.thread_idx() as usize) < n {
+                        for (p, &(shift, width)) in passes.iter().enumerate() {
+                            t.atomic_add_shared(hist, p * RADIX + key.digit(shift, width) as usize, 1);
+                        }
                     }
                 }
             });
             blk.sync_threads();
             blk.for_each_thread(|t| {
                 let d = t.thread_idx() as usize;
-                t.store(&cnt, d * grid + t.block_idx() as usize, t.load_shared(hist, d));
+                for p in 0..passes.len() {
+                    let c = t.load_shared(hist, p * RADIX + d);
+                    if c > 0 {
+                        t.atomic_add(&cnt, p * RADIX + d, c);
+                    }
+                }
             });
         })
         .expect("radix launch shape is valid");
     }
-    let mut offsets = dev.alloc::<u32>(grid * RADIX);
-    exclusive_scan(dev, &counts, &mut offsets, 0, 0, |a, b| a + b);
-    drop(counts);
-
-    let (kin, vin, offs) = (keys_in.view(), vals_in.view(), offsets.view());
-    let (kout, vout) = (keys_out.view_mut(), vals_out.view_mut());
-    let shared = (RADIX + 2 * WARPS * RADIX) * 4;
-    let cfg = LaunchConfig { grid: grid as u32, block: BLOCK, shared_bytes: shared, regions: &[], registers: 0 };
-    dev.launch("simt::radix_scatter", cfg, |blk| {
-        let b = blk.block_idx() as usize;
-        let base = b * TILE;
-        let run = blk.shared::<u32>(RADIX);
-        let warp_cnt = blk.shared::<u32>(WARPS * RADIX);
-        let warp_base = blk.shared::<u32>(WARPS * RADIX);
-        let r_digit = blk.local::<u32>(0);
-        let r_rank = blk.local::<u32>(0);
-        let r_valid = blk.local::<u32>(0);
-        blk.for_each_thread(|t| {
-            let d = t.thread_idx() as usize;
-            t.store_shared(run, d, t.load(&offs, d * grid + b));
+    let mut offsets = dev.alloc::<u32>(passes.len() * RADIX);
+    let (cnt, offs) = (counts.view(), offsets.view_mut());
+    let cfg = LaunchConfig {
+        grid: passes.len() as u32,
+        block: RADIX as u32,
+        shared_bytes: 32 * 4,
+        regions: &[],
+        registers: 0,
+    };
+    dev.launch("simt::radix_exclusive_sum", cfg, |blk| {
+        let p = blk.block_idx() as usize;
+        let warp_sums = blk.shared::<u32>(32);
+        let r_inclusive = blk.local::<u32>(0);
+        blk.for_each_warp(|w| {
+            let first = p * RADIX + w.warp_idx() as usize * 32;
+            let mut v = [0u32; 32];
+            w.for_each_lane(|t| v[t.lane_id() as usize] = t.load(&cnt, first + t.lane_id() as usize));
+            warp_inclusive_scan(w, &mut v, |a, b| a + b);
+            w.for_each_lane(|t| {
+                t.set(r_inclusive, v[t.lane_id() as usize]);
+                if t.lane_id() == 31 {
+                    t.store_shared(warp_sums, t.warp_id() as usize, v[31]);
+                }
+            });
         });
         blk.sync_threads();
-        // Rounds of BLOCK elements, in index order, keep the scatter stable.
-        for k in 0..ITEMS {
-            let round = base + k * BLOCK as usize;
+        blk.for_each_thread(|t| {
+            let d = t.thread_idx() as usize;
+            let before: u32 = (0..t.warp_id() as usize).map(|w| t.load_shared(warp_sums, w)).sum();
+            let own = t.load(&cnt, p * RADIX + d);
+            t.store(&offs, p * RADIX + d, before + t.get(r_inclusive) - own);
+        });
+    })
+    .expect("radix launch shape is valid");
+    offsets
+}
+
+/// One pass of the sort on digit `shift..shift + width` (pass `pass` of `offsets`).
+#[allow(clippy::too_many_arguments)]
+fn onesweep_pass<K: RadixKey, V: DeviceCopy>(
+    dev: &Device,
+    keys_in: &DeviceBuffer<K>,
+    vals_in: &DeviceBuffer<V>,
+    keys_out: &mut DeviceBuffer<K>,
+    vals_out: &mut DeviceBuffer<V>,
+    offsets: &DeviceBuffer<u32>,
+    pass: usize,
+    shift: u32,
+    width: u32,
+) {
+    let n = keys_in.len();
+    let grid = n.div_ceil(SWEEP_TILE);
+    let mut status = TileStatus::new(dev, grid, RADIX, 0u32, None);
+    let status = status.views();
+    let (kin, vin, offs) = (keys_in.view(), vals_in.view(), offsets.view());
+    let (kout, vout) = (keys_out.view_mut(), vals_out.view_mut());
+    let shared = (2 * RADIX + 2 * SWEEP_WARPS * RADIX) * 4;
+    let cfg =
+        LaunchConfig { grid: grid as u32, block: SWEEP_THREADS, shared_bytes: shared, regions: &[], registers: 0 };
+    dev.launch_in_order("simt::radix_onesweep", cfg, |blk| {
+        let b = blk.block_idx() as usize;
+        let base = b * SWEEP_TILE;
+        let run = blk.shared::<u32>(RADIX);
+        let start = blk.shared::<u32>(RADIX);
+        let warp_cnt = blk.shared::<u32>(SWEEP_WARPS * RADIX);
+        let warp_base = blk.shared::<u32>(SWEEP_WARPS * RADIX);
+        let r_keys = blk.local::<[K; SWEEP_ITEMS]>([K::default(); SWEEP_ITEMS]);
+        let r_ranks = blk.local::<[u32; SWEEP_ITEMS]>([0; SWEEP_ITEMS]);
+        // The tile's keys, striped, into registers.
+        blk.for_each_thread(|t| {
+            let _together = t.loads_together();
+            let mut mine = [K::default(); SWEEP_ITEMS];
+            for (k, key) in mine.iter_mut().enumerate() {
+                let i = base + k * SWEEP_THREADS as usize + t.thread_idx() as usize;
+                if i < n {
+                    *key = t.load(&kin, i);
+                }
+            }
+            t.set(r_keys, mine);
+        });
+        // Rank the tile's keys by digit, a round of SWEEP_THREADS keys at a time, in index order
+        // (stable); `run` counts each digit's keys in the rounds before.
+        for k in 0..SWEEP_ITEMS {
+            let round = base + k * SWEEP_THREADS as usize;
             blk.for_each_warp(|w| {
                 let first = round + w.warp_idx() as usize * 32;
                 let mut digit = [0u32; 32];
                 let mut valid = [false; 32];
                 w.for_each_lane(|t| {
-                    let i = first + t.lane_id() as usize;
-                    if i < n {
-                        digit[t.lane_id() as usize] = t.load(&kin, i).digit(shift, width);
-                        valid[t.lane_id() as usize] = true;
+                    let l = t.lane_id() as usize;
+                    if first + l < n {
+                        digit[l] = t.get(r_keys)[k].digit(shift, width);
+                        valid[l] = true;
                     }
                 });
                 // Lanes with the same digit ("peers"), from one ballot per digit bit.
@@ -147,13 +233,13 @@ fn radix_pass<K: RadixKey, V: DeviceCopy>(
                 }
                 w.for_each_lane(|t| {
                     let l = t.lane_id() as usize;
-                    t.set(r_valid, valid[l] as u32);
                     if !valid[l] {
                         return;
                     }
                     let below = peers[l] & ((1u32 << l) - 1);
-                    t.set(r_digit, digit[l]);
-                    t.set(r_rank, below.count_ones());
+                    let mut ranks = t.get(r_ranks);
+                    ranks[k] = below.count_ones();
+                    t.set(r_ranks, ranks);
                     if below == 0 {
                         // The lowest lane of each digit reports the warp's count.
                         t.store_shared(
@@ -168,8 +254,11 @@ fn radix_pass<K: RadixKey, V: DeviceCopy>(
             // Thread d orders the warps' counts of digit d.
             blk.for_each_thread(|t| {
                 let d = t.thread_idx() as usize;
+                if d >= RADIX {
+                    return;
+                }
                 let mut acc = t.load_shared(run, d);
-                for w in 0..WARPS {
+                for w in 0..SWEEP_WARPS {
                     let c = t.load_shared(warp_cnt, w * RADIX + d);
                     t.store_shared(warp_base, w * RADIX + d, acc);
                     t.store_shared(warp_cnt, w * RADIX + d, 0);
@@ -178,18 +267,48 @@ fn radix_pass<K: RadixKey, V: DeviceCopy>(
                 t.store_shared(run, d, acc);
             });
             blk.sync_threads();
+            // Each key's rank among the tile's keys of its digit.
             blk.for_each_thread(|t| {
-                if t.get(r_valid) == 0 {
-                    return;
+                if round + (t.thread_idx() as usize) < n {
+                    let d = t.get(r_keys)[k].digit(shift, width) as usize;
+                    let mut ranks = t.get(r_ranks);
+                    ranks[k] += t.load_shared(warp_base, t.warp_id() as usize * RADIX + d);
+                    t.set(r_ranks, ranks);
                 }
-                let i = round + t.thread_idx() as usize;
-                let d = t.get(r_digit) as usize;
-                let pos = (t.load_shared(warp_base, t.warp_id() as usize * RADIX + d) + t.get(r_rank)) as usize;
-                t.store(&kout, pos, t.load(&kin, i));
-                t.store(&vout, pos, t.load(&vin, i));
             });
             blk.sync_threads();
         }
+        // Thread d's look-back: the keys of digit d in the tiles before this one.
+        blk.for_each_thread(|t| {
+            let d = t.thread_idx() as usize;
+            if d >= RADIX {
+                return;
+            }
+            let before = status.look_back(t, b, d, t.load_shared(run, d), 0, |a, c| a + c);
+            t.store_shared(start, d, t.load(&offs, pass * RADIX + d) + before);
+        });
+        blk.sync_threads();
+        blk.for_each_thread(|t| {
+            let (mine, ranks) = (t.get(r_keys), t.get(r_ranks));
+            let mut vals = [None; SWEEP_ITEMS];
+            {
+                let _together = t.loads_together();
+                for (k, v) in vals.iter_mut().enumerate() {
+                    let i = base + k * SWEEP_THREADS as usize + t.thread_idx() as usize;
+                    if i < n {
+                        *v = Some(t.load(&vin, i));
+                    }
+                }
+            }
+            for (k, v) in vals.into_iter().enumerate() {
+                if let Some(v) = v {
+                    let d = mine[k].digit(shift, width) as usize;
+                    let pos = (t.load_shared(start, d) + ranks[k]) as usize;
+                    t.store(&kout, pos, mine[k]);
+                    t.store(&vout, pos, v);
+                }
+            }
+        });
     })
     .expect("radix launch shape is valid");
 }

@@ -32,6 +32,7 @@ fn launch(grid: u32, issued: u64, loads: u64, sectors: u64, footprint: u64) -> L
         block_sectors: sectors,
         longest_warp: WarpChain { instructions: issued, load_rounds: loads, ..WarpChain::default() },
         waits: WarpChain { instructions: warps * issued, load_rounds: warps * loads, ..WarpChain::default() },
+        in_order: false,
     }
 }
 
