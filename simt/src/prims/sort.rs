@@ -120,7 +120,8 @@ fn digit_offsets<K: RadixKey>(dev: &Device, keys: &DeviceBuffer<K>, passes: &[(u
                 for p in 0..passes.len() {
                     let c = t.load_shared(hist, p * RADIX + d);
                     if c > 0 {
-                        t.atomic_add(&cnt, p * RADIX + d, c);
+                        // The old value is not used: a `RED`, not waited for.
+                        t.red_add(&cnt, p * RADIX + d, c);
                     }
                 }
             });
