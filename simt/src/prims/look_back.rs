@@ -10,7 +10,7 @@
 //! [`Device::launch_in_order`], so the walk always finds the tile just before
 //! finished: one read, the GPU's shortest look-back.
 
-use crate::device::{Device, LaunchConfig};
+use crate::device::Device;
 use crate::exec::Thread;
 use crate::memory::{DeviceBuffer, DeviceCopy, GlobalMut};
 
@@ -46,14 +46,7 @@ impl<T: DeviceCopy> TileStatus<T> {
         if let Some(name) = init {
             let n = flags.len();
             let f = flags.view_mut();
-            dev.launch(name, LaunchConfig::linear(n, super::BLOCK), |blk| {
-                blk.for_each_thread(|t| {
-                    if t.global_idx() < n {
-                        t.store(&f, t.global_idx(), NOT_READY);
-                    }
-                })
-            })
-            .expect("status launch shape is valid");
+            dev.for_each(name, n, |t, i| t.store(&f, i, NOT_READY));
         }
         TileStatus { flags, values: dev.alloc_filled(tiles * slots, identity), slots }
     }

@@ -1,6 +1,6 @@
 //! Scans and reductions over an associative operator with an identity, as kernels.
-//! A scan is one pass, as CUB's is: each block scans a tile of [`TILE`] elements
-//! (striped loads into shared memory, a sequential scan per thread, a shuffle scan
+//! A scan is one pass, as CUB's is: each block scans a tile in CUB's shape (striped
+//! loads into shared memory, a sequential scan per thread, a shuffle scan
 //! across lanes, a scan across warps), learns the total of the tiles before it by a
 //! decoupled look-back ([`super::look_back`]) and writes its elements out; a small launch
 //! clears the tiles' status words first. A reduction reduces tiles, then the tiles'

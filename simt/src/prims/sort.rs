@@ -140,14 +140,16 @@ fn digit_offsets<K: RadixKey>(dev: &Device, keys: &DeviceBuffer<K>, passes: &[(u
     dev.launch("simt::radix_exclusive_sum", cfg, |blk| {
         let p = blk.block_idx() as usize;
         let warp_sums = blk.shared::<u32>(32);
-        let r_inclusive = blk.local::<u32>(0);
+        let r_exclusive = blk.local::<u32>(0);
         blk.for_each_warp(|w| {
             let first = p * RADIX + w.warp_idx() as usize * 32;
             let mut v = [0u32; 32];
             w.for_each_lane(|t| v[t.lane_id() as usize] = t.load(&cnt, first + t.lane_id() as usize));
+            let own = v;
             warp_inclusive_scan(w, &mut v, |a, b| a + b);
             w.for_each_lane(|t| {
-                t.set(r_inclusive, v[t.lane_id() as usize]);
+                let l = t.lane_id() as usize;
+                t.set(r_exclusive, v[l] - own[l]);
                 if t.lane_id() == 31 {
                     t.store_shared(warp_sums, t.warp_id() as usize, v[31]);
                 }
@@ -157,8 +159,7 @@ fn digit_offsets<K: RadixKey>(dev: &Device, keys: &DeviceBuffer<K>, passes: &[(u
         blk.for_each_thread(|t| {
             let d = t.thread_idx() as usize;
             let before: u32 = (0..t.warp_id() as usize).map(|w| t.load_shared(warp_sums, w)).sum();
-            let own = t.load(&cnt, p * RADIX + d);
-            t.store(&offs, p * RADIX + d, before + t.get(r_inclusive) - own);
+            t.store(&offs, p * RADIX + d, before + t.get(r_exclusive));
         });
     })
     .expect("radix launch shape is valid");
