@@ -1,6 +1,6 @@
 //! The device: configuration, memory accounting, kernel launches and statistics.
 //!
-//! About 520 lines on purpose: the launch paths (measured, unmeasured, in order) share
+//! About 540 lines on purpose: the launch paths (measured, unmeasured, in order) share
 //! the statistics and the serial-cost bookkeeping this file keeps private.
 
 use crate::exec::{Block, Thread, Worker};
@@ -12,7 +12,7 @@ use crate::stats::{KernelSummary, LaunchRecord, RegionStats, Stats};
 use crate::timing::{GpuProfile, predict};
 use rayon::prelude::*;
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -225,10 +225,11 @@ impl Device {
         self.launch_blocks(name, cfg, false, kernel)
     }
 
-    /// [`Device::launch`] with the blocks run one after another in index order, for a
-    /// single-pass kernel whose blocks read what earlier blocks published (a decoupled
-    /// look-back, as in CUB's scans and onesweep sort): every predecessor has finished,
-    /// where on a GPU a block may wait for one. Counted like any launch.
+    /// [`Device::launch`] with the blocks started in index order, for a single-pass
+    /// kernel whose blocks wait for what earlier blocks publish (a decoupled look-back,
+    /// as in CUB's scans and onesweep sort): a block is taken only after every block
+    /// before it, so a wait always ends. Counted like any launch. A block must not wait
+    /// for rayon work of its own (its worker would stop taking blocks).
     pub fn launch_in_order<K>(
         &self,
         name: &'static str,
@@ -269,8 +270,26 @@ impl Device {
         let finish = |w: Worker| w.meter.into_inner().finish();
         let threads = cfg.grid as u64 * cfg.block as u64;
         let ((counters, race), seconds) = self.run_blocks(name, threads, |serial| {
-            if serial || in_order {
+            if serial {
                 finish((0..cfg.grid).fold(Worker::new(shared_words, predicting), run_block))
+            } else if in_order {
+                // Workers take blocks in index order from one counter, so every block a
+                // block may wait for has been taken by a running worker.
+                let next = AtomicU32::new(0);
+                let workers = rayon::current_num_threads().min(cfg.grid as usize);
+                (0..workers)
+                    .into_par_iter()
+                    .map(|_| {
+                        let mut w = Worker::new(shared_words, predicting);
+                        loop {
+                            let b = next.fetch_add(1, Relaxed);
+                            if b >= cfg.grid {
+                                break finish(w);
+                            }
+                            w = run_block(w, b);
+                        }
+                    })
+                    .reduce(|| (Counters::default(), None), |(a, ra), (b, rb)| (a.merge(b), first_race(ra, rb)))
             } else {
                 (0..cfg.grid)
                     .into_par_iter()

@@ -1,7 +1,7 @@
 //! Every primitive against its sequential twin in `simt::seq`, at the sizes where tiled
 //! and warp-level code breaks (0, 1, 31, 32, 33, 1023, 1024, 1025, 2^17 + 3 and the tile
-//! edges: 2,048 for the tiled kernels, 1,920 for a scan of 4-byte values, 6,528 for a
-//! sort pass), on random inputs; plus property tests on arbitrary inputs.
+//! edges: 2,048 for the tiled kernels, 3,072 for a scan of 4-byte values, 5,760 for a
+//! selection of them, 6,528 for a sort pass), on random inputs; plus property tests on arbitrary inputs.
 
 use proptest::prelude::*;
 use simt::{Device, DeviceConfig, seq};
@@ -11,7 +11,8 @@ fn devices() -> [Device; 2] {
     [false, true].map(|measure| Device::new(DeviceConfig { measure, ..Default::default() }))
 }
 
-const SIZES: [usize; 15] = [0, 1, 31, 32, 33, 1023, 1024, 1025, 1920, 1921, 2048, 2049, 6528, 6529, (1 << 17) + 3];
+const SIZES: [usize; 17] =
+    [0, 1, 31, 32, 33, 1023, 1024, 1025, 2048, 2049, 3072, 3073, 5760, 5761, 6528, 6529, (1 << 17) + 3];
 
 /// Deterministic pseudo-random words (splitmix64).
 fn random(n: usize, seed: u64, modulus: u64) -> Vec<u32> {
@@ -80,6 +81,17 @@ fn check_select(dev: &Device, data: &[u32]) {
     let mut out = dev.alloc::<u32>(n);
     let count = simt::copy_if(dev, &input, &mut out, |x| x % 3 == 0);
     assert_eq!(&out.as_slice()[..count], seq::copy_if(data, |x| x % 3 == 0).as_slice(), "copy_if n={n}");
+    // Sparse (each tile writes its kept elements directly) and with wider elements and
+    // a stencil of another type (other tile shapes).
+    let count = simt::copy_if(dev, &input, &mut out, |x| x % 50 == 0);
+    assert_eq!(&out.as_slice()[..count], seq::copy_if(data, |x| x % 50 == 0).as_slice(), "sparse copy_if n={n}");
+    let wide: Vec<[u32; 3]> = data.iter().map(|&x| [x, !x, x / 2]).collect();
+    let stencil: Vec<u64> = data.iter().map(|&x| x as u64 * 7).collect();
+    let (w, st) = (dev.alloc_from(&wide), dev.alloc_from(&stencil));
+    let mut w_out = dev.alloc::<[u32; 3]>(n);
+    let count = simt::copy_if_stencil(dev, &w, &st, &mut w_out, |s| s % 3 == 1);
+    let want: Vec<[u32; 3]> = wide.iter().zip(&stencil).filter(|&(_, s)| s % 3 == 1).map(|(w, _)| *w).collect();
+    assert_eq!(&w_out.as_slice()[..count], want.as_slice(), "copy_if_stencil of 12-byte elements n={n}");
 
     let map: Vec<u32> = data.iter().map(|&x| x % n.max(1) as u32).collect();
     let m = dev.alloc_from(&map);
@@ -210,5 +222,38 @@ proptest! {
             check_sort(&dev, &data, 0, bits);
             check_select(&dev, &data);
         }
+    }
+}
+
+/// The single-pass primitives' tiles wait for the tiles before them, on whichever worker
+/// runs those; results and counters must not depend on how many workers there are.
+#[test]
+fn single_pass_primitives_give_the_same_results_and_counters_at_any_thread_count() {
+    let data = random(300_003, 7, 1 << 32);
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            let dev = Device::new(DeviceConfig { measure: true, ..Default::default() });
+            let input = dev.alloc_from(&data);
+            let mut scanned = dev.alloc::<u32>(data.len());
+            simt::exclusive_scan(&dev, &input, &mut scanned, 3, 0, |a, b| a.wrapping_add(b));
+            let (mut k, mut v) = (dev.alloc_from(&data), dev.alloc_from(&data));
+            simt::sort_by_key(&dev, &mut k, &mut v);
+            let mut kept = dev.alloc::<u32>(data.len());
+            let m = simt::copy_if(&dev, &input, &mut kept, |x| x % 3 == 0);
+            // Every column but the seconds (the fifth).
+            let records: Vec<String> = simt::records_to_tsv(&dev.launch_log())
+                .lines()
+                .map(|l| {
+                    l.split('\t').enumerate().filter(|&(i, _)| i != 4).map(|(_, c)| c).collect::<Vec<_>>().join("\t")
+                })
+                .collect();
+            (scanned.to_vec(), k.to_vec(), v.to_vec(), kept.as_slice()[..m].to_vec(), records)
+        })
+    };
+    let one = run(1);
+    assert!(one.4.iter().any(|l| l.starts_with("simt::scan_tiles\t")), "the scan ran as the tiled kernel");
+    for threads in [2, 5] {
+        assert_eq!(run(threads), one, "{threads} threads against one");
     }
 }

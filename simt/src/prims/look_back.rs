@@ -7,12 +7,17 @@
 //!
 //! Tiles keep `slots` values each (one for a scan; one per digit for a sort pass), with
 //! a status word per value. The kernels that use it run with
-//! [`Device::launch_in_order`], so the walk always finds the tile just before
-//! finished: one read, the GPU's shortest look-back.
+//! [`Device::launch_in_order`], and a tile waits, unmeasured, until the tile just before
+//! it has published its inclusive prefix before walking: the walk is then always one
+//! read, the GPU's shortest look-back, whichever worker ran which tile (so the counts
+//! never depend on timing; what a GPU's walk and wait cost is the time model's).
 
 use crate::device::Device;
 use crate::exec::Thread;
-use crate::memory::{DeviceBuffer, DeviceCopy, GlobalMut};
+use crate::memory::{DeviceBuffer, DeviceCopy, GlobalMut, Readable};
+use std::sync::atomic::Ordering::{Acquire, Release};
+use std::sync::atomic::fence;
+use std::time::{Duration, Instant};
 
 /// Status of a tile's value: not published yet.
 const NOT_READY: u32 = 0;
@@ -20,6 +25,10 @@ const NOT_READY: u32 = 0;
 const AGGREGATE: u32 = 1;
 /// Status of a tile's value: the total of every tile up to and including it.
 const INCLUSIVE: u32 = 2;
+
+/// Longest a tile waits for the one before it before the launch is taken to be
+/// unordered (a tile's work is microseconds to milliseconds).
+const WAIT_LIMIT: Duration = Duration::from_secs(60);
 
 /// The status words and values of `tiles × slots` tile values.
 pub(super) struct TileStatus<T: DeviceCopy> {
@@ -57,12 +66,60 @@ impl<T: DeviceCopy> TileStatus<T> {
 }
 
 impl<T: DeviceCopy> StatusViews<'_, T> {
+    /// Whether a value and its status share one word, as CUB keeps a primitive value of
+    /// up to 8 bytes (its scans' and selections' counts, the sort's digit counts): one
+    /// store publishes both, one load reads both, and no fence orders them. A larger
+    /// value (PDACRT's three counts) is stored, then fenced, then its status stored; a
+    /// reader loads the status, fences, then loads the value (CUB's `MEMBAR.GPU`s).
+    fn packed() -> bool {
+        std::mem::size_of::<T>() <= 8
+    }
+
     fn publish(&self, t: &Thread, tile: usize, slot: usize, flag: u32, value: T) {
-        // CUB packs a 4-byte value and its status in one 8-byte word and stores it once;
-        // here they are two stores (the walk below reads them as one round).
+        // Packed, CUB stores the word once; here value and status are two stores.
         let i = tile * self.slots + slot;
         t.store(&self.values, i, value);
+        if Self::packed() {
+            // Unmeasured: the value is visible to a waiter that sees the flag (see
+            // `wait_inclusive`).
+            fence(Release);
+        } else {
+            t.thread_fence();
+        }
         t.store(&self.flags, i, flag);
+    }
+
+    /// The status and value of value `i`, loaded as CUB loads them.
+    fn read(&self, t: &Thread, i: usize) -> (u32, T) {
+        if Self::packed() {
+            let _together = t.loads_together();
+            (t.load(&self.flags, i), t.load(&self.values, i))
+        } else {
+            let flag = t.load(&self.flags, i);
+            t.thread_fence();
+            // The value's words, loaded together.
+            let _together = t.loads_together();
+            (flag, t.load(&self.values, i))
+        }
+    }
+
+    /// Waits, unmeasured, until value `i` is published inclusive: its tile ran, or is
+    /// running on another worker, since tiles are taken in order.
+    fn wait_inclusive(&self, i: usize) {
+        let flag = self.flags.atomic_u32(i);
+        let start = Instant::now();
+        let mut spins = 0u32;
+        while flag.load(Acquire) != INCLUSIVE {
+            spins += 1;
+            if spins < 64 {
+                std::hint::spin_loop();
+            } else {
+                std::thread::yield_now();
+                if spins.is_multiple_of(1024) && start.elapsed() > WAIT_LIMIT {
+                    panic!("look-back waited {WAIT_LIMIT:?} for value {i}: run the kernel with launch_in_order");
+                }
+            }
+        }
     }
 
     /// Thread `t`'s look-back for value `slot` of tile `tile`, whose own total is
@@ -74,25 +131,25 @@ impl<T: DeviceCopy> StatusViews<'_, T> {
         F: Fn(T, T) -> T,
     {
         if tile == 0 {
-            self.publish(t, tile, slot, INCLUSIVE, aggregate);
+            // CUB's first tile publishes only when another tile follows.
+            if self.flags.len() > self.slots {
+                self.publish(t, tile, slot, INCLUSIVE, aggregate);
+            }
             return identity;
         }
         self.publish(t, tile, slot, AGGREGATE, aggregate);
+        self.wait_inclusive((tile - 1) * self.slots + slot);
         let mut prefix = identity;
         for p in (0..tile).rev() {
             let i = p * self.slots + slot;
-            let (flag, value) = {
-                let _together = t.loads_together();
-                (t.load(&self.flags, i), t.load(&self.values, i))
-            };
+            let (flag, value) = self.read(t, i);
             match flag {
                 INCLUSIVE => {
                     prefix = op(value, prefix);
                     break;
                 }
                 AGGREGATE => prefix = op(value, prefix),
-                // A GPU's block would wait here for tile `p` to publish.
-                _ => panic!("look-back reached tile {p}, which has not published: run the kernel with launch_in_order"),
+                _ => unreachable!("tile {p} was waited for"),
             }
         }
         self.publish(t, tile, slot, INCLUSIVE, op(prefix, aggregate));

@@ -30,11 +30,19 @@ pub(super) fn warp_inclusive_scan<T: Copy>(w: &Warp, v: &mut [T; 32], op: impl F
     }
 }
 
-/// Threads of a scan block and elements a thread scans: CUB's scan shape on sm_90, 128
-/// threads of 15 four-byte elements, fewer as the value is larger (its PDACRT scans of
-/// three-word counts run tiles of 128 × 5).
+/// Threads of a scan block and elements a thread scans: CUB's sm_90 tunings for
+/// primitive values of 1, 2, 4 and 8 bytes (4-byte sums: tiles of 128 × 24), its default
+/// policy for others, 128 threads of 15 four-byte elements' worth (PDACRT's scans of
+/// three-word counts: 128 × 5). A value's size stands for CUB's test of a primitive
+/// type and operator: the scans here of 1 to 8 bytes are sums of integers.
 fn scan_shape<T>() -> (u32, usize) {
-    (128, (60 / std::mem::size_of::<T>().max(1)).clamp(1, 15))
+    match std::mem::size_of::<T>() {
+        1 => (192, 22),
+        2 => (512, 12),
+        4 => (128, 24),
+        8 => (224, 24),
+        size => (128, (60 / size.max(1)).clamp(1, 15)),
+    }
 }
 
 /// Scans `input` (mapped) into `output` in one launch, one tile per block; with `init`,

@@ -1,9 +1,11 @@
 //! Element-wise primitives: fill, sequence, gather, scatter, copy_if (stream
 //! compaction) and reduce_by_key (a segmented scan on head flags).
 
-use super::scan::{exclusive_scan, inclusive_scan};
-use crate::device::Device;
-use crate::memory::{DeviceBuffer, DeviceCopy, Readable};
+use super::look_back::TileStatus;
+use super::scan::{inclusive_scan, warp_inclusive_scan};
+use crate::device::{Device, LaunchConfig};
+use crate::memory::{DeviceBuffer, DeviceCopy, Global, GlobalMut, Readable};
+use std::cell::Cell;
 
 /// Sets every element to `value`.
 pub fn fill<T: DeviceCopy>(dev: &Device, buf: &mut DeviceBuffer<T>, value: T) {
@@ -91,21 +93,138 @@ where
             super::native::copy_if_stencil(input.as_slice(), stencil.as_slice(), output.as_mut_slice(), pred)
         });
     }
-    let mut flags = dev.alloc::<u32>(n);
-    {
-        let (st, fl) = (stencil.view(), flags.view_mut());
-        dev.for_each("simt::copy_if_flags", n, |t, i| t.store(&fl, i, pred(t.load(&st, i)) as u32));
+    select_tiles(dev, (input.view(), stencil.view(), output.view_mut()), pred)
+}
+
+/// Threads of a selection block and elements a thread selects: CUB's `DeviceSelect::Flagged`
+/// tunings on sm_90 for 1-, 2-, 4- and 8-byte elements (the twins select 4-byte ray and
+/// path indices: 384 × 15), its default policy for other sizes.
+fn select_shape<T>() -> (u32, usize) {
+    match std::mem::size_of::<T>() {
+        1 | 2 => (448, 20),
+        4 => (384, 15),
+        8 => (384, 11),
+        size => (128, (40 / size.max(1)).clamp(1, 10)),
     }
-    let mut pos = dev.alloc::<u32>(n);
-    exclusive_scan(dev, &flags, &mut pos, 0, 0, |a, b| a + b);
-    let count = (pos.as_slice()[n - 1] + flags.as_slice()[n - 1]) as usize;
-    let (inp, fl, ps, out) = (input.view(), flags.view(), pos.view(), output.view_mut());
-    dev.for_each("simt::copy_if_scatter", n, |t, i| {
-        if t.load(&fl, i) != 0 {
-            t.store(&out, t.load(&ps, i) as usize, t.load(&inp, i));
+}
+
+/// [`copy_if_stencil`] as CUB's single pass: a launch clears the tiles' status words
+/// (`DeviceCompactInitKernel`); then each block loads its tile (each thread its own
+/// consecutive elements and their stencil values, loaded together), counts what `pred`
+/// keeps, scans the counts across the block, learns the count kept before the tile by a
+/// decoupled look-back and writes the kept elements out: through shared memory, in
+/// order and coalesced, when the tile keeps more than one element a thread, else each
+/// thread its own. The last block writes the total.
+fn select_tiles<T: DeviceCopy, S: DeviceCopy>(
+    dev: &Device,
+    (inp, st, out): (Global<'_, T>, Global<'_, S>, GlobalMut<'_, T>),
+    pred: impl Fn(S) -> bool + Sync,
+) -> usize {
+    let n = inp.len();
+    let (select_threads, items) = select_shape::<T>();
+    let (threads, tile_len) = (select_threads as usize, select_threads as usize * items);
+    let tiles = n.div_ceil(tile_len);
+    let mut count = dev.alloc::<u32>(1);
+    let mut status = TileStatus::new(dev, tiles, 1, 0u32, Some("simt::select_init"));
+    let status = status.views();
+    let total = count.view_mut();
+    let warps = threads / 32;
+    let shared = tile_len * std::mem::size_of::<T>() + (warps + 1) * 4;
+    let cfg =
+        LaunchConfig { grid: tiles as u32, block: select_threads, shared_bytes: shared, regions: &[], registers: 0 };
+    dev.launch_in_order("simt::select_sweep", cfg, |blk| {
+        let b = blk.block_idx() as usize;
+        let base = b * tile_len;
+        let valid = (n - base).min(tile_len);
+        let exchange = blk.shared::<T>(tile_len);
+        let warp_sums = blk.shared::<u32>(warps);
+        let tile_before = blk.shared::<u32>(1);
+        let r_kept = blk.local::<u32>(0);
+        let r_before = blk.local::<u32>(0);
+        // Each thread's consecutive elements and stencil values, loaded together (CUB's
+        // direct blocked loads); `r_kept` marks the ones `pred` keeps.
+        blk.for_each_thread(|t| {
+            let _together = t.loads_together();
+            let mut kept = 0u32;
+            for k in 0..items {
+                let i = t.thread_idx() as usize * items + k;
+                if i < valid {
+                    t.load(&inp, base + i);
+                    kept |= (pred(t.load(&st, base + i)) as u32) << k;
+                }
+            }
+            t.set(r_kept, kept);
+        });
+        blk.sync_threads();
+        // Exclusive sum of the threads' counts: within each warp by shuffles, then the
+        // warps' totals by thread 0, whose look-back adds the tiles before.
+        blk.for_each_warp(|w| {
+            let mut v = [0u32; 32];
+            w.for_each_lane(|t| v[t.lane_id() as usize] = t.get(r_kept).count_ones());
+            let counts = v;
+            warp_inclusive_scan(w, &mut v, |a, c| a + c);
+            w.for_each_lane(|t| {
+                let l = t.lane_id() as usize;
+                t.set(r_before, v[l] - counts[l]);
+                if l == 31 {
+                    t.store_shared(warp_sums, t.warp_id() as usize, v[31]);
+                }
+            });
+        });
+        blk.sync_threads();
+        // Block-uniform: the tile's count (CUB's block scan gives it to every thread).
+        let tile_kept = Cell::new(0u32);
+        blk.for_each_thread(|t| {
+            if t.thread_idx() == 0 {
+                let mut acc = 0;
+                for w in 0..warps {
+                    let s = t.load_shared(warp_sums, w);
+                    t.store_shared(warp_sums, w, acc);
+                    acc += s;
+                }
+                let before = status.look_back(t, b, 0, acc, 0, |a, c| a + c);
+                t.store_shared(tile_before, 0, before);
+                tile_kept.set(acc);
+                if b + 1 == tiles {
+                    t.store(&total, 0, before + acc);
+                }
+            }
+        });
+        blk.sync_threads();
+        let two_phase = tile_kept.get() > select_threads;
+        // Each kept element's place; its value is the one loaded above (held in registers
+        // on a GPU, read again here unmeasured).
+        blk.for_each_thread(|t| {
+            let before = t.load_shared(tile_before, 0) as usize;
+            let mut at = (t.load_shared(warp_sums, t.warp_id() as usize) + t.get(r_before)) as usize;
+            let kept = t.get(r_kept);
+            for k in 0..items {
+                if kept >> k & 1 == 1 {
+                    let v = inp.read(base + t.thread_idx() as usize * items + k);
+                    if two_phase {
+                        t.store_shared(exchange, at, v);
+                    } else {
+                        t.store(&out, before + at, v);
+                    }
+                    at += 1;
+                }
+            }
+        });
+        if two_phase {
+            // The tile's kept elements, in order, out of shared memory: coalesced stores.
+            blk.sync_threads();
+            blk.for_each_thread(|t| {
+                let before = t.load_shared(tile_before, 0) as usize;
+                let mut j = t.thread_idx() as usize;
+                while j < tile_kept.get() as usize {
+                    t.store(&out, before + j, t.load_shared(exchange, j));
+                    j += threads;
+                }
+            });
         }
-    });
-    count
+    })
+    .expect("selection launch shape is valid");
+    count.as_slice()[0] as usize
 }
 
 /// Copies the elements satisfying `pred`, in order, to the front of `output`;
