@@ -262,7 +262,8 @@ pub struct Prediction {
     /// Blocks over the dispatch rate.
     pub dispatch: f64,
     /// Waves of resident warps times the mean warp's dependent chain, or the longest
-    /// warp's chain if that is longer.
+    /// warp's chain if that is longer; for a single-pass kernel, plus its look-back's
+    /// hops across the tiles.
     pub latency: f64,
 }
 
@@ -368,6 +369,17 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
     };
     let average = chain(&WarpChain { instructions: r.all_regions().issued, ..r.waits }, warps);
     let longest = chain(&r.longest_warp, 1.0);
+    // A single-pass kernel's look-back (an in-order launch): the tiles' prefixes move
+    // back to front 32 tiles a hop (a warp reads 32 statuses at once), each hop one L2
+    // round trip for the statuses and, where the look-back fences (a value wider than
+    // its status word), the fence its publisher makes between value and status. The
+    // emulated tiles run in order, so their own chains hold one hop each.
+    let look_back = if r.in_order {
+        let fence = if r.waits.fences > 0 { p.fence_latency_s } else { 0.0 };
+        ((grid - 1.0) / WARP_SIZE as f64).ceil() * (2.0 * p.l2_latency_s + fence)
+    } else {
+        0.0
+    };
     // Sectors that reach L2: each block's distinct loaded ones (its repeated loads hit
     // L1) and every stored or atomic one (L1 writes through).
     let written = (r.stores.sectors + r.atomics.sectors) as f64;
@@ -382,7 +394,7 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
         fences: r.waits.fences as f64 / p.fences_per_s + r.waits.fenced_sectors as f64 / p.fenced_sectors_per_s,
         barriers: r.barriers as f64 / (p.barriers_per_s_per_sm * sms),
         dispatch: grid / sms * p.block_dispatch_s,
-        latency: (waves * average).max(longest),
+        latency: (waves * average).max(longest) + look_back,
         seconds: 0.0,
     };
     let bounds = [t.issue, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch, t.latency];

@@ -203,3 +203,25 @@ fn sectors_a_request_touches_one_word_of_cross_l2_at_the_scattered_rate() {
     assert!(close(l2(4.0), 4.0 / 7.0 / p.l2_scattered_bytes_per_s + 3.0 / 7.0 / p.l2_bytes_per_s));
     assert!(l2(1.0) > 1.4 * l2(8.0), "the H200's scattered L2 rate is two thirds of the coalesced one");
 }
+
+#[test]
+fn a_single_pass_launch_waits_for_its_look_back_hops_of_32_tiles() {
+    let p = profile();
+    let latency = |r: &LaunchRecord| predict(r, &p).unwrap().latency;
+    let plain = launch(1000, 50, 2, 16_000, 16_000);
+    let ordered = LaunchRecord { in_order: true, ..plain.clone() };
+    // 999 tiles before the last: 32 hops, each two L2 latencies (statuses stored and
+    // read) with no fence while the look-back makes none.
+    let hops = 32.0;
+    let hop = 2.0 * p.l2_latency_s;
+    assert!((latency(&ordered) - latency(&plain) - hops * hop).abs() < 1e-12);
+    // A look-back that fences (values wider than their status word) adds one fence a hop.
+    let fenced = |r: &LaunchRecord| LaunchRecord { waits: WarpChain { fences: 3000, ..r.waits }, ..r.clone() };
+    let gap = latency(&fenced(&ordered)) - latency(&fenced(&plain));
+    assert!((gap - hops * (hop + p.fence_latency_s)).abs() < 1e-12);
+    // One tile has no look-back; 33 tiles one hop.
+    let one = LaunchRecord { grid: 1, in_order: true, ..plain.clone() };
+    assert_eq!(latency(&one), latency(&LaunchRecord { grid: 1, ..plain.clone() }));
+    let few = |grid| LaunchRecord { grid, in_order: true, ..plain.clone() };
+    assert!((latency(&few(33)) - latency(&LaunchRecord { grid: 33, ..plain.clone() }) - hop).abs() < 1e-12);
+}
