@@ -110,7 +110,7 @@ fn select_shape<T>() -> (u32, usize) {
 
 /// [`copy_if_stencil`] as CUB's single pass: a launch clears the tiles' status words
 /// (`DeviceCompactInitKernel`); then each block loads its tile (each thread its own
-/// consecutive elements and their stencil values, loaded together), counts what `pred`
+/// consecutive elements together, then their stencil values one by one), counts what `pred`
 /// keeps, scans the counts across the block, learns the count kept before the tile by a
 /// decoupled look-back and writes the kept elements out: through shared memory, in
 /// order and coalesced, when the tile keeps more than one element a thread, else each
@@ -141,17 +141,22 @@ fn select_tiles<T: DeviceCopy, S: DeviceCopy>(
         let tile_before = blk.shared::<u32>(1);
         let r_kept = blk.local::<u32>(0);
         let r_before = blk.local::<u32>(0);
-        // Each thread's consecutive elements and stencil values, loaded together (CUB's
-        // direct blocked loads); `r_kept` marks the ones `pred` keeps.
+        // Each thread's consecutive elements, loaded together (CUB's direct blocked
+        // loads), then its stencil values one element at a time, each loaded and tested
+        // before the next (as the twin's SASS has it: the rays' words in dependent
+        // groups, ray after ray); `r_kept` marks the ones `pred` keeps.
         blk.for_each_thread(|t| {
-            let _together = t.loads_together();
-            let mut kept = 0u32;
-            for k in 0..items {
-                let i = t.thread_idx() as usize * items + k;
-                if i < valid {
+            let mine = (t.thread_idx() as usize * items).min(valid)..((t.thread_idx() as usize + 1) * items).min(valid);
+            {
+                let _together = t.loads_together();
+                mine.clone().for_each(|i| {
                     t.load(&inp, base + i);
-                    kept |= (pred(t.load(&st, base + i)) as u32) << k;
-                }
+                });
+            }
+            let mut kept = 0u32;
+            for (k, i) in mine.enumerate() {
+                let _together = t.loads_together();
+                kept |= (pred(t.load(&st, base + i)) as u32) << k;
             }
             t.set(r_kept, kept);
         });
