@@ -15,7 +15,7 @@
 //! gpu_check gpu --gpu bvh --model bunny --batch primary,shadow --repeat 1   # the GPU BVH, keys against its twin
 //! ```
 //!
-//! About 680 lines on purpose: one subcommand per step of the check, sharing the input options
+//! About 700 lines on purpose: one subcommand per step of the check, sharing the input options
 //! (the GPU BVH's rows are in `gpu_bvh.rs`).
 //!
 //! `gpu` checks every GPU key against the CPU PDACRT's (bit for bit) and every 256th ray
@@ -353,6 +353,10 @@ fn time_run(
             let gpu = ncu::parse_csv(&read(a)?).map_err(|e| format!("{}: {e}", a.display()))?;
             let measured: f64 = gpu.iter().map(|g| g.seconds).sum();
             run.every = Some(measured);
+            let primitives = time_check::primitives_table(&recs, &gpu, &p);
+            if !primitives.is_empty() {
+                println!("The library primitives (emulated kernels against CUB's):\n\n{primitives}");
+            }
             let predicted = time_check::predicted_total(&recs, &p);
             println!(
                 "Pipeline: predicted {:.3} ms ({} launches), measured {:.3} ms ({} launches, every kernel): {:+.0} %\n",
@@ -493,12 +497,23 @@ fn cis_run(
                     rows.push(k);
                 }
             }
+            // The shading, and the compaction as the twin times it: the flags and the
+            // selection launched right after them (CUB's init and sweep).
+            let mut selection = 0;
             for mut l in r.device().map(|d| d.launch_log()).unwrap_or_default() {
                 if l.name == "cis::shade" {
                     l.name = order;
                 }
-                if l.name == order || l.name == "cis::alive_flags" {
+                if l.name == "cis::alive_flags" {
+                    selection = 2;
                     launches.push(l);
+                } else if l.name == order {
+                    launches.push(l);
+                } else if selection > 0 && matches!(l.name, "simt::select_init" | "simt::select_sweep") {
+                    selection -= 1;
+                    launches.push(l);
+                } else {
+                    selection = 0;
                 }
             }
         }

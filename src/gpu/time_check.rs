@@ -122,6 +122,50 @@ pub fn table(rows: &[KernelTime]) -> String {
     s
 }
 
+/// The library primitives: `simt`'s kernels of each against the CUB kernels the twins
+/// launch for it (matched by the name without its namespace).
+const PRIMITIVES: [(&str, &[&str], &[&str]); 6] = [
+    ("scan status init", &["scan_init"], &["DeviceScanInitKernel"]),
+    ("scan tiles", &["scan_tiles"], &["DeviceScanKernel"]),
+    ("selection", &["select_init", "select_sweep"], &["DeviceCompactInitKernel", "DeviceSelectSweepKernel"]),
+    ("reduction", &["reduce_tiles"], &["DeviceReduceKernel", "DeviceReduceSingleTileKernel"]),
+    (
+        "sort histogram and exclusive sum",
+        &["radix_histogram", "radix_exclusive_sum"],
+        &["DeviceRadixSortHistogramKernel", "DeviceRadixSortExclusiveSumKernel"],
+    ),
+    ("sort passes", &["radix_onesweep"], &["DeviceRadixSortOnesweepKernel"]),
+];
+
+/// The library primitives of a pipeline, predicted from `records` against ncu's times
+/// of every kernel (`every`, CUB's too), as a markdown table; empty if neither side
+/// launched any.
+pub fn primitives_table(records: &[LaunchRecord], every: &[GpuKernel], p: &GpuProfile) -> String {
+    let mut s = String::new();
+    for (what, ours, cubs) in PRIMITIVES {
+        let mine: Vec<&LaunchRecord> = records.iter().filter(|r| ours.contains(&base_name(r.name))).collect();
+        let gpu: Vec<&GpuKernel> = every.iter().filter(|g| cubs.contains(&base_name(&g.name))).collect();
+        if mine.is_empty() && gpu.is_empty() {
+            continue;
+        }
+        let predicted: f64 = mine.iter().filter_map(|r| predict(r, p)).map(|t| t.seconds).sum();
+        let measured: f64 = gpu.iter().map(|g| g.seconds).sum();
+        let launched: u64 = gpu.iter().map(|g| g.launches).sum();
+        let _ = writeln!(
+            s,
+            "| {what} | {} / {launched} | {:.3} | {:.3} | {} |",
+            mine.len(),
+            predicted * 1e3,
+            measured * 1e3,
+            if measured > 0.0 { format!("{:+.0} %", (predicted - measured) / measured * 100.0) } else { "-".into() }
+        );
+    }
+    if s.is_empty() {
+        return s;
+    }
+    format!("| primitive | launches (simt / GPU) | predicted ms | measured ms | Δ |\n|---|---:|---:|---:|---:|\n{s}")
+}
+
 /// Each kernel's model terms (summed over its launches, µs) beside its measured time:
 /// which bound sets the prediction and how far the others are below it.
 pub fn terms_table(rows: &[KernelTime]) -> String {

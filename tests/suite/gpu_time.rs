@@ -10,7 +10,7 @@
 use simt::{GpuProfile, LaunchRecord};
 use warpray::gpu::calibrate::calibrate;
 use warpray::gpu::ncu::parse_csv;
-use warpray::gpu::time_check::{CheckedRun, check, errors, predicted_total};
+use warpray::gpu::time_check::{CheckedRun, check, errors, predicted_total, primitives_table};
 
 const DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/measured/h200-time-model/");
 const MODELS: [&str; 3] = ["bunny", "conference", "dragon"];
@@ -185,6 +185,44 @@ fn the_pdacrt_traces_are_predicted_within_16_percent_look_back_and_all() {
         .collect();
     let (_, without) = check(&unordered, &p);
     assert!(without.iter().any(|e| e.abs() > 0.16), "no look-back term: {without:?}");
+}
+
+#[test]
+fn the_emulated_primitives_launch_what_cub_launches_in_every_pipeline() {
+    // Scans, selections, the reduction and the sort: as many launches of the emulated
+    // kernels as of CUB's (the primitives' table of `gpu_check time`), in the PDACRT
+    // traces, CIS's compaction and the BVH's builds. Three-launch scans, or a flags-
+    // scan-scatter selection, fail this.
+    let p = GpuProfile::named("h200").unwrap();
+    let every = |name: &str| parse_csv(&text(name)).unwrap();
+    let mut files: Vec<(String, String)> = MODELS
+        .iter()
+        .flat_map(|m| {
+            [
+                (
+                    format!("simt-records-pdacrt-{m}-1024-primary-shadow.tsv.gz"),
+                    format!("ncu-time-every-kernel-pdacrt-{m}-1024-primary-shadow.csv.gz"),
+                ),
+                (
+                    format!("simt-records-bvh-{m}-1024-primary-shadow.tsv.gz"),
+                    format!("ncu-time-every-kernel-bvh-{m}-1024-primary-shadow.csv.gz"),
+                ),
+            ]
+        })
+        .collect();
+    files.push((
+        "simt-records-cis-shading-compaction-3-scenes-128.tsv.gz".into(),
+        "ncu-time-every-kernel-cis-3-scenes-128.csv.gz".into(),
+    ));
+    for (records, ncu) in files {
+        let table = primitives_table(&simt::records_from_tsv(&text(&records)).unwrap(), &every(&ncu), &p);
+        let rows: Vec<&str> = table.lines().skip(2).collect();
+        assert!(!rows.is_empty(), "{records}: no primitives");
+        for row in rows {
+            let launches: Vec<&str> = row.split('|').nth(2).unwrap().split('/').map(str::trim).collect();
+            assert_eq!(launches[0], launches[1], "{records}: {row}");
+        }
+    }
 }
 
 #[test]
