@@ -9,7 +9,7 @@
 // The probes are deliberately unlike the checked kernels (PDACRT, CIS): the model is
 // calibrated on these only, then checked on those.
 //
-// About 960 lines on purpose: one probe per profile quantity, each with its launch, in
+// About 1,020 lines on purpose: one probe per profile quantity, each with its launch, in
 // one program that `cuda/microbench.sh` profiles in one pass.
 //
 //   nvcc -std=c++17 -O3 -arch=sm_90 -o target/cuda/microbench cuda/microbench.cu
@@ -435,6 +435,38 @@ __global__ void stream_chase(const uint32_t* __restrict__ a, int steps, uint32_t
     if (i == 12345u) out[0] = i;
 }
 
+
+// Shared-memory latency (`microbench shared`): one thread chases indices through a block's
+// shared words (each load's address is the load before it), timed by clock64 after a
+// warm-up; and a block's barrier in a loop whose every trip stores a word, waits at the
+// barrier and loads a neighbour's word (the dependent step a tile's scan takes).
+__global__ void shared_chain(int warm, int hops, long long* cycles, uint32_t* out) {
+    __shared__ uint32_t s[4096];
+    for (int i = threadIdx.x; i < 4096; i += blockDim.x) s[i] = (uint32_t)((i + 33) & 4095);
+    __syncthreads();
+    uint32_t j = 0;
+    long long t0 = 0;
+    for (int k = 0; k < warm + hops; ++k) {
+        if (k == warm) t0 = clock64();
+        j = s[j];
+    }
+    if (threadIdx.x == 0) cycles[0] = clock64() - t0;
+    out[threadIdx.x] = j;
+}
+__global__ void barrier_chain(int warm, int rounds, long long* cycles, uint32_t* out) {
+    __shared__ uint32_t s[1024];
+    uint32_t v = threadIdx.x;
+    long long t0 = 0;
+    for (int k = 0; k < warm + rounds; ++k) {
+        if (k == warm) t0 = clock64();
+        s[threadIdx.x] = v;
+        __syncthreads();
+        v += s[(threadIdx.x + 1) % blockDim.x];
+        __syncthreads();
+    }
+    if (threadIdx.x == 0) cycles[0] = clock64() - t0;
+    out[threadIdx.x] = v;
+}
 }  // namespace micro
 
 // A chain over `n` words whose next index is `stride` words on (mod n): every hop
@@ -779,6 +811,34 @@ static int icache_probes(int sms) {
 // data of that size. Prints each size's cycles a hop, PROBE_LAUNCHES times, and for
 // sizes within L2 the nanoseconds a hop of the profile's `chase_l2` form (no clock read
 // in the loop), timed by CUDA events, to tell the form from the size.
+// The shared-memory probes (`microbench shared`): one thread's chase through shared
+// memory (cycles a hop), then one block's store-barrier-load round at 32 to 1,024
+// threads (cycles a round, two barriers each), each PROBE_LAUNCHES times.
+static int shared_probes() {
+    uint32_t* out;
+    long long* cycles;
+    CHECK(cudaMalloc(&out, 1024 * 4));
+    CHECK(cudaMalloc(&cycles, 8 * PROBE_LAUNCHES));
+    const int warm = 2000, hops = 20000, rounds = 20000;
+    std::vector<long long> c(PROBE_LAUNCHES);
+    for (int l = 0; l < PROBE_LAUNCHES; ++l) micro::shared_chain<<<1, 1>>>(warm, hops, cycles + l, out);
+    CHECK(cudaDeviceSynchronize());
+    CHECK(cudaMemcpy(c.data(), cycles, PROBE_LAUNCHES * 8, cudaMemcpyDeviceToHost));
+    printf("probe\tshared_chain\thops\t%d\n", warm + hops);
+    for (int l = 0; l < PROBE_LAUNCHES; ++l) printf("timed\tshared_chain\tcycles_per_hop\t%.2f\n", (double)c[l] / hops);
+    for (int threads : {32, 128, 384, 1024}) {
+        for (int l = 0; l < PROBE_LAUNCHES; ++l) micro::barrier_chain<<<1, threads>>>(warm, rounds, cycles + l, out);
+        CHECK(cudaDeviceSynchronize());
+        CHECK(cudaMemcpy(c.data(), cycles, PROBE_LAUNCHES * 8, cudaMemcpyDeviceToHost));
+        printf("probe\tbarrier_chain\tthreads\t%d\n", threads);
+        for (int l = 0; l < PROBE_LAUNCHES; ++l)
+            printf("timed\tbarrier_chain\tthreads\t%d\tcycles_per_round\t%.2f\n", threads, (double)c[l] / rounds);
+    }
+    cudaFree(out);
+    cudaFree(cycles);
+    return 0;
+}
+
 static int l2size_probes() {
     const size_t max_words = (size_t)1 << 28;  // 1 GiB
     uint32_t *buf, *out;
@@ -860,6 +920,10 @@ int main(int argc, char** argv) {
     if (argc > 1 && std::string(argv[1]) == "icache") {
         printf("device\tname\t%s\n", p.name);
         return icache_probes(p.multiProcessorCount);
+    }
+    if (argc > 1 && std::string(argv[1]) == "shared") {
+        printf("device\tname\t%s\n", p.name);
+        return shared_probes();
     }
     if (argc > 1 && std::string(argv[1]) == "l2size") {
         printf("device\tname\t%s\n", p.name);

@@ -24,6 +24,9 @@
 # (what a scan's look-back costs by its tiles; docs/simt.md, "The library primitives").
 # MODE=grid runs a short kernel (empty, a store, a load and a store a thread) by its
 # blocks, 1 to 4 a SM.
+# MODE=shared runs the shared-memory latency probes alone: one thread's chase through
+# shared words (cycles a hop) and one block's store-barrier-load round at 32 to 1,024
+# threads (lines `timed`, not read by `gpu_check calibrate`).
 #
 # ncu runs with --clock-control none (the GPU's own clocks, as in cuda/check.sh) and its
 # default --cache-control all (caches flushed before each kernel), as the checked
