@@ -257,3 +257,32 @@ fn single_pass_primitives_give_the_same_results_and_counters_at_any_thread_count
         assert_eq!(run(threads), one, "{threads} threads against one");
     }
 }
+
+/// Single-pass launches made from inside rayon work (several devices scanning and
+/// sorting at once on a small pool) finish, with the results a lone call gives.
+#[test]
+fn single_pass_primitives_nested_in_rayon_work_finish() {
+    use rayon::prelude::*;
+    let data = random(100_003, 11, 1 << 32);
+    let alone = {
+        let dev = Device::new(DeviceConfig { measure: true, ..Default::default() });
+        let (mut k, mut v) = (dev.alloc_from(&data), dev.alloc_from(&data));
+        simt::sort_by_key(&dev, &mut k, &mut v);
+        k.to_vec()
+    };
+    for threads in [2, 3] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let all: Vec<Vec<u32>> = pool.install(|| {
+            (0..6)
+                .into_par_iter()
+                .map(|_| {
+                    let dev = Device::new(DeviceConfig { measure: true, ..Default::default() });
+                    let (mut k, mut v) = (dev.alloc_from(&data), dev.alloc_from(&data));
+                    simt::sort_by_key(&dev, &mut k, &mut v);
+                    k.to_vec()
+                })
+                .collect()
+        });
+        assert!(all.iter().all(|k| *k == alone), "{threads} threads");
+    }
+}
