@@ -353,7 +353,7 @@ fn time_run(
             let gpu = ncu::parse_csv(&read(a)?).map_err(|e| format!("{}: {e}", a.display()))?;
             let measured: f64 = gpu.iter().map(|g| g.seconds).sum();
             run.every = Some(measured);
-            let primitives = time_check::primitives_table(&recs, &gpu, &p);
+            let primitives = time_check::primitives_table(&time_check::primitive_times(&recs, &gpu, &p));
             if !primitives.is_empty() {
                 println!("The library primitives (emulated kernels against CUB's):\n\n{primitives}");
             }

@@ -268,6 +268,8 @@ impl Device {
             w
         };
         let finish = |w: Worker| w.meter.into_inner().finish();
+        let merge =
+            |(a, ra): (Counters, Option<Race>), (b, rb): (Counters, Option<Race>)| (a.merge(b), first_race(ra, rb));
         let threads = cfg.grid as u64 * cfg.block as u64;
         let ((counters, race), seconds) = self.run_blocks(name, threads, |serial| {
             if serial {
@@ -289,13 +291,13 @@ impl Device {
                             w = run_block(w, b);
                         }
                     })
-                    .reduce(|| (Counters::default(), None), |(a, ra), (b, rb)| (a.merge(b), first_race(ra, rb)))
+                    .reduce(|| (Counters::default(), None), merge)
             } else {
                 (0..cfg.grid)
                     .into_par_iter()
                     .fold(|| Worker::new(shared_words, predicting), run_block)
                     .map(finish)
-                    .reduce(|| (Counters::default(), None), |(a, ra), (b, rb)| (a.merge(b), first_race(ra, rb)))
+                    .reduce(|| (Counters::default(), None), merge)
             }
         });
         if let Some(race) = race {

@@ -84,8 +84,8 @@ pub struct LaunchRecord {
     /// Every warp's chain summed: what the warps wait for one after another (load
     /// rounds, atomics whose value they use, fences). 0 when unmeasured.
     pub waits: WarpChain,
-    /// Whether the blocks ran in index order ([`crate::Device::launch_in_order`]): a
-    /// single-pass kernel whose blocks wait on the blocks before them.
+    /// Whether the blocks were started in index order, each waiting for the one before
+    /// it to publish ([`crate::Device::launch_in_order`]): a single-pass kernel.
     pub in_order: bool,
 }
 

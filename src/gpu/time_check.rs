@@ -137,33 +137,62 @@ const PRIMITIVES: [(&str, &[&str], &[&str]); 6] = [
     ("sort passes", &["radix_onesweep"], &["DeviceRadixSortOnesweepKernel"]),
 ];
 
+/// One library primitive of a pipeline: its emulated kernels predicted, CUB's measured.
+#[derive(Clone, Debug)]
+pub struct PrimitiveTime {
+    /// What it is (`scan tiles`, `selection`, …).
+    pub what: &'static str,
+    /// Launches of the emulated kernels / of CUB's.
+    pub launches: (u64, u64),
+    /// Predicted seconds, summed over the emulated launches.
+    pub predicted: f64,
+    /// Measured seconds (`gpu__time_duration.sum`) of CUB's, summed.
+    pub measured: f64,
+}
+
 /// The library primitives of a pipeline, predicted from `records` against ncu's times
-/// of every kernel (`every`, CUB's too), as a markdown table; empty if neither side
-/// launched any.
-pub fn primitives_table(records: &[LaunchRecord], every: &[GpuKernel], p: &GpuProfile) -> String {
-    let mut s = String::new();
-    for (what, ours, cubs) in PRIMITIVES {
-        let mine: Vec<&LaunchRecord> = records.iter().filter(|r| ours.contains(&base_name(r.name))).collect();
-        let gpu: Vec<&GpuKernel> = every.iter().filter(|g| cubs.contains(&base_name(&g.name))).collect();
-        if mine.is_empty() && gpu.is_empty() {
-            continue;
-        }
-        let predicted: f64 = mine.iter().filter_map(|r| predict(r, p)).map(|t| t.seconds).sum();
-        let measured: f64 = gpu.iter().map(|g| g.seconds).sum();
-        let launched: u64 = gpu.iter().map(|g| g.launches).sum();
+/// of every kernel (`every`, CUB's too); those neither side launched are left out.
+pub fn primitive_times(records: &[LaunchRecord], every: &[GpuKernel], p: &GpuProfile) -> Vec<PrimitiveTime> {
+    PRIMITIVES
+        .iter()
+        .filter_map(|&(what, ours, cubs)| {
+            let mine: Vec<&LaunchRecord> = records.iter().filter(|r| ours.contains(&base_name(r.name))).collect();
+            let gpu: Vec<&GpuKernel> = every.iter().filter(|g| cubs.contains(&base_name(&g.name))).collect();
+            (!mine.is_empty() || !gpu.is_empty()).then(|| PrimitiveTime {
+                what,
+                launches: (mine.len() as u64, gpu.iter().map(|g| g.launches).sum()),
+                predicted: mine.iter().filter_map(|r| predict(r, p)).map(|t| t.seconds).sum(),
+                measured: gpu.iter().map(|g| g.seconds).sum(),
+            })
+        })
+        .collect()
+}
+
+/// [`primitive_times`] as a markdown table (empty for no rows).
+pub fn primitives_table(rows: &[PrimitiveTime]) -> String {
+    if rows.is_empty() {
+        return String::new();
+    }
+    let mut s = String::from(
+        "| primitive | launches (simt / GPU) | predicted ms | measured ms | Δ |\n|---|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        let error = if r.measured > 0.0 {
+            format!("{:+.0} %", (r.predicted - r.measured) / r.measured * 100.0)
+        } else {
+            "-".into()
+        };
         let _ = writeln!(
             s,
-            "| {what} | {} / {launched} | {:.3} | {:.3} | {} |",
-            mine.len(),
-            predicted * 1e3,
-            measured * 1e3,
-            if measured > 0.0 { format!("{:+.0} %", (predicted - measured) / measured * 100.0) } else { "-".into() }
+            "| {} | {} / {} | {:.3} | {:.3} | {error} |",
+            r.what,
+            r.launches.0,
+            r.launches.1,
+            r.predicted * 1e3,
+            r.measured * 1e3
         );
     }
-    if s.is_empty() {
-        return s;
-    }
-    format!("| primitive | launches (simt / GPU) | predicted ms | measured ms | Δ |\n|---|---:|---:|---:|---:|\n{s}")
+    s
 }
 
 /// Each kernel's model terms (summed over its launches, µs) beside its measured time:

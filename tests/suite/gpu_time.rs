@@ -10,7 +10,7 @@
 use simt::{GpuProfile, LaunchRecord};
 use warpray::gpu::calibrate::calibrate;
 use warpray::gpu::ncu::parse_csv;
-use warpray::gpu::time_check::{CheckedRun, check, errors, predicted_total, primitives_table};
+use warpray::gpu::time_check::{CheckedRun, check, errors, predicted_total, primitive_times};
 
 const DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/measured/h200-time-model/");
 const MODELS: [&str; 3] = ["bunny", "conference", "dragon"];
@@ -215,12 +215,10 @@ fn the_emulated_primitives_launch_what_cub_launches_in_every_pipeline() {
         "ncu-time-every-kernel-cis-3-scenes-128.csv.gz".into(),
     ));
     for (records, ncu) in files {
-        let table = primitives_table(&simt::records_from_tsv(&text(&records)).unwrap(), &every(&ncu), &p);
-        let rows: Vec<&str> = table.lines().skip(2).collect();
+        let rows = primitive_times(&simt::records_from_tsv(&text(&records)).unwrap(), &every(&ncu), &p);
         assert!(!rows.is_empty(), "{records}: no primitives");
-        for row in rows {
-            let launches: Vec<&str> = row.split('|').nth(2).unwrap().split('/').map(str::trim).collect();
-            assert_eq!(launches[0], launches[1], "{records}: {row}");
+        for r in rows {
+            assert_eq!(r.launches.0, r.launches.1, "{records}: {}", r.what);
         }
     }
 }

@@ -123,9 +123,11 @@ impl<T: DeviceCopy> StatusViews<'_, T> {
     }
 
     /// Thread `t`'s look-back for value `slot` of tile `tile`, whose own total is
-    /// `aggregate`: publishes it, walks back, publishes the inclusive prefix, and
-    /// returns the exclusive one (the total of every earlier tile; `identity` for the
-    /// first). `op(earlier, later)` keeps operand order.
+    /// `aggregate`: publishes it, reads the inclusive prefix of the tile before (once it
+    /// is published), publishes its own inclusive prefix, and returns the exclusive one
+    /// (the total of every earlier tile; `identity` for the first). `op(earlier, later)`
+    /// keeps operand order. A GPU's walk over tiles that have published only their own
+    /// totals is the time model's look-back term, not counted here.
     pub(super) fn look_back<F>(&self, t: &Thread, tile: usize, slot: usize, aggregate: T, identity: T, op: F) -> T
     where
         F: Fn(T, T) -> T,
@@ -138,20 +140,10 @@ impl<T: DeviceCopy> StatusViews<'_, T> {
             return identity;
         }
         self.publish(t, tile, slot, AGGREGATE, aggregate);
-        self.wait_inclusive((tile - 1) * self.slots + slot);
-        let mut prefix = identity;
-        for p in (0..tile).rev() {
-            let i = p * self.slots + slot;
-            let (flag, value) = self.read(t, i);
-            match flag {
-                INCLUSIVE => {
-                    prefix = op(value, prefix);
-                    break;
-                }
-                AGGREGATE => prefix = op(value, prefix),
-                _ => unreachable!("tile {p} was waited for"),
-            }
-        }
+        let before = (tile - 1) * self.slots + slot;
+        self.wait_inclusive(before);
+        let (flag, prefix) = self.read(t, before);
+        assert_eq!(flag, INCLUSIVE, "tile {} was waited for", tile - 1);
         self.publish(t, tile, slot, INCLUSIVE, op(prefix, aggregate));
         prefix
     }
