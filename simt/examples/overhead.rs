@@ -128,8 +128,9 @@ fn devices(profile: Option<&GpuProfile>) -> [Device; 2] {
     devs
 }
 
-fn kernels(n: usize, repeat: usize, profile: Option<&GpuProfile>, rows: &mut Vec<Row>) {
+fn kernels(n: usize, repeat: usize, profile: Option<&GpuProfile>, only: Option<&str>, rows: &mut Vec<Row>) {
     let devs = devices(profile);
+    let want = |row: &str| only.is_none_or(|o| o == row);
     // Times `launch` on the unmeasured and the measured device; buffers are made once
     // per device by `setup`, outside the timing.
     fn time<B>(
@@ -146,87 +147,101 @@ fn kernels(n: usize, repeat: usize, profile: Option<&GpuProfile>, rows: &mut Vec
         out
     }
 
-    let (x, y0) = (vec![1.5f32; n], vec![2.5f32; n]);
-    let [simt_ms, measured_ms] = time(
-        &devs,
-        repeat,
-        |dev| (dev.alloc_from(&x), dev.alloc_from(&y0)),
-        |dev, (xb, yb)| {
-            let (xv, yv) = (xb.view(), yb.view_mut());
-            dev.for_each("overhead::saxpy_any_store", n, |t, i| t.store(&yv, i, 2.0 * t.load(&xv, i) + t.load(&yv, i)));
-        },
-    );
-    let mut ys = y0.clone();
-    let reference_ms = median_ms(repeat, || ys.par_iter_mut().zip(&x).for_each(|(y, &x)| *y += 2.0 * x));
-    let [owned_ms, owned_measured_ms] = time(
-        &devs,
-        repeat,
-        |dev| (dev.alloc_from(&x), dev.alloc_from(&y0)),
-        |dev, (xb, yb)| {
-            dev.transform_in_place("overhead::saxpy", &xb.view(), yb, |_, _, x, y| 2.0 * x + y);
-        },
-    );
-    rows.push(Row {
-        name: "saxpy",
-        simt_ms: owned_ms,
-        measured_ms: owned_measured_ms,
-        reference_ms,
-        reference: "rayon zip loop",
-    });
-    rows.push(Row { name: "saxpy_any_store", simt_ms, measured_ms, reference_ms, reference: "rayon zip loop" });
-
-    let data = random(n, 11);
-    let [simt_ms, measured_ms] = time(
-        &devs,
-        repeat,
-        |dev| (dev.alloc_from(&data), dev.alloc::<u32>(n)),
-        |dev, (ib, ob)| {
-            dev.transform("overhead::hash", &ib.view(), ob, |_, _, x| hash(x));
-        },
-    );
-    let mut out = vec![0u32; n];
-    let reference_ms = median_ms(repeat, || out.par_iter_mut().zip(&data).for_each(|(o, &x)| *o = hash(x)));
-    rows.push(Row { name: "hash", simt_ms, measured_ms, reference_ms, reference: "rayon zip loop" });
-
-    let rays = n / 64;
-    let (ray_data, tri_data) = leaf_data(rays, 64);
-    let [simt_ms, measured_ms] = time(
-        &devs,
-        repeat,
-        |dev| (dev.alloc_from(&ray_data), dev.alloc_from(&tri_data), dev.alloc::<f32>(rays)),
-        |dev, (rb, tb, ob)| {
-            let (rv, tv, ov) = (rb.view(), tb.view(), ob.view_mut());
-            let cfg = LaunchConfig::linear(rays, 128).with_shared(64 * 36);
-            dev.launch("overhead::leaf", cfg, |blk| {
-                let tris = blk.shared::<[f32; 9]>(64);
-                blk.for_each_thread(|t| {
-                    for k in (t.thread_idx() as usize..64).step_by(t.block_dim() as usize) {
-                        t.store_shared(tris, k, t.load(&tv, k));
-                    }
+    if want("saxpy") || want("saxpy_any_store") {
+        let (x, y0) = (vec![1.5f32; n], vec![2.5f32; n]);
+        let [simt_ms, measured_ms] = time(
+            &devs,
+            repeat,
+            |dev| (dev.alloc_from(&x), dev.alloc_from(&y0)),
+            |dev, (xb, yb)| {
+                let (xv, yv) = (xb.view(), yb.view_mut());
+                dev.for_each("overhead::saxpy_any_store", n, |t, i| {
+                    t.store(&yv, i, 2.0 * t.load(&xv, i) + t.load(&yv, i))
                 });
-                blk.sync_threads();
-                blk.for_each_thread(|t| {
-                    let i = t.global_idx();
-                    if i < rays {
-                        let ray = t.load(&rv, i);
-                        let mut best = ray[6];
-                        for k in 0..64 {
-                            best = test(&ray, &t.load_shared(tris, k), best);
+            },
+        );
+        let mut ys = y0.clone();
+        let reference_ms = median_ms(repeat, || ys.par_iter_mut().zip(&x).for_each(|(y, &x)| *y += 2.0 * x));
+        let [owned_ms, owned_measured_ms] = time(
+            &devs,
+            repeat,
+            |dev| (dev.alloc_from(&x), dev.alloc_from(&y0)),
+            |dev, (xb, yb)| {
+                dev.transform_in_place("overhead::saxpy", &xb.view(), yb, |_, _, x, y| 2.0 * x + y);
+            },
+        );
+        rows.push(Row {
+            name: "saxpy",
+            simt_ms: owned_ms,
+            measured_ms: owned_measured_ms,
+            reference_ms,
+            reference: "rayon zip loop",
+        });
+        rows.push(Row { name: "saxpy_any_store", simt_ms, measured_ms, reference_ms, reference: "rayon zip loop" });
+    }
+
+    if want("hash") {
+        let data = random(n, 11);
+        let [simt_ms, measured_ms] = time(
+            &devs,
+            repeat,
+            |dev| (dev.alloc_from(&data), dev.alloc::<u32>(n)),
+            |dev, (ib, ob)| {
+                dev.transform("overhead::hash", &ib.view(), ob, |_, _, x| hash(x));
+            },
+        );
+        let mut out = vec![0u32; n];
+        let reference_ms = median_ms(repeat, || out.par_iter_mut().zip(&data).for_each(|(o, &x)| *o = hash(x)));
+        rows.push(Row { name: "hash", simt_ms, measured_ms, reference_ms, reference: "rayon zip loop" });
+    }
+
+    if want("leaf") {
+        let rays = n / 64;
+        let (ray_data, tri_data) = leaf_data(rays, 64);
+        let [simt_ms, measured_ms] = time(
+            &devs,
+            repeat,
+            |dev| (dev.alloc_from(&ray_data), dev.alloc_from(&tri_data), dev.alloc::<f32>(rays)),
+            |dev, (rb, tb, ob)| {
+                let (rv, tv, ov) = (rb.view(), tb.view(), ob.view_mut());
+                let cfg = LaunchConfig::linear(rays, 128).with_shared(64 * 36);
+                dev.launch("overhead::leaf", cfg, |blk| {
+                    let tris = blk.shared::<[f32; 9]>(64);
+                    blk.for_each_thread(|t| {
+                        for k in (t.thread_idx() as usize..64).step_by(t.block_dim() as usize) {
+                            t.store_shared(tris, k, t.load(&tv, k));
                         }
-                        t.store(&ov, i, best);
-                    }
-                });
-            })
-            .expect("valid launch");
-        },
-    );
-    let mut out = vec![0f32; rays];
-    let reference_ms = median_ms(repeat, || {
-        out.par_iter_mut()
-            .zip(&ray_data)
-            .for_each(|(o, r)| *o = tri_data.iter().fold(r[6], |best, tri| test(r, tri, best)))
-    });
-    rows.push(Row { name: "leaf", simt_ms, measured_ms, reference_ms, reference: "rayon loop, rays x 64 triangles" });
+                    });
+                    blk.sync_threads();
+                    blk.for_each_thread(|t| {
+                        let i = t.global_idx();
+                        if i < rays {
+                            let ray = t.load(&rv, i);
+                            let mut best = ray[6];
+                            for k in 0..64 {
+                                best = test(&ray, &t.load_shared(tris, k), best);
+                            }
+                            t.store(&ov, i, best);
+                        }
+                    });
+                })
+                .expect("valid launch");
+            },
+        );
+        let mut out = vec![0f32; rays];
+        let reference_ms = median_ms(repeat, || {
+            out.par_iter_mut()
+                .zip(&ray_data)
+                .for_each(|(o, r)| *o = tri_data.iter().fold(r[6], |best, tri| test(r, tri, best)))
+        });
+        rows.push(Row {
+            name: "leaf",
+            simt_ms,
+            measured_ms,
+            reference_ms,
+            reference: "rayon loop, rays x 64 triangles",
+        });
+    }
 }
 
 fn main() {
@@ -254,7 +269,7 @@ fn main() {
     for _ in 0..rounds {
         let mut rows = Vec::new();
         let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1));
-        kernels(n, repeat, profile.as_ref(), &mut rows);
+        kernels(n, repeat, profile.as_ref(), only.map(String::as_str), &mut rows);
         // The primitives take minutes measured: skipped when only a kernel row is asked for.
         if only.is_none_or(|o| !rows.iter().any(|r| r.name == *o)) {
             primitives::all(n, repeat, profile.as_ref(), &mut rows);

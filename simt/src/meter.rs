@@ -21,7 +21,7 @@
 //! sectors touched (the launch's and each block's distinct ones) and each warp's chain
 //! of instructions and loads.
 //!
-//! About 870 lines on purpose: the matching of lanes into warp instructions, the
+//! About 950 lines on purpose: the matching of lanes into warp instructions, the
 //! memory traffic, the footprints and the race check share the per-lane and per-warp
 //! state kept private here.
 
@@ -236,15 +236,19 @@ struct Slot {
     group: u32,
 }
 
-/// Where a lane phase stands, for the race check.
+/// Where a lane phase stands, for the race check. Sixteen bytes, so that a block's
+/// shadow of its shared words stays in the CPU's cache: the counters are one meter's
+/// (one worker's launch). The barrier interval never wraps (the shadow is cleared
+/// first, [`Meter::next_epoch`]); the warp and lane calls would have to wrap within one
+/// interval of one block, 2^32 of them between two barriers, to match a stale stamp.
 #[derive(Clone, Copy, Default)]
 struct Stamp {
     /// Barrier interval (a new one per block and per `sync_threads`).
-    epoch: u64,
+    epoch: u32,
     /// One warp's run of a `for_each_warp` body.
-    warp_call: u64,
+    warp_call: u32,
     /// One `for_each_lane` within it.
-    lane_call: u64,
+    lane_call: u32,
     thread: u32,
 }
 
@@ -356,10 +360,17 @@ impl Meter {
         self.group = outer;
     }
 
+    /// The interned id of `key`; a key repeated (a loop's one operation) skips the map.
+    #[inline(always)]
     fn intern(&mut self, key: usize) -> u32 {
         if self.last_key.0 == key && !self.index.is_empty() {
             return self.last_key.1;
         }
+        self.intern_new(key)
+    }
+
+    #[inline(never)]
+    fn intern_new(&mut self, key: usize) -> u32 {
         let next = self.index.len() as u32;
         let id = *self.index.entry(key).or_insert(next);
         if id == next {
@@ -676,10 +687,21 @@ impl Meter {
     pub fn begin_block(&mut self, block: u32, shared_words: usize) {
         self.close_block();
         self.block = block;
-        self.now.epoch += 1;
         if self.shadow.len() < shared_words {
             self.shadow.resize(shared_words, Shadow::default());
         }
+        self.next_epoch();
+    }
+
+    /// A new barrier interval. Before its counter would wrap, every stamp is cleared
+    /// and counting starts again: a stamp of an older interval races with nothing
+    /// after it, and neither does a cleared one (interval 0, never current).
+    fn next_epoch(&mut self) {
+        if self.now.epoch == u32::MAX {
+            self.shadow.fill(Shadow::default());
+            self.now.epoch = 0;
+        }
+        self.now.epoch += 1;
     }
 
     /// A warp-wide operation (ballot, shuffle) executed by `lanes` lanes.
@@ -690,15 +712,15 @@ impl Meter {
 
     pub fn barrier(&mut self) {
         self.totals.barriers += 1;
-        self.now.epoch += 1;
+        self.next_epoch();
     }
 
     pub fn begin_warp_call(&mut self) {
-        self.now.warp_call += 1;
+        self.now.warp_call = self.now.warp_call.wrapping_add(1);
     }
 
     pub fn begin_lane_phase(&mut self) {
-        self.now.lane_call += 1;
+        self.now.lane_call = self.now.lane_call.wrapping_add(1);
     }
 
     pub fn begin_lane(&mut self, thread: u32) {
@@ -733,31 +755,36 @@ impl Meter {
     pub fn shared(&mut self, first: usize, n: usize, write: bool) {
         self.sync_lane();
         let now = self.now;
-        for w in first..first + n {
-            let s = &mut self.shadow[w];
-            let hazard = if write {
-                if s.read.races(&now) {
-                    Some(("write after read", s.read.thread))
-                } else if s.write.races(&now) {
-                    Some(("write after write", s.write.thread))
-                } else {
-                    None
+        let words = &mut self.shadow[first..first + n];
+        // The words' own checks first, the report (rare) after.
+        let found = if write {
+            let mut found = None;
+            for (k, s) in words.iter_mut().enumerate() {
+                if found.is_none() {
+                    if s.read.races(&now) {
+                        found = Some((k, "write after read", s.read.thread));
+                    } else if s.write.races(&now) {
+                        found = Some((k, "write after write", s.write.thread));
+                    }
                 }
-            } else if s.write.races(&now) {
-                Some(("read after write", s.write.thread))
-            } else {
-                None
-            };
-            if write {
                 s.write = now;
-            } else {
+            }
+            found
+        } else {
+            let mut found = None;
+            for (k, s) in words.iter_mut().enumerate() {
+                if found.is_none() && s.write.races(&now) {
+                    found = Some((k, "read after write", s.write.thread));
+                }
                 s.read = now;
             }
-            if let Some((hazard, first)) = hazard
-                && self.race.is_none()
-            {
-                self.race = Some(Race { block: self.block, byte: w * 4, first, second: now.thread, hazard });
-            }
+            found
+        };
+        if let Some((k, hazard, first_thread)) = found
+            && self.race.is_none()
+        {
+            let byte = (first + k) * 4;
+            self.race = Some(Race { block: self.block, byte, first: first_thread, second: now.thread, hazard });
         }
     }
 
@@ -895,5 +922,32 @@ impl Hasher for KeyHasher {
     fn write_usize(&mut self, n: usize) {
         let h = (n as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
         self.0 = h ^ (h >> 32);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Meter;
+
+    /// The barrier interval's counter wraps to where it started: the stamps of before
+    /// must not race with the accesses after (the shadow is cleared), and a race after
+    /// the wrap is still found.
+    #[test]
+    fn the_race_check_survives_its_interval_counter_wrapping() {
+        let mut m = Meter::new(false);
+        m.begin_block(0, 4);
+        m.begin_lane(1);
+        m.shared(0, 1, true);
+        m.now.epoch = u32::MAX;
+        m.barrier();
+        m.begin_lane(2);
+        m.shared(0, 1, false);
+        assert!(m.race.is_none(), "a write of an interval before the wrap read as racing: {:?}", m.race);
+        m.begin_lane(3);
+        m.shared(1, 1, true);
+        m.begin_lane(4);
+        m.shared(1, 1, false);
+        let race = m.race.expect("a read after another lane's write in one interval");
+        assert_eq!((race.byte, race.first, race.second, race.hazard), (4, 3, 4, "read after write"));
     }
 }
