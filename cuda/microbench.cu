@@ -9,7 +9,7 @@
 // The probes are deliberately unlike the checked kernels (PDACRT, CIS): the model is
 // calibrated on these only, then checked on those.
 //
-// About 1,020 lines on purpose: one probe per profile quantity, each with its launch, in
+// About 1,150 lines on purpose: one probe per profile quantity, each with its launch, in
 // one program that `cuda/microbench.sh` profiles in one pass.
 //
 //   nvcc -std=c++17 -O3 -arch=sm_90 -o target/cuda/microbench cuda/microbench.cu
@@ -23,6 +23,7 @@
 //   target/cuda/microbench stream   first touches in order: chases through fresh memory
 //   target/cuda/microbench icache   instruction fetch: straight-line and branchy code
 //   target/cuda/microbench l2size   load latency by the size of the data chased
+//   target/cuda/microbench fencemix fences under load: by sectors waited for, and a fit's climb
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
@@ -178,6 +179,57 @@ __device__ void scattered_then_fence(uint2* a, int iters) {
 }
 __global__ void fence_scattered_warp(uint2* a, int iters) { scattered_then_fence(a, iters); }
 __global__ void fence_scattered_many(uint2* a, int iters) { scattered_then_fence(a, iters); }
+// Fences under load (`microbench fencemix`): every SM full (8 blocks of 256 threads),
+// each lane storing, then fencing, again and again, by what its warp's fence waits for.
+// Lanes STRIDE 8-byte words apart (1: a warp's store fills two 128-byte lines; 4: a
+// sector a lane, four lanes a line; 16: a line a lane), STORES such stores a lane
+// before each fence, ACTIVE lanes of each 32 storing and fencing (the rest return);
+// FRESH: each pass writes memory no pass wrote before (first touches in L2; Nsight
+// flushes the caches before each launch), else the same words again.
+template <int STRIDE, int STORES, int ACTIVE, bool FRESH>
+__device__ void fence_mix(uint2* a, int iters) {
+    const size_t t = blockIdx.x * (size_t)blockDim.x + threadIdx.x;
+    const size_t threads = (size_t)gridDim.x * blockDim.x;
+    if ((int)(threadIdx.x & 31) >= ACTIVE) return;
+    for (int k = 0; k < iters; ++k) {
+        const size_t base = FRESH ? (size_t)k * STORES * threads * STRIDE : 0;
+        for (int j = 0; j < STORES; ++j) a[base + ((size_t)j * threads + t) * STRIDE] = make_uint2(k, j);
+        __threadfence();
+    }
+}
+// One kernel a form, so that each has a name of its own in Nsight's report.
+__global__ void fence_mix_1_line(uint2* a, int n) { fence_mix<4, 1, 4, false>(a, n); }
+__global__ void fence_mix_2_lines(uint2* a, int n) { fence_mix<1, 1, 32, false>(a, n); }
+__global__ void fence_mix_3_lines(uint2* a, int n) { fence_mix<4, 3, 4, false>(a, n); }
+__global__ void fence_mix_8_lines(uint2* a, int n) { fence_mix<4, 1, 32, false>(a, n); }
+__global__ void fence_mix_24_lines(uint2* a, int n) { fence_mix<4, 3, 32, false>(a, n); }
+__global__ void fence_mix_32_lines(uint2* a, int n) { fence_mix<16, 1, 32, false>(a, n); }
+__global__ void fence_mix_96_lines(uint2* a, int n) { fence_mix<16, 3, 32, false>(a, n); }
+__global__ void fence_mix_3_lines_fresh(uint2* a, int n) { fence_mix<4, 3, 4, true>(a, n); }
+__global__ void fence_mix_8_lines_fresh(uint2* a, int n) { fence_mix<4, 1, 32, true>(a, n); }
+// The climb of a BVH's fit without its tree: each lane, level after level, stores a
+// 24-byte box into a node picked at random from `nodes` 64-byte nodes, fences, adds one
+// to the node's arrival count (its old value used), fences, and reads the node's other
+// box past L1, as `fit_boxes` in cuda/bvh.cu does at each level; every lane climbs all
+// the levels.
+__global__ void fence_climb(float* nodes, uint32_t* arrivals, int levels, uint32_t n_nodes, uint32_t* out) {
+    const uint32_t t = blockIdx.x * blockDim.x + threadIdx.x;
+    uint32_t acc = 0;
+    float sum = 0.f;
+    for (int l = 0; l < levels; ++l) {
+        const uint32_t p = (t * 2654435761u + (uint32_t)l * 40503u) % n_nodes;
+        float2* box = (float2*)(nodes + (size_t)p * 16);
+        box[0] = make_float2((float)l, (float)t);
+        box[1] = make_float2((float)t, (float)l);
+        box[2] = make_float2(1.f, 2.f);
+        __threadfence();
+        acc += atomicAdd(&arrivals[p], 1u);
+        __threadfence();
+        const volatile float* o = nodes + (size_t)p * 16 + 8;
+        sum += o[0] + o[1] + o[2] + o[3] + o[4] + o[5];
+    }
+    if (acc == 0xffffffffu && sum == 1.f) out[0] = acc;
+}
 __global__ void fence_alone(uint32_t* a, int iters) {
     uint32_t x = 0;
     for (int k = 0; k < iters; ++k) {
@@ -511,6 +563,66 @@ static int atomic_and_fence_probes(int sms) {
     cudaFree(scattered);
     cudaFree(words);
     cudaFree(buf);
+    cudaFree(out);
+    return 0;
+}
+
+// The fences-under-load probes (`microbench fencemix`): `fence_mix` by the 128-byte lines
+// (and sectors) a fence waits for, 1 to 96, lanes active, and first touches;
+// `fence_climb` over nodes that fit L2 (16 MiB) and that do not (256 MiB). Each line
+// gives the warp fences and the sectors and lines they wait for (stored since the
+// warp's last fence, counted per store instruction).
+static int fence_mix_probes(int sms) {
+    const int grid = sms * 8, threads = 256, hot_iters = 64, fresh_iters = 16, levels = 16;
+    const size_t lanes = (size_t)grid * threads;
+    uint2* a;
+    CHECK(cudaMalloc(&a, lanes * 16 * 3 * sizeof(uint2) + lanes * 4 * 3 * fresh_iters * sizeof(uint2)));
+    struct Mix {
+        const char* name;
+        void (*kernel)(uint2*, int);
+        int stride, stores, active;
+        bool fresh;
+    } mixes[] = {
+        {"fence_mix_1_line", micro::fence_mix_1_line, 4, 1, 4, false},
+        {"fence_mix_2_lines", micro::fence_mix_2_lines, 1, 1, 32, false},
+        {"fence_mix_3_lines", micro::fence_mix_3_lines, 4, 3, 4, false},
+        {"fence_mix_8_lines", micro::fence_mix_8_lines, 4, 1, 32, false},
+        {"fence_mix_24_lines", micro::fence_mix_24_lines, 4, 3, 32, false},
+        {"fence_mix_32_lines", micro::fence_mix_32_lines, 16, 1, 32, false},
+        {"fence_mix_96_lines", micro::fence_mix_96_lines, 16, 3, 32, false},
+        {"fence_mix_3_lines_fresh", micro::fence_mix_3_lines_fresh, 4, 3, 4, true},
+        {"fence_mix_8_lines_fresh", micro::fence_mix_8_lines_fresh, 4, 1, 32, true},
+    };
+    for (auto& m : mixes) {
+        const int iters = m.fresh ? fresh_iters : hot_iters;
+        for (int r = 0; r < PROBE_LAUNCHES; ++r) m.kernel<<<grid, threads>>>(a, iters);
+        CHECK(cudaDeviceSynchronize());
+        const long long warp_fences = (long long)grid * (threads / 32) * iters;
+        const int bytes = m.active * m.stride * 8;  // a store instruction's span
+        const int sectors = m.stride == 1 ? (bytes + 31) / 32 : m.active;
+        const int lines = (bytes + 127) / 128;
+        printf("probe\t%s\twarp_fences\t%lld\n", m.name, warp_fences);
+        printf("probe\t%s\tfenced_sectors\t%lld\n", m.name, warp_fences * sectors * m.stores);
+        printf("probe\t%s\tfenced_lines\t%lld\n", m.name, warp_fences * lines * m.stores);
+    }
+    float* nodes;
+    uint32_t *arrivals, *out;
+    const uint32_t sizes[] = {1u << 18, 1u << 22};
+    CHECK(cudaMalloc(&nodes, (size_t)sizes[1] * 64));
+    CHECK(cudaMalloc(&arrivals, (size_t)sizes[1] * 4));
+    CHECK(cudaMalloc(&out, 64));
+    CHECK(cudaMemset(nodes, 0, (size_t)sizes[1] * 64));
+    for (uint32_t n : sizes) {
+        for (int r = 0; r < PROBE_LAUNCHES; ++r) micro::fence_climb<<<grid, threads>>>(nodes, arrivals, levels, n, out);
+        CHECK(cudaDeviceSynchronize());
+        const char* name = n == sizes[0] ? "fence_climb_16_mib" : "fence_climb_256_mib";
+        const long long warp_fences = 2LL * grid * (threads / 32) * levels;
+        printf("probe\t%s\twarp_fences\t%lld\n", name, warp_fences);
+        printf("probe\t%s\tatomic_lanes\t%lld\n", name, (long long)lanes * levels);
+    }
+    cudaFree(a);
+    cudaFree(nodes);
+    cudaFree(arrivals);
     cudaFree(out);
     return 0;
 }
@@ -924,6 +1036,10 @@ int main(int argc, char** argv) {
     if (argc > 1 && std::string(argv[1]) == "shared") {
         printf("device\tname\t%s\n", p.name);
         return shared_probes();
+    }
+    if (argc > 1 && std::string(argv[1]) == "fencemix") {
+        printf("device\tname\t%s\n", p.name);
+        return fence_mix_probes(p.multiProcessorCount);
     }
     if (argc > 1 && std::string(argv[1]) == "l2size") {
         printf("device\tname\t%s\n", p.name);

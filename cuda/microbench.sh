@@ -27,6 +27,10 @@
 # MODE=shared runs the shared-memory latency probes alone: one thread's chase through
 # shared words (cycles a hop) and one block's store-barrier-load round at 32 to 1,024
 # threads (lines `timed`, not read by `gpu_check calibrate`).
+# MODE=fencemix runs the fences-under-load probes alone: every SM full, fences by the
+# 128-byte lines they wait for (1 to 96), lanes active and first touches, and a BVH
+# fit's climb without its tree; `gpu_check calibrate` takes them as a further
+# --probes/--ncu pair (the profile's fence_ns_by_lines).
 #
 # ncu runs with --clock-control none (the GPU's own clocks, as in cuda/check.sh) and its
 # default --cache-control all (caches flushed before each kernel), as the checked

@@ -13,6 +13,8 @@ pub const MAX_PATHS: usize = 8;
 pub const REGISTER_WORDS_PER_THREAD: usize = 64;
 /// Bytes in one memory sector.
 pub const SECTOR_BYTES: u64 = 32;
+/// Sectors of a 128-byte cache line.
+pub const SECTORS_PER_LINE: u64 = 4;
 /// Instructions in one trip of the retry loop that a 64-bit shared `atomicAdd` compiles
 /// to on sm_90, which has no 64-bit shared add (nvcc 13.0, `cuobjdump -sass`): the load
 /// (`LDS.64`), the 64-bit add (`IADD3`, `IMAD.X`), the swap (`ATOMS.CAST.SPIN.64`), the

@@ -26,8 +26,8 @@
 //! state kept private here.
 
 use crate::limits::{
-    MAX_PATHS, MAX_REGIONS, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES, WARP_SIZE, footprint_sampled, footprint_weight,
-    host_sector,
+    MAX_PATHS, MAX_REGIONS, RETRY_TRIP_INSTRUCTIONS, SECTOR_BYTES, SECTORS_PER_LINE, WARP_SIZE, footprint_sampled,
+    footprint_weight, host_sector,
 };
 use crate::runs::Runs;
 use std::collections::HashMap;
@@ -82,6 +82,11 @@ pub struct WarpChain {
     /// The sectors the warp had stored or updated atomically, not yet fenced, at each of
     /// its fences, summed: what its fences waited to see written.
     pub fenced_sectors: u64,
+    /// The same as 128-byte lines: for each store or atomic instruction, the distinct
+    /// lines its lanes wrote, summed over the instructions before each fence (a fence
+    /// under load costs by the lines it waits for more than by their sectors:
+    /// `docs/simt.md`, "Fences under load").
+    pub fenced_lines: u64,
     /// Sectors a load requested that an earlier load of its round (loads issued
     /// together) had requested: a round waits once for a sector, so the share of its
     /// waits that go to HBM is taken over the sectors less these.
@@ -96,6 +101,7 @@ impl WarpChain {
         self.atomic_rounds += o.atomic_rounds;
         self.fences += o.fences;
         self.fenced_sectors += o.fenced_sectors;
+        self.fenced_lines += o.fenced_lines;
         self.round_repeats += o.round_repeats;
     }
 }
@@ -322,8 +328,12 @@ pub(crate) struct Meter {
     warp_chain: Vec<WarpChain>,
     /// Per warp of the current block: sectors it wrote since its last fence.
     unfenced: Vec<u64>,
+    /// Per warp of the current block: lines it wrote since its last fence.
+    unfenced_lines: Vec<u64>,
     /// Sectors written per slot of the closing warp phase (scratch).
     written: Vec<u64>,
+    /// The same slots' distinct 128-byte lines written (scratch).
+    written_lines: Vec<u64>,
     /// The group of loads issued together that the current lane is in (`NO_GROUP`).
     group: u32,
     /// The groups of a closing warp phase's loads (scratch).
@@ -594,6 +604,7 @@ impl Meter {
             self.totals.longest_warp = self.totals.longest_warp.max(c);
         }
         self.unfenced.clear();
+        self.unfenced_lines.clear();
     }
 
     /// The launch's counters from this worker, its last block closed.
@@ -834,6 +845,8 @@ impl Meter {
         if self.predicting {
             self.written.clear();
             self.written.resize(self.slots.len(), 0);
+            self.written_lines.clear();
+            self.written_lines.resize(self.slots.len(), 0);
         }
         if !self.sectors.is_empty() {
             if !self.sectors.is_sorted() {
@@ -860,7 +873,9 @@ impl Meter {
                 let (slot, sector) = self.sectors[i];
                 self.sample(sector, self.slots[slot as usize].kind != Kind::Load);
             }
-            for &(slot, _) in &self.sectors {
+            // Sorted by slot, then sector: a slot's sectors of one line are neighbours.
+            let mut last_line = (u32::MAX, u64::MAX);
+            for &(slot, sector) in &self.sectors {
                 match self.slots[slot as usize].kind {
                     Kind::Load => self.totals.loads.sectors += 1,
                     Kind::Store => self.totals.stores.sectors += 1,
@@ -868,6 +883,11 @@ impl Meter {
                 }
                 if self.predicting && self.slots[slot as usize].kind != Kind::Load {
                     self.written[slot as usize] += 1;
+                    let line = (slot, sector / SECTORS_PER_LINE);
+                    if line != last_line {
+                        self.written_lines[slot as usize] += 1;
+                        last_line = line;
+                    }
                 }
             }
             self.sectors.clear();
@@ -878,17 +898,21 @@ impl Meter {
             let warp = (self.now.thread / WARP_SIZE) as usize;
             if self.unfenced.len() <= warp {
                 self.unfenced.resize(warp + 1, 0);
+                self.unfenced_lines.resize(warp + 1, 0);
             }
-            let mut pending = self.unfenced[warp];
-            for (s, &w) in self.slots.iter().zip(&self.written) {
+            let (mut pending, mut pending_lines) = (self.unfenced[warp], self.unfenced_lines[warp]);
+            for ((s, &w), &l) in self.slots.iter().zip(&self.written).zip(&self.written_lines) {
                 if s.kind == Kind::Fence {
                     phase.fenced_sectors += pending;
-                    pending = 0;
+                    phase.fenced_lines += pending_lines;
+                    (pending, pending_lines) = (0, 0);
                 } else {
                     pending += w;
+                    pending_lines += l;
                 }
             }
             self.unfenced[warp] = pending;
+            self.unfenced_lines[warp] = pending_lines;
         }
         for &id in &self.warp_touched {
             self.slot_of[id as usize].clear();

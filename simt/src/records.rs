@@ -7,15 +7,16 @@ use crate::stats::{LaunchRecord, RegionStats};
 use std::fmt::Write;
 
 /// The columns of [`records_to_tsv`].
-const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors\tround_repeats\tloaded_footprint\tin_order";
+const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors\tround_repeats\tloaded_footprint\tin_order\tlongest_fenced_lines\tfenced_lines";
 
 /// Columns of [`RECORD_HEADER`] that files written before them lack, newest first:
-/// whether the blocks ran in order (read as not), the loaded footprint (read as the
+/// the lines fences waited for (read as none), whether the blocks ran in order (read as not), the loaded footprint (read as the
 /// whole footprint), the sectors repeated within rounds
 /// of loads, the sectors fences waited for, the atomics
 /// and fences waited for (all read as none), and load rounds (read as one per load
 /// request).
 const LATER_COLUMNS: &[&str] = &[
+    "\tlongest_fenced_lines\tfenced_lines",
     "\tin_order",
     "\tloaded_footprint",
     "\tround_repeats",
@@ -35,7 +36,7 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
         let t = |x: &Traffic| format!("{}\t{}\t{}", x.requests, x.sectors, x.lanes);
         let _ = writeln!(
             s,
-            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
             r.name,
             r.grid,
             r.block,
@@ -64,7 +65,9 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
             r.waits.fenced_sectors,
             r.waits.round_repeats,
             r.loaded_footprint_sectors,
-            r.in_order as u8
+            r.in_order as u8,
+            r.longest_warp.fenced_lines,
+            r.waits.fenced_lines
         );
     }
     s
@@ -127,6 +130,7 @@ pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
                 atomic_rounds: if columns.len() > 26 { n(26)? } else { 0 },
                 fences: if columns.len() > 26 { n(27)? } else { 0 },
                 fenced_sectors: if columns.len() > 30 { n(30)? } else { 0 },
+                fenced_lines: if columns.len() > 35 { n(35)? } else { 0 },
                 round_repeats: 0,
             },
             waits: WarpChain {
@@ -135,6 +139,7 @@ pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
                 atomic_rounds: if columns.len() > 26 { n(28)? } else { 0 },
                 fences: if columns.len() > 26 { n(29)? } else { 0 },
                 fenced_sectors: if columns.len() > 30 { n(31)? } else { 0 },
+                fenced_lines: if columns.len() > 35 { n(36)? } else { 0 },
                 round_repeats: if columns.len() > 32 { n(32)? } else { 0 },
             },
             in_order: columns.len() > 34 && n(34)? != 0,
@@ -189,6 +194,7 @@ mod tests {
                 atomic_rounds: 2,
                 fences: 1,
                 fenced_sectors: 9,
+                fenced_lines: 6,
                 round_repeats: 0,
             },
             waits: WarpChain {
@@ -197,6 +203,7 @@ mod tests {
                 atomic_rounds: 7,
                 fences: 5,
                 fenced_sectors: 40,
+                fenced_lines: 25,
                 round_repeats: 11,
             },
             in_order: true,
@@ -210,7 +217,8 @@ mod tests {
         assert_eq!((back.longest_warp, back.waits), (record().longest_warp, record().waits));
         assert_eq!((back.loads, back.atomics, back.block_sectors), (record().loads, record().atomics, 8));
         assert_eq!((back.footprint_sectors, back.loaded_footprint_sectors, back.in_order), (9, 7, true));
-        // Cut the later columns off, newest first: the launch is then not in order, the
+        // Cut the later columns off, newest first: fenced lines are then none, the launch
+        // is then not in order, the
         // loaded footprint is then the
         // whole footprint, round repeats are none, then
         // fenced sectors, then atomics and fences, and then load rounds are one per load
@@ -218,15 +226,19 @@ mod tests {
         let cut = |text: &str, columns: usize| -> String {
             text.lines().map(|l| l.split('\t').take(columns).collect::<Vec<_>>().join("\t") + "\n").collect()
         };
+        let unlined = |w: WarpChain| WarpChain { fenced_lines: 0, ..w };
+        let before_lines = &records_from_tsv(&cut(&text, 35)).unwrap()[0];
+        assert_eq!((before_lines.in_order, before_lines.waits), (true, unlined(record().waits)));
+        assert_eq!(before_lines.longest_warp, unlined(record().longest_warp));
         let before_order = &records_from_tsv(&cut(&text, 34)).unwrap()[0];
         assert_eq!((before_order.in_order, before_order.loaded_footprint_sectors), (false, 7));
         let before_loaded = &records_from_tsv(&cut(&text, 33)).unwrap()[0];
-        assert_eq!((before_loaded.loaded_footprint_sectors, before_loaded.waits), (9, record().waits));
+        assert_eq!((before_loaded.loaded_footprint_sectors, before_loaded.waits), (9, unlined(record().waits)));
         let before_repeats = &records_from_tsv(&cut(&text, 32)).unwrap()[0];
-        assert_eq!(before_repeats.waits, WarpChain { round_repeats: 0, ..record().waits });
+        assert_eq!(before_repeats.waits, WarpChain { round_repeats: 0, ..unlined(record().waits) });
         let before_fenced = &records_from_tsv(&cut(&text, 30)).unwrap()[0];
-        assert_eq!(before_fenced.longest_warp, WarpChain { fenced_sectors: 0, ..record().longest_warp });
-        assert_eq!(before_fenced.waits, WarpChain { fenced_sectors: 0, round_repeats: 0, ..record().waits });
+        assert_eq!(before_fenced.longest_warp, WarpChain { fenced_sectors: 0, ..unlined(record().longest_warp) });
+        assert_eq!(before_fenced.waits, WarpChain { fenced_sectors: 0, round_repeats: 0, ..unlined(record().waits) });
         let before_atomics = &records_from_tsv(&cut(&text, 26)).unwrap()[0];
         let none = WarpChain { atomic_rounds: 0, fences: 0, fenced_sectors: 0, ..WarpChain::default() };
         assert_eq!(before_atomics.longest_warp, WarpChain { instructions: 20, load_rounds: 3, ..none });
@@ -234,7 +246,7 @@ mod tests {
         let before_rounds = &records_from_tsv(&cut(&text, 25)).unwrap()[0];
         assert_eq!(before_rounds.waits.load_rounds, 5);
         // Any other header is refused.
-        for columns in [24, 27, 31] {
+        for columns in [24, 27, 31, 36] {
             assert!(records_from_tsv(&cut(&text, columns)).unwrap_err().contains("header differs"));
         }
     }

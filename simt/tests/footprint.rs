@@ -186,6 +186,27 @@ fn a_warp_waits_for_atomics_whose_value_it_uses_and_for_fences_not_for_reduction
     });
     assert_eq!((fenced.longest_warp.fences, fenced.longest_warp.fenced_sectors), (2, 4));
     assert_eq!(fenced.waits.fenced_sectors, 4 * warps);
+    // The same in 128-byte lines: a warp's 32 consecutive words are one line; words a
+    // sector apart, 8 lines of 32 sectors; 8-byte values a line apart, three stores of
+    // them before the fence, 96 of each (as `microbench fencemix` forms them).
+    assert_eq!((fenced.longest_warp.fenced_lines, fenced.waits.fenced_lines), (1, warps));
+    let mut wide = dev.alloc::<u32>(n * 32);
+    let wv = wide.view_mut();
+    let spread = dev.for_each("spread", n, |t, i| {
+        t.store(&wv, i * 8, 1);
+        t.thread_fence();
+    });
+    assert_eq!((spread.longest_warp.fenced_sectors, spread.longest_warp.fenced_lines), (32, 8));
+    let mut pairs = dev.alloc::<u64>(n * 48);
+    let pv = pairs.view_mut();
+    let lines = dev.for_each("lines", n, |t, i| {
+        for j in 0..3 {
+            t.store(&pv, (j * n + i) * 16, 1);
+        }
+        t.thread_fence();
+    });
+    assert_eq!((lines.longest_warp.fenced_sectors, lines.longest_warp.fenced_lines), (96, 96));
+    assert_eq!(lines.waits.fenced_lines, 96 * warps);
 }
 
 #[test]
