@@ -229,9 +229,10 @@ fn the_predicted_ratio_of_pdacrt_to_the_gpu_bvh_has_the_measured_sign_and_the_do
     // traced for each batch. Every BVH kernel is matched launch for launch; the
     // predicted ratio of the two pipelines must say which is faster, as the H200 does,
     // and by as much within 15 % (the bar) on the bunny and the conference
-    // room. On the dragon it is +22 % (docs/simt.md: the BVH's fit and hierarchy
-    // kernels are predicted half their time there, the PDACRT trace −8 %), held here to
-    // 25 %. The BVH records of a meter without rounds fail this (6.93 against 10.71).
+    // room. On the dragon it is +17 % (docs/simt.md: the BVH's hierarchy kernel is
+    // predicted half its time there and its fit a third short, the PDACRT trace −8 %),
+    // held here to 20 %; without the bound of fences under load it was +22 %. The BVH
+    // records of a meter without rounds fail this (6.93 against 10.71).
     let p = GpuProfile::named("h200").unwrap();
     let pdacrt = runs();
     for (k, (bvh, pdacrt_measured)) in bvh_runs().into_iter().enumerate() {
@@ -243,7 +244,7 @@ fn the_predicted_ratio_of_pdacrt_to_the_gpu_bvh_has_the_measured_sign_and_the_do
         let predicted = predicted_total(&pdacrt[k].records, &p) / predicted_total(&bvh.records, &p);
         let measured = pdacrt_measured / bvh.every.unwrap();
         assert!(predicted > 1.0 && measured > 1.0, "{}: {predicted:.2} against {measured:.2}", MODELS[k]);
-        let bar = if MODELS[k] == "dragon" { 0.25 } else { 0.15 };
+        let bar = if MODELS[k] == "dragon" { 0.20 } else { 0.15 };
         assert!((predicted / measured - 1.0).abs() <= bar, "{}: {predicted:.2} against {measured:.2}", MODELS[k]);
     }
 }

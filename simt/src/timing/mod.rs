@@ -359,13 +359,22 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
     let miss = if waited > 0.0 { (r.loaded_footprint_sectors as f64 / waited).min(1.0) } else { 0.0 };
     let mem_latency = miss * p.hbm_latency_s + (1.0 - miss) * p.l2_latency_s;
     let atomic_latency = p.atomic_latency_s + miss * (p.hbm_latency_s - p.l2_latency_s).max(0.0);
+    // What the GPU's fence throughput makes of a chain: with the launch's resident
+    // warps all running such chains, each takes at least as long as their fences take
+    // the GPU together, its own fences times the warps in flight. (A closed queue's
+    // cycle is at least the longer of its lone cycle and the population times its
+    // demand at a saturated server; a fence blocks its warp until its stores are seen.)
+    let resident = warps.min(p.sms * per_sm * warps_per_block);
+    let loaded_fences = |c: &WarpChain| {
+        resident * (c.fences as f64 / p.fences_per_s + c.fenced_sectors as f64 / p.fenced_sectors_per_s)
+    };
     let chain = |c: &WarpChain, over: f64| {
-        (c.instructions as f64 * p.alu_latency_cycles * cycle
+        let alone = c.instructions as f64 * p.alu_latency_cycles * cycle
             + c.load_rounds as f64 * mem_latency
             + c.atomic_rounds as f64 * atomic_latency
             + c.fences as f64 * p.fence_latency_s
-            + (c.fenced_sectors as f64 - c.fences as f64).max(0.0) * p.fenced_sector_latency_s)
-            / over
+            + (c.fenced_sectors as f64 - c.fences as f64).max(0.0) * p.fenced_sector_latency_s;
+        alone.max(loaded_fences(c)) / over
     };
     let average = chain(&WarpChain { instructions: r.all_regions().issued, ..r.waits }, warps);
     let longest = chain(&r.longest_warp, 1.0);

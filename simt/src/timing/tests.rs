@@ -131,6 +131,29 @@ fn waited_atomics_and_fences_lengthen_the_chain_and_fences_have_their_own_bound(
 }
 
 #[test]
+fn fences_wait_for_their_share_of_the_gpus_fence_rate_with_every_warp_fencing() {
+    let p = profile();
+    // Every warp's chain is ten fences waiting for 40 sectors: alone, their latencies;
+    // with a full wave of warps in flight, those warps' fences at the GPU's rate.
+    let fenced = |grid: u32| {
+        let mut r = launch(grid, 4, 0, 0, 0);
+        let warps = grid as u64 * 8;
+        r.longest_warp = WarpChain { fences: 10, fenced_sectors: 40, ..r.longest_warp };
+        r.waits = WarpChain { fences: 10 * warps, fenced_sectors: 40 * warps, ..r.waits };
+        predict(&r, &p).unwrap()
+    };
+    let cycle = 1.0 / p.clock_hz;
+    let alone = 4.0 * p.alu_latency_cycles * cycle + 10.0 * p.fence_latency_s + 30.0 * p.fenced_sector_latency_s;
+    let one = fenced(1);
+    assert!((one.latency - alone).abs() < 1e-15, "{one:?}");
+    let resident = p.sms * 8.0 * 8.0;
+    let loaded = resident * (10.0 / p.fences_per_s + 40.0 / p.fenced_sectors_per_s);
+    assert!(loaded > 2.0 * alone);
+    let full = fenced(p.sms as u32 * 8);
+    assert!((full.latency - loaded).abs() < 1e-12 * loaded.max(1.0), "{full:?} against {loaded:e}");
+}
+
+#[test]
 fn occupancy_follows_block_size_and_shared_memory() {
     let p = profile();
     assert_eq!(blocks_per_sm(&p, 256, 0, 0), (p.max_warps_per_sm / 8.0).floor());
