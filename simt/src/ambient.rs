@@ -23,6 +23,7 @@ use std::cell::{Cell, RefCell};
 #[derive(Clone, Copy)]
 struct Ambient {
     meter: *const RefCell<Meter>,
+    lane: u32,
     region: usize,
 }
 
@@ -54,7 +55,7 @@ impl Thread<'_> {
     pub fn ambient<R>(&self, region: usize, f: impl FnOnce() -> R) -> R {
         let Some(meter) = self.meter() else { return f() };
         let copy = meter.borrow().copy;
-        let previous = AMBIENT.replace(Some(Ambient { meter, region }));
+        let previous = AMBIENT.replace(Some(Ambient { meter, lane: self.thread_idx(), region }));
         let _restore = Restore { previous, meter, copy };
         f()
     }
@@ -170,7 +171,7 @@ fn note_read(site: usize, size: u64, width: u64, addr: impl FnOnce() -> u64) {
         // place in the source, and they are two instructions.
         let site = site ^ 0x2545_f491_4f6c_dd1d_u64 as usize;
         // SAFETY: as in `declare_at`.
-        note_global(unsafe { &*a.meter }, site, Kind::Load, addr, size, width, true);
+        note_global(unsafe { &*a.meter }, a.lane, site, Kind::Load, addr, (size, width), true);
     }
 }
 
@@ -207,7 +208,7 @@ pub fn declare_at(site: usize, part: usize, units: u32) {
         // SAFETY: `Thread::ambient` sets the pointer from a borrow that outlives the
         // closure it runs, and puts the previous value back before returning or
         // unwinding; nothing else writes `AMBIENT`.
-        note_work(unsafe { &*a.meter }, site, a.region + part, 0, units);
+        note_work(unsafe { &*a.meter }, a.lane, site, a.region + part, 0, units);
     }
 }
 
@@ -223,7 +224,7 @@ pub fn scope() -> Scope {
         Some(a) => {
             // SAFETY: as in `declare`.
             let m = unsafe { &*a.meter };
-            Scope { meter: a.meter, outer: enter_scope(m, site()) }
+            Scope { meter: a.meter, outer: enter_scope(m, a.lane, site()) }
         }
         None => Scope { meter: std::ptr::null(), outer: 0 },
     }
@@ -231,8 +232,10 @@ pub fn scope() -> Scope {
 
 #[cold]
 #[inline(never)]
-fn enter_scope(m: &RefCell<Meter>, site: usize) -> usize {
-    m.borrow_mut().enter_scope(site)
+fn enter_scope(m: &RefCell<Meter>, lane: u32, site: usize) -> usize {
+    let mut m = m.borrow_mut();
+    m.set_lane(lane);
+    m.enter_scope(site)
 }
 
 /// A scope of the ambient lane, from [`scope`] until it drops.

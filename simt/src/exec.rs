@@ -224,7 +224,7 @@ impl<'w> Block<'w> {
             self.for_each_warp(|w| {
                 w.run_lanes(false, &mut |t: &Thread| {
                     if let Some(m) = t.meter {
-                        note_work(m, at, region, path, units);
+                        note_work(m, t.thread_idx, at, region, path, units);
                     }
                 })
             });
@@ -242,7 +242,7 @@ impl<'w> Block<'w> {
             self.for_each_warp(|w| {
                 w.run_lanes(false, &mut |t: &Thread| {
                     if let Some(m) = t.meter {
-                        note_global(m, at, Kind::Load, addr, size, width, true);
+                        note_global(m, t.thread_idx, at, Kind::Load, addr, (size, width), true);
                     }
                 })
             });
@@ -461,43 +461,68 @@ fn read_field<T: DeviceCopy, U: DeviceCopy, V: Readable<T>>(v: &V, i: usize, fie
 }
 
 // Measurement calls are kept out of line (and cold), so that the unmeasured kernel
-// code they sit in stays small enough to inline.
-#[cold]
-#[inline(never)]
-pub(crate) fn note_global(m: &RefCell<Meter>, site: usize, kind: Kind, addr: u64, size: u64, width: u64, on: bool) {
-    m.borrow_mut().global(site, kind, addr, size, width, on);
+// code they sit in stays small enough to inline. Each names the lane that records
+// (`Meter::set_lane`): a launch need not set it lane by lane, so that a loop of lanes
+// that record nothing of their own stays a plain loop (`Device::transform`).
+
+/// The meter, borrowed for `lane`'s record.
+#[inline(always)]
+fn meter_of(m: &RefCell<Meter>, lane: u32) -> std::cell::RefMut<'_, Meter> {
+    let mut m = m.borrow_mut();
+    m.set_lane(lane);
+    m
 }
 
 #[cold]
 #[inline(never)]
-fn note_shared(m: &RefCell<Meter>, site: usize, word: usize, words: usize, write: bool) {
-    let mut m = m.borrow_mut();
+pub(crate) fn note_global(
+    m: &RefCell<Meter>,
+    lane: u32,
+    site: usize,
+    kind: Kind,
+    addr: u64,
+    (size, width): (u64, u64),
+    on: bool,
+) {
+    meter_of(m, lane).global(site, kind, addr, size, width, on);
+}
+
+#[cold]
+#[inline(never)]
+fn note_shared(m: &RefCell<Meter>, lane: u32, site: usize, word: usize, words: usize, write: bool) {
+    let mut m = meter_of(m, lane);
     m.op(site, Kind::Other, 1, 1);
     m.shared(word, words, write);
 }
 
 #[cold]
 #[inline(never)]
-fn note_fence(m: &RefCell<Meter>, site: usize) {
-    m.borrow_mut().op(site, Kind::Fence, 1, 0);
+fn note_fence(m: &RefCell<Meter>, lane: u32, site: usize) {
+    meter_of(m, lane).op(site, Kind::Fence, 1, 0);
 }
 
 #[cold]
 #[inline(never)]
-fn note_op(m: &RefCell<Meter>, site: usize) {
-    m.borrow_mut().op(site, Kind::Other, 1, 1);
+fn note_op(m: &RefCell<Meter>, lane: u32, site: usize) {
+    meter_of(m, lane).op(site, Kind::Other, 1, 1);
 }
 
 #[cold]
 #[inline(never)]
-fn note_spin(m: &RefCell<Meter>, site: usize, word: usize) {
-    m.borrow_mut().spin(site, word);
+fn note_spin(m: &RefCell<Meter>, lane: u32, site: usize, word: usize) {
+    meter_of(m, lane).spin(site, word);
 }
 
 #[cold]
 #[inline(never)]
-pub(crate) fn note_work(m: &RefCell<Meter>, site: usize, region: usize, path: usize, units: u32) {
-    m.borrow_mut().work(site, region, path, units);
+pub(crate) fn note_work(m: &RefCell<Meter>, lane: u32, site: usize, region: usize, path: usize, units: u32) {
+    meter_of(m, lane).work(site, region, path, units);
+}
+
+#[cold]
+#[inline(never)]
+fn begin_together(m: &RefCell<Meter>, lane: u32, site: usize) -> u32 {
+    meter_of(m, lane).begin_together(site)
 }
 
 /// Enters copy `copy` of unrolled code; returns the copy it was in.
@@ -610,7 +635,7 @@ impl Thread<'_> {
         if let Some(m) = self.meter {
             let size = std::mem::size_of::<T>() as u64;
             let width = if kind.is_atomic() { size } else { access_width::<T>() };
-            note_global(m, site(), kind, addr, size, width, on);
+            note_global(m, self.thread_idx, site(), kind, addr, (size, width), on);
         }
     }
 
@@ -830,7 +855,7 @@ impl Thread<'_> {
         let w = words::<T>();
         let base = s.offset as usize + i * w;
         if let Some(m) = self.meter {
-            note_shared(m, site(), base, w, write);
+            note_shared(m, self.thread_idx, site(), base, w, write);
         }
         self.shared[base..base + w].as_ptr() as *mut T
     }
@@ -859,7 +884,7 @@ impl Thread<'_> {
     fn shared_atomic(&self, len: u32, i: usize) {
         assert!(i < len as usize, "shared atomic {i} of {len}");
         if let Some(m) = self.meter {
-            note_op(m, site());
+            note_op(m, self.thread_idx, site());
         }
     }
 
@@ -887,7 +912,7 @@ impl Thread<'_> {
         // Two words, low first, as `load_shared::<u64>` reads them.
         let at = s.offset as usize + 2 * i;
         if let Some(m) = self.meter {
-            note_spin(m, site(), at);
+            note_spin(m, self.thread_idx, site(), at);
         }
         let (lo, hi) = (&self.shared[at], &self.shared[at + 1]);
         let old = lo.get() as u64 | (hi.get() as u64) << 32;
@@ -958,7 +983,7 @@ impl Thread<'_> {
     #[must_use = "the loads are together until the guard drops: bind it with `let _together = ..`"]
     pub fn loads_together(&self) -> Together<'_> {
         match self.meter {
-            Some(m) => Together { meter: Some(m), outer: m.borrow_mut().begin_together(site()) },
+            Some(m) => Together { meter: Some(m), outer: begin_together(m, self.thread_idx, site()) },
             None => Together { meter: None, outer: 0 },
         }
     }
@@ -973,7 +998,7 @@ impl Thread<'_> {
     #[track_caller]
     pub fn thread_fence(&self) {
         if let Some(m) = self.meter {
-            note_fence(m, site());
+            note_fence(m, self.thread_idx, site());
         }
         std::sync::atomic::fence(std::sync::atomic::Ordering::SeqCst);
     }
@@ -986,7 +1011,7 @@ impl Thread<'_> {
     #[track_caller]
     pub fn work(&self, region: usize, path: usize, units: u32) {
         if let Some(m) = self.meter {
-            note_work(m, site(), region, path, units);
+            note_work(m, self.thread_idx, site(), region, path, units);
         }
     }
 }

@@ -342,8 +342,8 @@ pub(crate) struct Meter {
     round_pairs: Vec<(u32, u64)>,
     /// Whether to gather footprints and warp chains (for the GPU time model).
     predicting: bool,
-    /// The lane running now, where a launch sets it without starting the lane
-    /// ([`Meter::set_lane`]): the meter starts it when the lane first records something.
+    /// The lane that recorded last ([`Meter::set_lane`]): the meter starts it when it
+    /// differs from the lane started before.
     lane: u32,
 }
 
@@ -743,9 +743,10 @@ impl Meter {
         self.lane_touched.clear();
     }
 
-    /// Sets the lane running now without starting it: a launch whose lanes mostly
-    /// record nothing of their own (`Device::transform`) sets each lane with one store,
-    /// and the lane is started ([`Meter::begin_lane`]) only if it records. A lane left
+    /// Sets the lane running now without starting it: every record names its lane
+    /// (the thread's own index, `exec::meter_of`), so a launch whose lanes mostly
+    /// record nothing of their own (`Device::transform`) sets none, and a lane is
+    /// started ([`Meter::begin_lane`]) only if it records. A lane left
     /// set as current from an earlier warp phase or block starts with stale occurrence
     /// counts only if it is the first to record in its phase, where the phase's slots
     /// are still empty and are taken in order whatever the counts.
