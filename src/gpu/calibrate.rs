@@ -275,7 +275,11 @@ fn fence_line(what: &str, (s1, t1): (f64, f64), (s2, t2): (f64, f64)) -> Result<
     let per_sector = (t2 - t1) / (s2 - s1);
     let own = t1 - s1 * per_sector;
     if own <= 0.0 {
-        return Err(format!("fence probes, {what}: a fence's own cost comes out {own:e} s"));
+        return Err(format!(
+            "fence probes, {what}: a fence's own cost comes out {own:e} s: on this GPU a fence's cost is not \
+             a line through the two probes (an H100 gives this; docs/simt.md, \"Fences under load, probed\"), \
+             and the model has no other fence law yet"
+        ));
     }
     Ok((per_sector, own))
 }

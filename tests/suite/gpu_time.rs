@@ -79,6 +79,17 @@ fn the_shipped_h200_profile_is_the_microbenchmarks_calibration_and_nothing_else(
     assert_eq!(again, shipped, "simt/profiles/h200.toml is not what the stored microbenchmarks give");
 }
 
+#[test]
+fn an_h100s_fence_probes_are_refused_with_the_reason() {
+    // The H100's two fence probes under load put a negative own cost on a line through
+    // them (docs/simt.md, "Fences under load, probed"): calibration says so, rather
+    // than writing a profile with a negative or infinite rate.
+    let probes = text("../microbenchmark-probes-h100.tsv");
+    let csv = text("../ncu-microbenchmarks-h100.csv.gz");
+    let Err(e) = calibrate(&[&probes], &[&csv]) else { panic!("the H100's probes calibrated") };
+    assert!(e.contains("own cost comes out -") && e.contains("not a line through the two probes"), "{e}");
+}
+
 /// `csv` (Nsight's CSV) with metric `metric` multiplied by `by` in the rows of the
 /// kernels whose names start with `kernel`.
 fn scaled(csv: &str, kernel: &str, metric: &str, by: f64) -> String {
