@@ -14,7 +14,7 @@
 //! times the lane entered it: the lanes' k-th entries are one copy, in which trips are
 //! matched again from the first.
 
-use crate::exec::{Thread, access_width, leave_copy, note_global, note_work, site};
+use crate::exec::{Thread, access_width, leave_copy, meter_of, note_global, note_work, site};
 use crate::meter::Kind;
 use crate::meter::Meter;
 use std::cell::{Cell, RefCell};
@@ -233,9 +233,7 @@ pub fn scope() -> Scope {
 #[cold]
 #[inline(never)]
 fn enter_scope(m: &RefCell<Meter>, lane: u32, site: usize) -> usize {
-    let mut m = m.borrow_mut();
-    m.set_lane(lane);
-    m.enter_scope(site)
+    meter_of(m, lane).enter_scope(site)
 }
 
 /// A scope of the ambient lane, from [`scope`] until it drops.

@@ -467,7 +467,7 @@ fn read_field<T: DeviceCopy, U: DeviceCopy, V: Readable<T>>(v: &V, i: usize, fie
 
 /// The meter, borrowed for `lane`'s record.
 #[inline(always)]
-fn meter_of(m: &RefCell<Meter>, lane: u32) -> std::cell::RefMut<'_, Meter> {
+pub(crate) fn meter_of(m: &RefCell<Meter>, lane: u32) -> std::cell::RefMut<'_, Meter> {
     let mut m = m.borrow_mut();
     m.set_lane(lane);
     m
