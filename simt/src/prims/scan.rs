@@ -9,7 +9,7 @@
 use super::look_back::TileStatus;
 use super::{BLOCK, ITEMS, TILE};
 use crate::device::{Device, LaunchConfig};
-use crate::exec::Warp;
+use crate::exec::{Local, Shared, Warp};
 use crate::memory::{DeviceBuffer, DeviceCopy};
 
 /// The identity map of the plain scans (a named function, so the recursion over
@@ -28,6 +28,21 @@ pub(super) fn warp_inclusive_scan<T: Copy>(w: &Warp, v: &mut [T; 32], op: impl F
         }
         d *= 2;
     }
+}
+
+/// The warp step of a block's exclusive sum of one count a lane: each lane's sum of the
+/// counts of the lanes before it into `r_exclusive`, the warp's total into
+/// `warp_sums[warp]` (the selection's kept counts, the sort's digit counts).
+pub(super) fn warp_exclusive_sum(w: &mut Warp, counts: [u32; 32], r_exclusive: Local<u32>, warp_sums: Shared<u32>) {
+    let mut v = counts;
+    warp_inclusive_scan(w, &mut v, |a, b| a + b);
+    w.for_each_lane(|t| {
+        let l = t.lane_id() as usize;
+        t.set(r_exclusive, v[l] - counts[l]);
+        if l == 31 {
+            t.store_shared(warp_sums, t.warp_id() as usize, v[31]);
+        }
+    });
 }
 
 /// Threads of a scan block and elements a thread scans: CUB's sm_90 tunings for

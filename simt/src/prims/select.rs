@@ -2,7 +2,7 @@
 //! compaction) and reduce_by_key (a segmented scan on head flags).
 
 use super::look_back::TileStatus;
-use super::scan::{inclusive_scan, warp_inclusive_scan};
+use super::scan::{inclusive_scan, warp_exclusive_sum};
 use crate::device::{Device, LaunchConfig};
 use crate::memory::{DeviceBuffer, DeviceCopy, Global, GlobalMut, Readable};
 use std::cell::Cell;
@@ -164,17 +164,9 @@ fn select_tiles<T: DeviceCopy, S: DeviceCopy>(
         // Exclusive sum of the threads' counts: within each warp by shuffles, then the
         // warps' totals by thread 0, whose look-back adds the tiles before.
         blk.for_each_warp(|w| {
-            let mut v = [0u32; 32];
-            w.for_each_lane(|t| v[t.lane_id() as usize] = t.get(r_kept).count_ones());
-            let counts = v;
-            warp_inclusive_scan(w, &mut v, |a, c| a + c);
-            w.for_each_lane(|t| {
-                let l = t.lane_id() as usize;
-                t.set(r_before, v[l] - counts[l]);
-                if l == 31 {
-                    t.store_shared(warp_sums, t.warp_id() as usize, v[31]);
-                }
-            });
+            let mut counts = [0u32; 32];
+            w.for_each_lane(|t| counts[t.lane_id() as usize] = t.get(r_kept).count_ones());
+            warp_exclusive_sum(w, counts, r_before, warp_sums);
         });
         blk.sync_threads();
         // Block-uniform: the tile's count (CUB's block scan gives it to every thread).

@@ -13,7 +13,7 @@
 
 use super::look_back::TileStatus;
 pub use super::radix_key::RadixKey;
-use super::scan::warp_inclusive_scan;
+use super::scan::warp_exclusive_sum;
 use super::{BLOCK, ITEMS, TILE};
 use crate::device::{Device, LaunchConfig};
 use crate::memory::{DeviceBuffer, DeviceCopy};
@@ -145,15 +145,7 @@ fn digit_offsets<K: RadixKey>(dev: &Device, keys: &DeviceBuffer<K>, passes: &[(u
             let first = p * RADIX + w.warp_idx() as usize * 32;
             let mut v = [0u32; 32];
             w.for_each_lane(|t| v[t.lane_id() as usize] = t.load(&cnt, first + t.lane_id() as usize));
-            let own = v;
-            warp_inclusive_scan(w, &mut v, |a, b| a + b);
-            w.for_each_lane(|t| {
-                let l = t.lane_id() as usize;
-                t.set(r_exclusive, v[l] - own[l]);
-                if t.lane_id() == 31 {
-                    t.store_shared(warp_sums, t.warp_id() as usize, v[31]);
-                }
-            });
+            warp_exclusive_sum(w, v, r_exclusive, warp_sums);
         });
         blk.sync_threads();
         blk.for_each_thread(|t| {
