@@ -364,10 +364,11 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
     // the GPU together, its own fences times the warps in flight. (A closed queue's
     // cycle is at least the longer of its lone cycle and the population times its
     // demand at a saturated server; a fence blocks its warp until its stores are seen.)
+    // The GPU's time for a chain's fences, every SM fencing (the fences term's rates).
+    let fence_time =
+        |c: &WarpChain| c.fences as f64 / p.fences_per_s + c.fenced_sectors as f64 / p.fenced_sectors_per_s;
     let resident = warps.min(p.sms * per_sm * warps_per_block);
-    let loaded_fences = |c: &WarpChain| {
-        resident * (c.fences as f64 / p.fences_per_s + c.fenced_sectors as f64 / p.fenced_sectors_per_s)
-    };
+    let loaded_fences = |c: &WarpChain| resident * fence_time(c);
     let chain = |c: &WarpChain, over: f64| {
         let alone = c.instructions as f64 * p.alu_latency_cycles * cycle
             + c.load_rounds as f64 * mem_latency
@@ -400,7 +401,7 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
         l2: l2_sectors * SECTOR_BYTES as f64 / l2_rate(r, sectors, p),
         hbm: footprint * SECTOR_BYTES as f64 / p.hbm_bytes_per_s,
         atomics: distinct / p.atomics_per_s + same / p.same_address_atomics_per_s,
-        fences: r.waits.fences as f64 / p.fences_per_s + r.waits.fenced_sectors as f64 / p.fenced_sectors_per_s,
+        fences: fence_time(&r.waits),
         barriers: r.barriers as f64 / (p.barriers_per_s_per_sm * sms),
         dispatch: grid / sms * p.block_dispatch_s,
         latency: (waves * average).max(longest) + look_back,
