@@ -359,6 +359,7 @@ impl Device {
             block_sectors: counters.block_sectors,
             longest_warp: counters.longest_warp,
             waits: counters.waits,
+            block_chains: counters.block_chains,
             in_order,
         };
         self.add_record(&record);
@@ -475,6 +476,7 @@ impl Device {
             block_sectors: 0,
             longest_warp: WarpChain::default(),
             waits: WarpChain::default(),
+            block_chains: WarpChain::default(),
             in_order: false,
         };
         self.add_record(&record);

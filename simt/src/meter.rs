@@ -21,7 +21,7 @@
 //! sectors touched (the launch's and each block's distinct ones) and each warp's chain
 //! of instructions and loads.
 //!
-//! About 950 lines on purpose: the matching of lanes into warp instructions, the
+//! About 1,000 lines on purpose: the matching of lanes into warp instructions, the
 //! memory traffic, the footprints and the race check share the per-lane and per-warp
 //! state kept private here.
 
@@ -104,6 +104,18 @@ impl WarpChain {
         self.fenced_lines += o.fenced_lines;
         self.round_repeats += o.round_repeats;
     }
+
+    /// Raises each count to another chain's where that is larger: over a block's warps,
+    /// a chain at least as long as its slowest warp's, whatever the latencies.
+    pub fn most(&mut self, o: &WarpChain) {
+        self.instructions = self.instructions.max(o.instructions);
+        self.load_rounds = self.load_rounds.max(o.load_rounds);
+        self.atomic_rounds = self.atomic_rounds.max(o.atomic_rounds);
+        self.fences = self.fences.max(o.fences);
+        self.fenced_sectors = self.fenced_sectors.max(o.fenced_sectors);
+        self.fenced_lines = self.fenced_lines.max(o.fenced_lines);
+        self.round_repeats = self.round_repeats.max(o.round_repeats);
+    }
 }
 
 /// What kind of instruction an operation is.
@@ -172,6 +184,9 @@ pub(crate) struct Counters {
     pub longest_warp: WarpChain,
     /// Every warp's chain summed.
     pub waits: WarpChain,
+    /// Each block's warps' most of every count ([`WarpChain::most`]), summed over the
+    /// blocks: a block holds its SM's slot until its slowest warp ends.
+    pub block_chains: WarpChain,
 }
 
 impl Counters {
@@ -196,6 +211,7 @@ impl Counters {
         self.block_sectors += o.block_sectors;
         self.longest_warp = self.longest_warp.max(o.longest_warp);
         self.waits.add(&o.waits);
+        self.block_chains.add(&o.block_chains);
         self
     }
 
@@ -600,9 +616,12 @@ impl Meter {
         }
         self.block_loaded.clear();
         self.block_written.clear();
+        let mut block = WarpChain::default();
         for c in self.warp_chain.drain(..) {
             self.totals.longest_warp = self.totals.longest_warp.max(c);
+            block.most(&c);
         }
+        self.totals.block_chains.add(&block);
         self.unfenced.clear();
         self.unfenced_lines.clear();
     }

@@ -7,15 +7,17 @@ use crate::stats::{LaunchRecord, RegionStats};
 use std::fmt::Write;
 
 /// The columns of [`records_to_tsv`].
-const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors\tround_repeats\tloaded_footprint\tin_order\tlongest_fenced_lines\tfenced_lines";
+const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors\tround_repeats\tloaded_footprint\tin_order\tlongest_fenced_lines\tfenced_lines\tblock_issued\tblock_load_rounds\tblock_atomic_rounds\tblock_fences\tblock_fenced_sectors\tblock_fenced_lines";
 
 /// Columns of [`RECORD_HEADER`] that files written before them lack, newest first:
-/// the lines fences waited for (read as none), whether the blocks ran in order (read as not), the loaded footprint (read as the
+/// the blocks' slowest warps' chains (read as none: the model then takes the mean
+/// warp's), the lines fences waited for (read as none), whether the blocks ran in order (read as not), the loaded footprint (read as the
 /// whole footprint), the sectors repeated within rounds
 /// of loads, the sectors fences waited for, the atomics
 /// and fences waited for (all read as none), and load rounds (read as one per load
 /// request).
 const LATER_COLUMNS: &[&str] = &[
+    "\tblock_issued\tblock_load_rounds\tblock_atomic_rounds\tblock_fences\tblock_fenced_sectors\tblock_fenced_lines",
     "\tlongest_fenced_lines\tfenced_lines",
     "\tin_order",
     "\tloaded_footprint",
@@ -36,7 +38,7 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
         let t = |x: &Traffic| format!("{}\t{}\t{}", x.requests, x.sectors, x.lanes);
         let _ = writeln!(
             s,
-            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
             r.name,
             r.grid,
             r.block,
@@ -67,7 +69,13 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
             r.loaded_footprint_sectors,
             r.in_order as u8,
             r.longest_warp.fenced_lines,
-            r.waits.fenced_lines
+            r.waits.fenced_lines,
+            r.block_chains.instructions,
+            r.block_chains.load_rounds,
+            r.block_chains.atomic_rounds,
+            r.block_chains.fences,
+            r.block_chains.fenced_sectors,
+            r.block_chains.fenced_lines
         );
     }
     s
@@ -142,6 +150,19 @@ pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
                 fenced_lines: if columns.len() > 35 { n(36)? } else { 0 },
                 round_repeats: if columns.len() > 32 { n(32)? } else { 0 },
             },
+            block_chains: if columns.len() > 37 {
+                WarpChain {
+                    instructions: n(37)?,
+                    load_rounds: n(38)?,
+                    atomic_rounds: n(39)?,
+                    fences: n(40)?,
+                    fenced_sectors: n(41)?,
+                    fenced_lines: n(42)?,
+                    round_repeats: 0,
+                }
+            } else {
+                WarpChain::default()
+            },
             in_order: columns.len() > 34 && n(34)? != 0,
         });
     }
@@ -206,6 +227,15 @@ mod tests {
                 fenced_lines: 25,
                 round_repeats: 11,
             },
+            block_chains: WarpChain {
+                instructions: 50,
+                load_rounds: 6,
+                atomic_rounds: 4,
+                fences: 3,
+                fenced_sectors: 19,
+                fenced_lines: 13,
+                round_repeats: 0,
+            },
             in_order: true,
         }
     }
@@ -215,18 +245,20 @@ mod tests {
         let text = records_to_tsv(&[record()]);
         let back = &records_from_tsv(&text).unwrap()[0];
         assert_eq!((back.longest_warp, back.waits), (record().longest_warp, record().waits));
+        assert_eq!(back.block_chains, record().block_chains);
         assert_eq!((back.loads, back.atomics, back.block_sectors), (record().loads, record().atomics, 8));
         assert_eq!((back.footprint_sectors, back.loaded_footprint_sectors, back.in_order), (9, 7, true));
-        // Cut the later columns off, newest first: fenced lines are then none, the launch
-        // is then not in order, the
-        // loaded footprint is then the
-        // whole footprint, round repeats are none, then
+        // Cut the later columns off, newest first: the blocks' chains are then none,
+        // fenced lines are then none, the launch is then not in order, the loaded
+        // footprint is then the whole footprint, round repeats are none, then
         // fenced sectors, then atomics and fences, and then load rounds are one per load
         // request.
         let cut = |text: &str, columns: usize| -> String {
             text.lines().map(|l| l.split('\t').take(columns).collect::<Vec<_>>().join("\t") + "\n").collect()
         };
         let unlined = |w: WarpChain| WarpChain { fenced_lines: 0, ..w };
+        let before_blocks = &records_from_tsv(&cut(&text, 37)).unwrap()[0];
+        assert_eq!((before_blocks.block_chains, before_blocks.waits), (WarpChain::default(), record().waits));
         let before_lines = &records_from_tsv(&cut(&text, 35)).unwrap()[0];
         assert_eq!((before_lines.in_order, before_lines.waits), (true, unlined(record().waits)));
         assert_eq!(before_lines.longest_warp, unlined(record().longest_warp));

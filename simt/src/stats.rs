@@ -84,6 +84,11 @@ pub struct LaunchRecord {
     /// Every warp's chain summed: what the warps wait for one after another (load
     /// rounds, atomics whose value they use, fences). 0 when unmeasured.
     pub waits: WarpChain,
+    /// Each block's slowest warp's chain (its warps' most of every count), summed over
+    /// the blocks: how long the blocks hold their SMs' slots, since a block's slot is
+    /// freed only when all its warps end. 0 when unmeasured or read from a file written
+    /// before it was counted.
+    pub block_chains: WarpChain,
     /// Whether the blocks were started in index order, each waiting for the one before
     /// it to publish ([`crate::Device::launch_in_order`]): a single-pass kernel.
     pub in_order: bool,

@@ -210,6 +210,35 @@ fn a_warp_waits_for_atomics_whose_value_it_uses_and_for_fences_not_for_reduction
 }
 
 #[test]
+fn each_block_counts_the_most_of_each_wait_any_of_its_warps_has() {
+    let dev = measured();
+    let n = 4096;
+    let x = dev.alloc_from(&vec![1u32; n]);
+    let mut out = dev.alloc::<u32>(n);
+    let (xv, ov) = (x.view(), out.view_mut());
+    // In block b (256 threads, 8 warps) warp 1 loads 10 + b times and warp 2 fences
+    // three times; every other warp loads once. A block's slot is held for the most of
+    // each: 11 + b instructions, 10 + b load rounds, 3 fences.
+    let rec = dev.for_each("slowest", n, |t, i| {
+        let (b, warp) = (i / 256, i % 256 / 32);
+        let trips = if warp == 1 { 10 + b } else { 1 };
+        let s: u32 = (0..trips).map(|k| t.load(&xv, (i + k) % n)).sum();
+        if warp == 2 {
+            (0..3).for_each(|_| t.thread_fence());
+        }
+        t.store(&ov, i, s);
+    });
+    assert_eq!(rec.block, 256);
+    let blocks = (n / 256) as u64;
+    let rounds: u64 = (0..blocks).map(|b| 10 + b).sum();
+    let expected =
+        WarpChain { instructions: rounds + blocks, load_rounds: rounds, fences: 3 * blocks, ..WarpChain::default() };
+    assert_eq!(rec.block_chains, expected);
+    // The longest warp is one warp: the last block's looping one.
+    assert_eq!(rec.longest_warp, chain(11 + blocks - 1, 10 + blocks - 1));
+}
+
+#[test]
 fn the_longest_warp_is_the_one_that_loops_longest() {
     let dev = measured();
     let x = dev.alloc_from(&vec![1u32; 4096]);

@@ -261,8 +261,9 @@ pub struct Prediction {
     pub barriers: f64,
     /// Blocks over the dispatch rate.
     pub dispatch: f64,
-    /// Waves of resident warps times the mean warp's dependent chain, or the longest
-    /// warp's chain if that is longer; for a single-pass kernel, plus its look-back's
+    /// Waves of resident blocks times the mean block's slowest warp's dependent chain
+    /// (the mean warp's where the records lack the blocks'), or the longest warp's
+    /// chain if that is longer; for a single-pass kernel, plus its look-back's
     /// hops across the tiles.
     pub latency: f64,
 }
@@ -378,6 +379,10 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
         alone.max(loaded_fences(c)) / over
     };
     let average = chain(&WarpChain { instructions: r.all_regions().issued, ..r.waits }, warps);
+    // A block holds its slot on an SM until its slowest warp ends (resources are freed a
+    // block at a time), so a wave lasts as long as its blocks' slowest warps: the mean
+    // block's, where the records have them (older files: the mean warp's).
+    let per_block = if r.block_chains == WarpChain::default() { 0.0 } else { chain(&r.block_chains, grid) };
     let longest = chain(&r.longest_warp, 1.0);
     // A single-pass kernel's look-back (an in-order launch): the tiles' prefixes move
     // back to front 32 tiles a hop (a warp reads 32 statuses at once), each hop one L2
@@ -404,7 +409,7 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
         fences: fence_time(&r.waits),
         barriers: r.barriers as f64 / (p.barriers_per_s_per_sm * sms),
         dispatch: grid / sms * p.block_dispatch_s,
-        latency: (waves * average).max(longest) + look_back,
+        latency: (waves * average.max(per_block)).max(longest) + look_back,
         seconds: 0.0,
     };
     let bounds = [t.issue, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch, t.latency];

@@ -32,6 +32,7 @@ fn launch(grid: u32, issued: u64, loads: u64, sectors: u64, footprint: u64) -> L
         block_sectors: sectors,
         longest_warp: WarpChain { instructions: issued, load_rounds: loads, ..WarpChain::default() },
         waits: WarpChain { instructions: warps * issued, load_rounds: warps * loads, ..WarpChain::default() },
+        block_chains: WarpChain::default(),
         in_order: false,
     }
 }
@@ -247,4 +248,31 @@ fn a_single_pass_launch_waits_for_its_look_back_hops_of_32_tiles() {
     assert_eq!(latency(&one), latency(&LaunchRecord { grid: 1, ..plain.clone() }));
     let few = |grid| LaunchRecord { grid, in_order: true, ..plain.clone() };
     assert!((latency(&few(33)) - latency(&LaunchRecord { grid: 33, ..plain.clone() }) - hop).abs() < 1e-12);
+}
+
+#[test]
+fn a_wave_lasts_as_long_as_its_blocks_slowest_warps() {
+    let p = profile();
+    // Four waves of blocks whose warps load 10 times each on average, while one warp
+    // of each block loads 40 times: a block holds its slot for 40 rounds, so each wave
+    // waits 40 rounds, not 10.
+    let grid = (p.sms * p.max_warps_per_sm / 8.0) as u32 * 4;
+    let even = launch(grid, 100, 10, 1_000_000, 0);
+    let skewed = LaunchRecord {
+        block_chains: WarpChain {
+            instructions: 130 * grid as u64,
+            load_rounds: 40 * grid as u64,
+            ..WarpChain::default()
+        },
+        ..even.clone()
+    };
+    let (a, b) = (predict(&even, &p).unwrap(), predict(&skewed, &p).unwrap());
+    assert_eq!((a.bound(), b.bound()), ("latency", "latency"));
+    let round = p.l2_latency_s;
+    let added = 4.0 * (30.0 * round + 30.0 * p.alu_latency_cycles / p.clock_hz);
+    assert!((b.latency - a.latency - added).abs() < 1e-3 * added, "{a:?} {b:?}");
+    // A block's chain is never taken for less than its mean warp's (a file's blocks
+    // summed as none read as older files do).
+    let short = LaunchRecord { block_chains: WarpChain { load_rounds: 1, ..WarpChain::default() }, ..even.clone() };
+    assert_eq!(predict(&short, &p).unwrap().latency, a.latency);
 }
