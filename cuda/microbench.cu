@@ -9,7 +9,7 @@
 // The probes are deliberately unlike the checked kernels (PDACRT, CIS): the model is
 // calibrated on these only, then checked on those.
 //
-// About 1,150 lines on purpose: one probe per profile quantity, each with its launch, in
+// About 1,190 lines on purpose: one probe per profile quantity, each with its launch, in
 // one program that `cuda/microbench.sh` profiles in one pass.
 //
 //   nvcc -std=c++17 -O3 -arch=sm_90 -o target/cuda/microbench cuda/microbench.cu
@@ -24,6 +24,7 @@
 //   target/cuda/microbench icache   instruction fetch: straight-line and branchy code
 //   target/cuda/microbench l2size   load latency by the size of the data chased
 //   target/cuda/microbench fencemix fences under load: by sectors waited for, and a fit's climb
+//   target/cuda/microbench slots    whether a block's slot waits for its slowest warp
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
@@ -205,14 +206,20 @@ __global__ void fence_mix_8_lines(uint2* a, int n) { fence_mix<4, 1, 32, false>(
 __global__ void fence_mix_24_lines(uint2* a, int n) { fence_mix<4, 3, 32, false>(a, n); }
 __global__ void fence_mix_32_lines(uint2* a, int n) { fence_mix<16, 1, 32, false>(a, n); }
 __global__ void fence_mix_96_lines(uint2* a, int n) { fence_mix<16, 3, 32, false>(a, n); }
+__global__ void fence_mix_4_lines(uint2* a, int n) { fence_mix<16, 1, 4, false>(a, n); }
+__global__ void fence_mix_4_lines_16_sectors(uint2* a, int n) { fence_mix<4, 1, 16, false>(a, n); }
+__global__ void fence_mix_8_lines_8_sectors(uint2* a, int n) { fence_mix<16, 1, 8, false>(a, n); }
+__global__ void fence_mix_8_lines_16_sectors(uint2* a, int n) { fence_mix<8, 1, 16, false>(a, n); }
+__global__ void fence_mix_12_lines(uint2* a, int n) { fence_mix<16, 1, 12, false>(a, n); }
 __global__ void fence_mix_3_lines_fresh(uint2* a, int n) { fence_mix<4, 3, 4, true>(a, n); }
 __global__ void fence_mix_8_lines_fresh(uint2* a, int n) { fence_mix<4, 1, 32, true>(a, n); }
 // The climb of a BVH's fit without its tree: each lane, level after level, stores a
 // 24-byte box into a node picked at random from `nodes` 64-byte nodes, fences, adds one
 // to the node's arrival count (its old value used), fences, and reads the node's other
 // box past L1, as `fit_boxes` in cuda/bvh.cu does at each level; every lane climbs all
-// the levels.
-__global__ void fence_climb(float* nodes, uint32_t* arrivals, int levels, uint32_t n_nodes, uint32_t* out) {
+// the levels. ATOMIC and READ false leave the atomic or the read out (the fences stay).
+template <bool ATOMIC, bool READ>
+__device__ void climb(float* nodes, uint32_t* arrivals, int levels, uint32_t n_nodes, uint32_t* out) {
     const uint32_t t = blockIdx.x * blockDim.x + threadIdx.x;
     uint32_t acc = 0;
     float sum = 0.f;
@@ -223,12 +230,23 @@ __global__ void fence_climb(float* nodes, uint32_t* arrivals, int levels, uint32
         box[1] = make_float2((float)t, (float)l);
         box[2] = make_float2(1.f, 2.f);
         __threadfence();
-        acc += atomicAdd(&arrivals[p], 1u);
+        if (ATOMIC) acc += atomicAdd(&arrivals[p], 1u);
         __threadfence();
-        const volatile float* o = nodes + (size_t)p * 16 + 8;
-        sum += o[0] + o[1] + o[2] + o[3] + o[4] + o[5];
+        if (READ) {
+            const volatile float* o = nodes + (size_t)p * 16 + 8;
+            sum += o[0] + o[1] + o[2] + o[3] + o[4] + o[5];
+        }
     }
     if (acc == 0xffffffffu && sum == 1.f) out[0] = acc;
+}
+__global__ void fence_climb(float* nodes, uint32_t* arrivals, int levels, uint32_t n_nodes, uint32_t* out) {
+    climb<true, true>(nodes, arrivals, levels, n_nodes, out);
+}
+__global__ void fence_climb_no_read(float* nodes, uint32_t* arrivals, int levels, uint32_t n_nodes, uint32_t* out) {
+    climb<true, false>(nodes, arrivals, levels, n_nodes, out);
+}
+__global__ void fence_climb_stores(float* nodes, uint32_t* arrivals, int levels, uint32_t n_nodes, uint32_t* out) {
+    climb<false, false>(nodes, arrivals, levels, n_nodes, out);
 }
 __global__ void fence_alone(uint32_t* a, int iters) {
     uint32_t x = 0;
@@ -590,6 +608,11 @@ static int fence_mix_probes(int sms) {
         {"fence_mix_24_lines", micro::fence_mix_24_lines, 4, 3, 32, false},
         {"fence_mix_32_lines", micro::fence_mix_32_lines, 16, 1, 32, false},
         {"fence_mix_96_lines", micro::fence_mix_96_lines, 16, 3, 32, false},
+        {"fence_mix_4_lines", micro::fence_mix_4_lines, 16, 1, 4, false},
+        {"fence_mix_4_lines_16_sectors", micro::fence_mix_4_lines_16_sectors, 4, 1, 16, false},
+        {"fence_mix_8_lines_8_sectors", micro::fence_mix_8_lines_8_sectors, 16, 1, 8, false},
+        {"fence_mix_8_lines_16_sectors", micro::fence_mix_8_lines_16_sectors, 8, 1, 16, false},
+        {"fence_mix_12_lines", micro::fence_mix_12_lines, 16, 1, 12, false},
         {"fence_mix_3_lines_fresh", micro::fence_mix_3_lines_fresh, 4, 3, 4, true},
         {"fence_mix_8_lines_fresh", micro::fence_mix_8_lines_fresh, 4, 1, 32, true},
     };
@@ -612,14 +635,22 @@ static int fence_mix_probes(int sms) {
     CHECK(cudaMalloc(&arrivals, (size_t)sizes[1] * 4));
     CHECK(cudaMalloc(&out, 64));
     CHECK(cudaMemset(nodes, 0, (size_t)sizes[1] * 64));
+    const long long warp_fences = 2LL * grid * (threads / 32) * levels;
     for (uint32_t n : sizes) {
         for (int r = 0; r < PROBE_LAUNCHES; ++r) micro::fence_climb<<<grid, threads>>>(nodes, arrivals, levels, n, out);
         CHECK(cudaDeviceSynchronize());
         const char* name = n == sizes[0] ? "fence_climb_16_mib" : "fence_climb_256_mib";
-        const long long warp_fences = 2LL * grid * (threads / 32) * levels;
         printf("probe\t%s\twarp_fences\t%lld\n", name, warp_fences);
         printf("probe\t%s\tatomic_lanes\t%lld\n", name, (long long)lanes * levels);
     }
+    // The 16 MiB climb less its read, then less its atomic too.
+    for (int r = 0; r < PROBE_LAUNCHES; ++r) {
+        micro::fence_climb_no_read<<<grid, threads>>>(nodes, arrivals, levels, sizes[0], out);
+        micro::fence_climb_stores<<<grid, threads>>>(nodes, arrivals, levels, sizes[0], out);
+    }
+    CHECK(cudaDeviceSynchronize());
+    printf("probe\tfence_climb_no_read_16_mib\twarp_fences\t%lld\n", warp_fences);
+    printf("probe\tfence_climb_stores_16_mib\twarp_fences\t%lld\n", warp_fences);
     cudaFree(a);
     cudaFree(nodes);
     cudaFree(arrivals);
@@ -734,6 +765,31 @@ static int grid_probes(int sms) {
     }
     cudaFree(a);
     cudaFree(b);
+    return 0;
+}
+
+// The slot probes (`microbench slots`): does a block hold its SM's slot until its
+// slowest warp ends? Four waves of blocks of 256 threads whose warps sleep (no issue,
+// no memory): every warp for `naps` naps of 1 µs; one warp a block for that long and
+// the other seven not at all; no warp at all. If an ended warp's slot went to the next
+// block, the second would take about an eighth of the first.
+__global__ void slots_sleep(int naps, int sleepers) {
+    if ((int)(threadIdx.x / 32) >= sleepers) return;
+    for (int k = 0; k < naps; ++k) __nanosleep(1000);
+}
+static int slot_probes(int sms) {
+    const int blocks = 4 * 8 * sms, naps = 20;
+    const struct {
+        const char* name;
+        int sleepers;
+    } forms[] = {{"slots_every_warp_sleeps", 8}, {"slots_one_warp_a_block_sleeps", 1}, {"slots_no_warp_sleeps", 0}};
+    for (const auto& f : forms) {
+        for (int r = 0; r < PROBE_LAUNCHES; ++r) slots_sleep<<<blocks, 256>>>(naps, f.sleepers);
+        CHECK(cudaDeviceSynchronize());
+        printf("probe\t%s\tblocks\t%d\n", f.name, blocks);
+        printf("probe\t%s\tsleeping_warps_a_block\t%d\n", f.name, f.sleepers);
+        printf("probe\t%s\tnaps_of_1_us\t%d\n", f.name, naps);
+    }
     return 0;
 }
 
@@ -1005,49 +1061,33 @@ static int l2size_probes() {
 int main(int argc, char** argv) {
     cudaDeviceProp p;
     CHECK(cudaGetDeviceProperties(&p, 0));
-    if (argc > 1 && std::string(argv[1]) == "fences") {
-        printf("device\tname\t%s\n", p.name);
-        return atomic_and_fence_probes(p.multiProcessorCount);
-    }
-    if (argc > 1 && std::string(argv[1]) == "hbm") {
-        printf("device\tname\t%s\n", p.name);
-        return hbm_probes(p.multiProcessorCount);
-    }
-    if (argc > 1 && std::string(argv[1]) == "stream") {
-        printf("device\tname\t%s\n", p.name);
-        return stream_probes(p.multiProcessorCount);
-    }
-    if (argc > 1 && std::string(argv[1]) == "start") {
-        printf("device\tname\t%s\n", p.name);
-        return start_probes();
-    }
-    if (argc > 1 && std::string(argv[1]) == "scan") {
-        printf("device\tname\t%s\n", p.name);
-        return scan_probes();
-    }
-    if (argc > 1 && std::string(argv[1]) == "grid") {
-        printf("device\tname\t%s\n", p.name);
-        return grid_probes(p.multiProcessorCount);
-    }
-    if (argc > 1 && std::string(argv[1]) == "icache") {
-        printf("device\tname\t%s\n", p.name);
-        return icache_probes(p.multiProcessorCount);
-    }
-    if (argc > 1 && std::string(argv[1]) == "shared") {
-        printf("device\tname\t%s\n", p.name);
-        return shared_probes();
-    }
-    if (argc > 1 && std::string(argv[1]) == "fencemix") {
-        printf("device\tname\t%s\n", p.name);
-        return fence_mix_probes(p.multiProcessorCount);
-    }
-    if (argc > 1 && std::string(argv[1]) == "l2size") {
-        printf("device\tname\t%s\n", p.name);
-        return l2size_probes();
-    }
-    if (argc > 1 && std::string(argv[1]) == "rounds") {
-        printf("device\tname\t%s\n", p.name);
-        return round_probes(p.multiProcessorCount);
+    // The modes that run one family of probes alone, by name.
+    const int n_sms = p.multiProcessorCount;
+    const struct {
+        const char* name;
+        int (*run)(int sms);
+    } modes[] = {
+        {"fences", atomic_and_fence_probes},
+        {"hbm", hbm_probes},
+        {"stream", stream_probes},
+        {"start", [](int) { return start_probes(); }},
+        {"scan", [](int) { return scan_probes(); }},
+        {"grid", grid_probes},
+        {"icache", icache_probes},
+        {"shared", [](int) { return shared_probes(); }},
+        {"fencemix", fence_mix_probes},
+        {"l2size", [](int) { return l2size_probes(); }},
+        {"rounds", round_probes},
+        {"slots", slot_probes},
+    };
+    if (argc > 1) {
+        for (const auto& m : modes) {
+            if (std::string(argv[1]) != m.name) continue;
+            printf("device\tname\t%s\n", p.name);
+            return m.run(n_sms);
+        }
+        fprintf(stderr, "microbench: no mode '%s'\n", argv[1]);
+        return 2;
     }
     const int sms = p.multiProcessorCount;
     int clock_khz = 0, mem_khz = 0, bus_bits = 0;

@@ -31,6 +31,8 @@
 # 128-byte lines they wait for (1 to 96), lanes active and first touches, and a BVH
 # fit's climb without its tree; `gpu_check calibrate` takes them as a further
 # --probes/--ncu pair (the profile's fence_ns_by_lines).
+# MODE=slots runs the slot probes alone: four waves of blocks whose warps sleep, every
+# warp or one a block (does a block hold its SM's slot until its slowest warp ends?).
 #
 # ncu runs with --clock-control none (the GPU's own clocks, as in cuda/check.sh) and its
 # default --cache-control all (caches flushed before each kernel), as the checked
