@@ -28,11 +28,12 @@
 # shared words (cycles a hop) and one block's store-barrier-load round at 32 to 1,024
 # threads (lines `timed`, not read by `gpu_check calibrate`).
 # MODE=fencemix runs the fences-under-load probes alone: every SM full, fences by the
-# 128-byte lines they wait for (1 to 96), lanes active and first touches, and a BVH
-# fit's climb without its tree; `gpu_check calibrate` takes them as a further
-# --probes/--ncu pair (the profile's fence_ns_by_lines).
+# 128-byte lines and sectors they wait for (1 to 96 lines), lanes active and first
+# touches, and a BVH fit's climb without its tree, whole and in parts; not read by
+# `gpu_check calibrate` (docs/simt.md, "Fences under load, probed").
 # MODE=slots runs the slot probes alone: four waves of blocks whose warps sleep, every
-# warp or one a block (does a block hold its SM's slot until its slowest warp ends?).
+# warp or one a block (does a block hold its SM's slot until its slowest warp ends?);
+# not read by `gpu_check calibrate` (docs/simt.md, the latency term).
 #
 # ncu runs with --clock-control none (the GPU's own clocks, as in cuda/check.sh) and its
 # default --cache-control all (caches flushed before each kernel), as the checked
