@@ -26,6 +26,14 @@ const SWEEP_THREADS: u32 = 384;
 const SWEEP_ITEMS: usize = 17;
 const SWEEP_TILE: usize = SWEEP_THREADS as usize * SWEEP_ITEMS;
 const SWEEP_WARPS: usize = SWEEP_THREADS as usize / 32;
+/// Warp instructions of CUB's ranking per key a lane ranks that the emulated ranking
+/// does not count as operations of its own: the bit tests and mask updates around its
+/// eight ballots, the digit's extraction, the rank's population count and the shared
+/// addresses (declared work, region `rank`). CUB's onesweep kernel for 4-byte keys is
+/// unrolled and every warp runs all of it: 1,558 warp instructions a warp (Nsight's
+/// per-instruction counts, `docs/measured/ncu-executed-sass-cub-onesweep-bunny-h100.csv.gz`),
+/// against 705 the emulated pass counts without this; (1,558 − 705) / 17 keys.
+const RANK_KEY_INSTRUCTIONS: u32 = 50;
 
 /// Sorts `keys` ascending, moving `values` with them; equal keys keep their order.
 ///
@@ -178,8 +186,13 @@ fn onesweep_pass<K: RadixKey, V: DeviceCopy>(
     let (kin, vin, offs) = (keys_in.view(), vals_in.view(), offsets.view());
     let (kout, vout) = (keys_out.view_mut(), vals_out.view_mut());
     let shared = (2 * RADIX + 2 * SWEEP_WARPS * RADIX) * 4;
-    let cfg =
-        LaunchConfig { grid: grid as u32, block: SWEEP_THREADS, shared_bytes: shared, regions: &[], registers: 0 };
+    let cfg = LaunchConfig {
+        grid: grid as u32,
+        block: SWEEP_THREADS,
+        shared_bytes: shared,
+        regions: &["rank"],
+        registers: 0,
+    };
     dev.launch_in_order("simt::radix_onesweep", cfg, |blk| {
         let b = blk.block_idx() as usize;
         let base = b * SWEEP_TILE;
@@ -211,6 +224,8 @@ fn onesweep_pass<K: RadixKey, V: DeviceCopy>(
                 let mut valid = [false; 32];
                 w.for_each_lane(|t| {
                     let l = t.lane_id() as usize;
+                    // Every warp runs CUB's unrolled ranking, its lanes past the end too.
+                    t.work(0, 0, RANK_KEY_INSTRUCTIONS);
                     if first + l < n {
                         digit[l] = t.get(r_keys)[k].digit(shift, width);
                         valid[l] = true;
