@@ -156,6 +156,32 @@ pub fn parse(text: &str) -> Result<Vec<Instruction>, String> {
     Ok(out)
 }
 
+/// Warp instructions executed in all, from a `--page source --csv --print-source sass`
+/// export (one row an instruction, each listed once): the sum of its "Instructions
+/// Executed" column. A `cuda,sass` export lists an instruction under several source
+/// lines and is refused ([`parse`] counts those).
+pub fn executed_warp_instructions(text: &str) -> Result<f64, String> {
+    let (mut column, mut total, mut rows) = (None, 0.0, 0usize);
+    for (n, raw) in text.lines().enumerate() {
+        let row = split_csv(raw);
+        if row.first().is_some_and(|c| c == "Line No") {
+            return Err(format!("line {}: a cuda,sass export (count its instructions with source::parse)", n + 1));
+        }
+        if let Some(i) = row.iter().position(|c| c == "Instructions Executed") {
+            column = Some(i);
+            continue;
+        }
+        let Some(v) = column.and_then(|i| row.get(i)) else { continue };
+        let plain: String = v.chars().filter(|&c| c != ',').collect();
+        total += plain.parse::<f64>().map_err(|_| format!("line {}: '{v}' is not an instruction count", n + 1))?;
+        rows += 1;
+    }
+    if rows == 0 {
+        return Err("no instruction rows under an \"Instructions Executed\" column".into());
+    }
+    Ok(total)
+}
+
 /// What CIS-LBDPT's shading kernel accesses, recognised by the text of the source line
 /// in `cuda/cis_device.cuh` (first match wins). Classes named `pool…` and `cache…` are
 /// read through `simt` views in the emulated kernel; `scene…` are not.
@@ -411,6 +437,20 @@ pub(crate) mod tests {
             "pool: camera vertices"
         );
         assert_eq!(classify("x = y + z;", CIS_CLASSES), "other");
+    }
+
+    #[test]
+    fn a_sass_export_sums_its_instructions_once_each() {
+        let sass = concat!(
+            "\"Kernel Name\",\"void k(int)\"\n",
+            "\"Address\",\"Source\",\"Instructions Executed\",\"Thread Instructions Executed\"\n",
+            "\"0x10\",\"      LDC R1, c[0x0][0x28]\",\"132\",\"4224\"\n",
+            "\"0x20\",\"      LOP3.LUT R2, R2, 0xff, RZ, 0xc0, !PT\",\"1,320\",\"42,240\"\n",
+        );
+        assert_eq!(executed_warp_instructions(sass).unwrap(), 1452.0);
+        assert!(executed_warp_instructions(SAMPLE).unwrap_err().contains("cuda,sass"));
+        assert!(executed_warp_instructions(&sass.replace("1,320", "x")).unwrap_err().contains("line 4"));
+        assert!(executed_warp_instructions("\"Kernel Name\",\"k\"\n").is_err());
     }
 
     #[test]

@@ -15,8 +15,11 @@ use warpray::gpu::time_check::{CheckedRun, check, errors, predicted_total, primi
 const DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/measured/h200-time-model/");
 const MODELS: [&str; 3] = ["bunny", "conference", "dragon"];
 
+/// A file of `docs/measured/h200-time-model/` by name, or any file by its absolute path
+/// (`.gz` unpacked).
 fn text(name: &str) -> String {
-    let bytes = std::fs::read(format!("{DIR}{name}")).unwrap_or_else(|e| panic!("{DIR}{name}: {e}"));
+    let path = if name.starts_with('/') { name.to_string() } else { format!("{DIR}{name}") };
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
     if name.ends_with(".gz") {
         let mut s = String::new();
         std::io::Read::read_to_string(&mut flate2::read::GzDecoder::new(&bytes[..]), &mut s).unwrap();
@@ -457,22 +460,6 @@ fn the_launch_table_adds_up_to_the_kernels_row() {
     assert!(warpray::gpu::time_check::launch_table(&records, &fewer, &p, "pdacrt::filter_rays").is_none());
 }
 
-/// Warp instructions a warp in a kernel's per-instruction counts from Nsight
-/// (`--page source --csv`: the kernel's name, a header, then one quoted row an
-/// instruction), for a launch of `warps` warps.
-fn executed_per_warp(path: &str, warps: f64) -> f64 {
-    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    let mut text = String::new();
-    std::io::Read::read_to_string(&mut flate2::read::GzDecoder::new(&bytes[..]), &mut text).unwrap();
-    // Fields are quoted and may hold commas (the instruction's operands).
-    let fields = |line: &str| -> Vec<String> { line.split("\",\"").map(|f| f.trim_matches('"').to_string()).collect() };
-    let mut lines = text.lines().skip(1);
-    let header = fields(lines.next().unwrap());
-    let column = header.iter().position(|h| h == "Instructions Executed").unwrap();
-    let total: f64 = lines.map(|l| fields(l)[column].replace(',', "").parse::<f64>().unwrap()).sum();
-    total / warps
-}
-
 #[test]
 fn the_emulated_onesweep_pass_issues_what_cubs_issues_a_warp() {
     // CUB's onesweep kernel for 4-byte keys is unrolled, so every warp of a pass runs
@@ -480,23 +467,14 @@ fn the_emulated_onesweep_pass_issues_what_cubs_issues_a_warp() {
     // (11 tiles of 384 threads, 132 warps, on an H100; sm_90 code, as the H200's).
     // The emulated pass counts its own operations and declares the ranking's
     // arithmetic per key; without the declaration it issues 704 a warp.
-    let cub = executed_per_warp(
-        concat!(env!("CARGO_MANIFEST_DIR"), "/docs/measured/ncu-executed-sass-cub-onesweep-bunny-h100.csv.gz"),
-        132.0,
-    );
+    let export = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/measured/ncu-executed-sass-cub-onesweep-bunny-h100.csv.gz");
+    let cub = warpray::gpu::source::executed_warp_instructions(&text(export)).unwrap() / 132.0;
     assert!((cub - 1557.6).abs() < 0.1, "{cub}");
     let dev = simt::Device::new(simt::DeviceConfig { measure: true, ..Default::default() });
     dev.set_gpu_profile(Some(GpuProfile::named("h200").unwrap()));
     let n = 11 * 6528 - 2000;
-    let mut x = 0x2545_f491u32;
-    let keys: Vec<u32> = (0..n)
-        .map(|_| {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            x
-        })
-        .collect();
+    let mut rng = crate::common::rng(11);
+    let keys: Vec<u32> = (0..n).map(|_| rng.next_u64() as u32).collect();
     let (mut k, mut v) = (dev.alloc_from(&keys), dev.alloc_from(&(0..n as u32).collect::<Vec<_>>()));
     simt::sort_by_key(&dev, &mut k, &mut v);
     assert!(k.as_slice().windows(2).all(|w| w[0] <= w[1]));
