@@ -340,8 +340,14 @@ fn time_run(
                 );
             }
             if let Some(k) = launches_of {
-                let each = ncu::parse_launches(&read(c)?).map_err(|e| format!("{}: {e}", c.display()))?;
-                match time_check::launch_table(&recs, &each, &p, k) {
+                // The kernel's own file first, then (a library primitive's kernel, CUB's
+                // in the twin) the file of every kernel.
+                let mut table = None;
+                for f in [Some(c), all.get(i)].into_iter().flatten() {
+                    let each = ncu::parse_launches(&read(f)?).map_err(|e| format!("{}: {e}", f.display()))?;
+                    table = table.or_else(|| time_check::launch_table(&recs, &each, &p, k));
+                }
+                match table {
                     Some(t) => println!("{k}, launch by launch:\n\n{t}"),
                     None => println!("{k}: not launched the same number of times in both files\n"),
                 }

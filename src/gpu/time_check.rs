@@ -212,12 +212,27 @@ pub fn terms_table(rows: &[KernelTime]) -> String {
     s
 }
 
+/// The GPU kernels an emulated kernel stands for: itself, or for one of a library
+/// primitive's kernels the CUB kernels the twins launch in its place (paired in order
+/// where the primitive has as many of each, else all of CUB's).
+fn gpu_names_of(kernel: &str) -> Vec<&str> {
+    let kernel = base_name(kernel);
+    for (_, ours, cubs) in PRIMITIVES {
+        if let Some(i) = ours.iter().position(|&o| o == kernel) {
+            return if ours.len() == cubs.len() { vec![cubs[i]] } else { cubs.to_vec() };
+        }
+    }
+    vec![kernel]
+}
+
 /// One kernel launch by launch: the records of `kernel` (matched by the name without
-/// its namespace) beside the GPU's launches of it, in launch order, each predicted with
-/// the GPU launch's registers; `None` when the counts differ.
+/// its namespace) beside the GPU's launches of it (or, for a library primitive's
+/// kernel, of CUB's in its place), in launch order, each predicted with the GPU
+/// launch's registers; `None` when the counts differ.
 pub fn launch_table(records: &[LaunchRecord], gpu: &[GpuKernel], p: &GpuProfile, kernel: &str) -> Option<String> {
     let mine: Vec<&LaunchRecord> = records.iter().filter(|r| base_name(r.name) == base_name(kernel)).collect();
-    let theirs: Vec<&GpuKernel> = gpu.iter().filter(|g| base_name(&g.name) == base_name(kernel)).collect();
+    let names = gpu_names_of(kernel);
+    let theirs: Vec<&GpuKernel> = gpu.iter().filter(|g| names.contains(&base_name(&g.name))).collect();
     if mine.is_empty() || mine.len() != theirs.len() {
         return None;
     }

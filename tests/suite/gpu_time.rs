@@ -460,6 +460,33 @@ fn the_launch_table_adds_up_to_the_kernels_row() {
     assert!(warpray::gpu::time_check::launch_table(&records, &fewer, &p, "pdacrt::filter_rays").is_none());
 }
 
+/// A library primitive's kernel launch by launch: set beside the CUB kernels the twin
+/// launches in its place (the sort's passes against `DeviceRadixSortOnesweepKernel`, its
+/// histogram against `DeviceRadixSortHistogramKernel` alone, not the exclusive sum's).
+#[test]
+fn the_launch_table_sets_a_primitives_kernel_beside_cubs() {
+    let p = GpuProfile::named("h200").unwrap();
+    let records = simt::records_from_tsv(&text("simt-records-bvh-bunny-1024-primary-shadow.tsv.gz")).unwrap();
+    let every =
+        warpray::gpu::ncu::parse_launches(&text("ncu-time-every-kernel-bvh-bunny-1024-primary-shadow.csv.gz")).unwrap();
+    let rows = |kernel: &str| {
+        let table = warpray::gpu::time_check::launch_table(&records, &every, &p, kernel).unwrap();
+        table.lines().skip(2).map(|l| l.split('|').nth(4).unwrap().trim().parse::<f64>().unwrap()).collect::<Vec<f64>>()
+    };
+    let measured =
+        |cub: &str| every.iter().filter(|g| g.name.ends_with(cub)).map(|g| g.seconds * 1e6).collect::<Vec<f64>>();
+    for (ours, cub) in [
+        ("simt::radix_onesweep", "DeviceRadixSortOnesweepKernel"),
+        ("simt::radix_histogram", "DeviceRadixSortHistogramKernel"),
+        ("simt::radix_exclusive_sum", "DeviceRadixSortExclusiveSumKernel"),
+    ] {
+        let (table, gpu) = (rows(ours), measured(cub));
+        assert!(!gpu.is_empty(), "{cub}");
+        assert_eq!(table.len(), gpu.len(), "{ours}");
+        assert!(table.iter().zip(&gpu).all(|(t, g)| (t - g).abs() <= 0.05), "{ours}: {table:?} against {gpu:?}");
+    }
+}
+
 #[test]
 fn the_emulated_onesweep_pass_issues_what_cubs_issues_a_warp() {
     // CUB's onesweep kernel for 4-byte keys is unrolled, so every warp of a pass runs
