@@ -25,6 +25,7 @@
 //   target/cuda/microbench l2size   load latency by the size of the data chased
 //   target/cuda/microbench fencemix fences under load: by sectors waited for, and a fit's climb
 //   target/cuda/microbench slots    whether a block's slot waits for its slowest warp
+//   target/cuda/microbench overlap  how an L2 bound and an issue bound combine
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
@@ -793,6 +794,140 @@ static int slot_probes(int sms) {
     return 0;
 }
 
+// The overlap probes (`microbench overlap`): how a memory bound and an arithmetic bound
+// combine. Two shapes, each with the loads alone, the arithmetic alone and both:
+//
+// - free-running: one wave of 512-thread blocks filling every SM (64 warps), streaming
+//   8 MiB from L2 (`ld.global.cg`, as `l2_read`) 64 times, each 16-byte load followed by
+//   `ALU` rounds of `alu_mix`'s body (4 multiply-adds and 4 integer steps) on its value;
+//   the warps drift apart, so one warp's loads can hide under another's arithmetic;
+// - phased: `B` blocks of 384 threads a SM (as CUB's sort passes), each alternating a
+//   load phase (8 independent 16-byte L2 loads a thread, one round) and an arithmetic
+//   phase, with a barrier after each, so a block's warps are all in one phase at once.
+//
+// Where the two alone take equal times, perfect overlap gives their larger, none their
+// sum. With LOAD false the loaded value is replaced by a register; the forms `none`
+// (neither loads nor arithmetic rounds) time what the loop and the barriers cost alone.
+template <int ALU>
+__device__ __forceinline__ void overlap_rounds(float (&f)[4], uint32_t (&u)[4], float y) {
+#pragma unroll
+    for (int j = 0; j < ALU; ++j) {
+#pragma unroll
+        for (int k = 0; k < 4; ++k) {
+            f[k] = fmaf(f[k], 0.9999f, y);
+            u[k] = (u[k] ^ (u[k] >> 7)) + 0x9e3779b9u;
+        }
+    }
+}
+template <int ALU, bool LOAD>
+__global__ void __launch_bounds__(512, 4) overlap_free(const float4* __restrict__ a, size_t n, int passes, float* out) {
+    float f[4];
+    uint32_t u[4];
+    for (int k = 0; k < 4; ++k) {
+        f[k] = threadIdx.x * 0.001f + k;
+        u[k] = threadIdx.x * 2654435761u + k;
+    }
+    float s = 0;
+    for (int p = 0; p < passes; ++p)
+        for (size_t i = blockIdx.x * (size_t)blockDim.x + threadIdx.x; i < n; i += (size_t)gridDim.x * blockDim.x) {
+            const float4 v = LOAD ? __ldcg(&a[i]) : make_float4(f[0], 1.f, f[1], f[2]);
+            s += v.x + v.w;
+            overlap_rounds<ALU>(f, u, v.y);
+        }
+    for (int k = 0; k < 4; ++k) s += f[k] + (float)(u[k] & 1);
+    if (s == 12345.0f) out[threadIdx.x] = s;  // keeps the work alive
+}
+template <int ALU, bool LOAD>
+__global__ void __launch_bounds__(384, 4) overlap_phased(const float2* __restrict__ a, size_t n, int iters, float* out) {
+    float f[4];
+    uint32_t u[4];
+    for (int k = 0; k < 4; ++k) {
+        f[k] = threadIdx.x * 0.001f + k;
+        u[k] = threadIdx.x * 2654435761u + k;
+    }
+    const size_t tile = (size_t)blockDim.x * 8, tiles = n / tile;
+    float s = 0;
+    for (int it = 0; it < iters; ++it) {
+        const size_t base = ((blockIdx.x + (size_t)it * gridDim.x) % tiles) * tile;
+        float2 v[8];
+#pragma unroll
+        for (int k = 0; k < 8; ++k)
+            v[k] = LOAD ? __ldcg(&a[base + k * blockDim.x + threadIdx.x]) : make_float2(f[k & 3], s);
+        float y = 0;
+#pragma unroll
+        for (int k = 0; k < 8; ++k) y += v[k].x + v[k].y;
+        __syncthreads();
+        overlap_rounds<ALU>(f, u, y);
+        s += y;
+        __syncthreads();
+    }
+    for (int k = 0; k < 4; ++k) s += f[k] + (float)(u[k] & 1);
+    if (s == 12345.0f) out[threadIdx.x] = s;  // keeps the work alive
+}
+// One overlap form: its name, its kernel, arithmetic rounds (a load or a phase), loads.
+template <typename Kernel>
+struct OverlapForm {
+    const char* name;
+    Kernel kernel;
+    int alu;
+    bool load;
+};
+static int overlap_probes(int sms) {
+    const size_t n = (8u << 20) / 16;
+    const int passes = 64, iters = 256;
+    float4* a;
+    float* out;
+    CHECK(cudaMalloc(&a, n * 16));
+    CHECK(cudaMalloc(&out, 1 << 16));
+    CHECK(cudaMemset(a, 0, n * 16));
+    using Free = void (*)(const float4*, size_t, int, float*);
+    using Phased = void (*)(const float2*, size_t, int, float*);
+    const OverlapForm<Free> free_forms[] = {
+        {"overlap_free_none", overlap_free<0, false>, 0, false},
+        {"overlap_free_load", overlap_free<0, true>, 0, true},
+        {"overlap_free_load_alu_2", overlap_free<2, true>, 2, true},
+        {"overlap_free_load_alu_4", overlap_free<4, true>, 4, true},
+        {"overlap_free_load_alu_8", overlap_free<8, true>, 8, true},
+        {"overlap_free_load_alu_16", overlap_free<16, true>, 16, true},
+        {"overlap_free_alu_2", overlap_free<2, false>, 2, false},
+        {"overlap_free_alu_4", overlap_free<4, false>, 4, false},
+        {"overlap_free_alu_8", overlap_free<8, false>, 8, false},
+        {"overlap_free_alu_16", overlap_free<16, false>, 16, false},
+    };
+    const OverlapForm<Phased> phased_forms[] = {
+        {"none", overlap_phased<0, false>, 0, false},
+        {"load", overlap_phased<0, true>, 0, true},
+        {"load_alu_8", overlap_phased<8, true>, 8, true},
+        {"load_alu_16", overlap_phased<16, true>, 16, true},
+        {"load_alu_32", overlap_phased<32, true>, 32, true},
+        {"alu_8", overlap_phased<8, false>, 8, false},
+        {"alu_16", overlap_phased<16, false>, 16, false},
+        {"alu_32", overlap_phased<32, false>, 32, false},
+    };
+    for (const auto& f : free_forms) {
+        const int blocks = sms * 4;
+        for (int r = 0; r < PROBE_LAUNCHES; ++r) f.kernel<<<blocks, 512>>>(a, n, passes, out);
+        CHECK(cudaDeviceSynchronize());
+        printf("probe\t%s\tblocks_a_sm\t4\n", f.name);
+        printf("probe\t%s\talu_rounds_a_load\t%d\n", f.name, f.alu);
+        printf("probe\t%s\tl2_bytes\t%lld\n", f.name, f.load ? (long long)n * 16 * passes : 0LL);
+    }
+    const int blocks_a_sm[] = {1, 2, 4};
+    for (int b : blocks_a_sm)
+        for (const auto& f : phased_forms) {
+            char name[64];
+            snprintf(name, sizeof name, "overlap_phased_%d_%s", b, f.name);
+            for (int r = 0; r < PROBE_LAUNCHES; ++r) f.kernel<<<sms * b, 384>>>((const float2*)a, 2 * n, iters, out);
+            CHECK(cudaDeviceSynchronize());
+            printf("probe\t%s\tblocks_a_sm\t%d\n", name, b);
+            printf("probe\t%s\talu_rounds_a_phase\t%d\n", name, f.alu);
+            printf("probe\t%s\tl2_bytes\t%lld\n", name, f.load ? (long long)sms * b * 384 * 8 * 8 * iters : 0LL);
+        }
+    cudaFree(a);
+    cudaFree(out);
+    return 0;
+}
+
 // A three-word value summed word by word (as PDACRT scans three counts at once).
 struct Add3 {
     __host__ __device__ uint3 operator()(const uint3& a, const uint3& b) const {
@@ -1079,6 +1214,7 @@ int main(int argc, char** argv) {
         {"l2size", [](int) { return l2size_probes(); }},
         {"rounds", round_probes},
         {"slots", slot_probes},
+        {"overlap", overlap_probes},
     };
     if (argc > 1) {
         for (const auto& m : modes) {

@@ -34,6 +34,10 @@
 # MODE=slots runs the slot probes alone: four waves of blocks whose warps sleep, every
 # warp or one a block (does a block hold its SM's slot until its slowest warp ends?);
 # not read by `gpu_check calibrate` (docs/simt.md, the latency term).
+# MODE=overlap runs the overlap probes alone: L2 loads and arithmetic, alone and
+# together, in warps that drift apart (every SM full) and in blocks whose barriers keep
+# their warps in one phase (1, 2 or 4 blocks a SM): how a memory and an arithmetic bound
+# combine (docs/simt.md, how the bounds combine).
 #
 # ncu runs with --clock-control none (the GPU's own clocks, as in cuda/check.sh) and its
 # default --cache-control all (caches flushed before each kernel), as the checked
