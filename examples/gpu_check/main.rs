@@ -335,7 +335,7 @@ fn time_run(
             println!("{} against {}:\n\n{}", path.display(), c.display(), time_check::table(&rows));
             if terms {
                 println!(
-                    "Model terms, µs (the prediction is launch + the largest):\n\n{}",
+                    "Model terms, µs (the prediction is launch + the largest, or + the larger of memory and execution + exposed):\n\n{}",
                     time_check::terms_table(&rows)
                 );
             }

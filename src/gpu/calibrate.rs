@@ -5,7 +5,7 @@
 //! Only the probes enter the profile; the kernels the model is checked on (PDACRT's,
 //! CIS's) never do, so their errors are out-of-sample.
 
-use super::ncu::{GpuKernel, parse_csv};
+use super::ncu::{GpuKernel, base_name, parse_csv, parse_launches};
 use simt::GpuProfile;
 
 /// A calibrated profile and, per key, where its value came from.
@@ -185,8 +185,32 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         barriers_per_s_per_sm: amount("barrier")? / (busy(&barrier) * sms),
         block_dispatch_s: busy(&blocks) / (amount("empty_blocks")? / sms),
         launch_s: launch,
+        exposed_free: 0.0,
+        exposed_one_block: 0.0,
+        exposed_many_blocks: 0.0,
     };
+    // How the bounds combine: the overlap probes' shares of the smaller work that the
+    // larger does not hide, free-running and phased with 1 and 4 blocks a SM (with R
+    // blocks the model takes `many + (one - many) / R`, solved here through 1 and 4;
+    // 2 blocks a SM is a check).
+    let mut profile = profile;
+    let overlap = Overlap::read(&report, ncu_csvs)?;
+    let free = overlap.exposed("overlap_free", &[2, 4, 8, 16])?;
+    let one = overlap.exposed("overlap_phased_1", &[8, 16, 32])?;
+    let four = overlap.exposed("overlap_phased_4", &[8, 16, 32])?;
+    profile.exposed_free = free.share.clamp(0.0, 1.0);
+    profile.exposed_one_block = one.share.clamp(0.0, 1.0);
+    profile.exposed_many_blocks = ((4.0 * four.share - one.share) / 3.0).clamp(0.0, 1.0);
     let probe_of = |p: &str, how: &str| format!("measured: {p} ({how})");
+    // The overlap probes may come from another card of the family (their shares are
+    // ratios of times); the provenance names it.
+    let overlap_gpu = probes
+        .iter()
+        .find(|t| t.contains("\toverlap_"))
+        .and_then(|t| t.lines().find_map(|l| l.strip_prefix("device\tname\t")))
+        .filter(|g| *g != profile.name)
+        .map_or(String::new(), |g| format!(", on an {g}"));
+    let overlap_of = |p: &str, how: &str| format!("measured: {p} ({how}{overlap_gpu})");
     let sources = vec![
         ("sms", "device query".to_string()),
         ("clock_ghz", probe_of("alu_mix", "sm__cycles_elapsed.avg.per_second")),
@@ -247,6 +271,21 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         ("barriers_per_us_per_sm", probe_of("barrier", "block barriers / time / SMs")),
         ("block_dispatch_ns", probe_of("empty_blocks", "(time - empty launch) / blocks per SM")),
         ("launch_us", probe_of("empty", "gpu__time_duration of one empty block")),
+        (
+            "overlap_exposed_free",
+            overlap_of(
+                &free.forms,
+                "(both - larger) / smaller of the loads and the arithmetic alone, less the loop alone",
+            ),
+        ),
+        (
+            "overlap_exposed_one_block",
+            overlap_of(&one.forms, "(both - larger) / smaller, each less the loop and barriers alone, 1 block a SM"),
+        ),
+        (
+            "overlap_exposed_many_blocks",
+            overlap_of(&format!("{}, {}", one.forms, four.forms), "the share with 4 blocks a SM and with 1, solved"),
+        ),
     ];
     let notes = vec![
         format!(
@@ -262,7 +301,87 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
             busy(&fence_alone) / amount("fence_alone")? * 1e9
         ),
     ];
+    let mut notes = notes;
+    let two = overlap.exposed("overlap_phased_2", &[8, 16, 32])?;
+    let law = profile.exposed_many_blocks + (profile.exposed_one_block - profile.exposed_many_blocks) / 2.0;
+    notes.push(format!(
+        "{}: {:.2} of the smaller work exposed with 2 blocks a SM (the model's {law:.2})",
+        two.forms, two.share
+    ));
     Ok(Calibration { profile, sources, notes })
+}
+
+/// The overlap probes (`microbench overlap`): each form's median launch time, by the
+/// probe output's names in order (ncu names every form of one template alike).
+struct Overlap {
+    seconds: Vec<(String, f64)>,
+}
+
+/// One overlap share: the form it was read from and the share of the smaller bound
+/// the larger did not hide.
+struct Exposed {
+    forms: String,
+    share: f64,
+}
+
+impl Overlap {
+    fn read(report: &Report, ncu_csvs: &[&str]) -> Result<Overlap, String> {
+        let mut names: Vec<&str> = Vec::new();
+        for (n, _) in &report.probes {
+            if n.starts_with("overlap_") && names.last() != Some(&n.as_str()) {
+                names.push(n);
+            }
+        }
+        let mut launches = Vec::new();
+        for csv in ncu_csvs {
+            launches.extend(parse_launches(csv)?.into_iter().filter(|k| base_name(&k.name).starts_with("overlap_")));
+        }
+        if names.is_empty() {
+            return Err("probe output: no overlap probes (run MODE=overlap sh cuda/microbench.sh)".into());
+        }
+        if launches.len() % names.len() != 0 {
+            return Err(format!("ncu CSV: {} overlap launches for {} overlap probes", launches.len(), names.len()));
+        }
+        let per = launches.len() / names.len();
+        let seconds = names
+            .iter()
+            .zip(launches.chunks(per))
+            .map(|(n, l)| {
+                let mut t: Vec<f64> = l.iter().map(|k| k.seconds).collect();
+                t.sort_by(f64::total_cmp);
+                (n.to_string(), t[t.len() / 2])
+            })
+            .collect();
+        Ok(Overlap { seconds })
+    }
+
+    fn time(&self, name: &str) -> Result<f64, String> {
+        self.seconds.iter().find(|(n, _)| n == name).map(|x| x.1).ok_or_else(|| format!("no overlap probe {name}"))
+    }
+
+    /// The share of the smaller of the loads' and the arithmetic's times that adds to
+    /// the larger when both run (`{stem}_load_alu_K` against `{stem}_load` and
+    /// `{stem}_alu_K`, each less `{stem}_none`), at the `K` whose two times are the
+    /// closest: where the bounds are equal, how they combine shows most.
+    fn exposed(&self, stem: &str, rounds: &[u32]) -> Result<Exposed, String> {
+        let none = self.time(&format!("{stem}_none"))?;
+        let load = self.time(&format!("{stem}_load"))? - none;
+        let mut best: Option<(f64, Exposed)> = None;
+        for k in rounds {
+            let alu = self.time(&format!("{stem}_alu_{k}"))? - none;
+            let both = self.time(&format!("{stem}_load_alu_{k}"))? - none;
+            let (small, large) = (load.min(alu), load.max(alu));
+            if small <= 0.0 {
+                return Err(format!("overlap probes {stem}: the loop alone takes as long as the work ({k} rounds)"));
+            }
+            let balance = small / large;
+            let e = Exposed { forms: format!("{stem}_load_alu_{k}"), share: (both - large) / small };
+            if best.as_ref().is_none_or(|(b, _)| balance > *b) {
+                best = Some((balance, e));
+            }
+        }
+        best.map(|b| b.1).ok_or_else(|| format!("overlap probes {stem}: no rounds"))
+    }
 }
 
 /// The line `own + sectors * per_sector` through two probes' (sectors, seconds) per

@@ -196,15 +196,18 @@ pub fn primitives_table(rows: &[PrimitiveTime]) -> String {
 }
 
 /// Each kernel's model terms (summed over its launches, µs) beside its measured time:
-/// which bound sets the prediction and how far the others are below it.
+/// which bound sets the prediction, how far the others are below it, and what the
+/// bounds' overlap added (`exposed`).
 pub fn terms_table(rows: &[KernelTime]) -> String {
     let mut s = String::from(
-        "| kernel | measured µs | predicted | latency | issue | L1 | L2 | HBM | atomics | fences | barriers | dispatch | launch |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| kernel | measured µs | predicted | latency | issue | L1 | L2 | HBM | atomics | fences | barriers | dispatch | exposed | launch |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         let t = &r.terms;
         let _ = write!(s, "| {} | {:.1} | {:.1} |", r.name, r.measured * 1e6, r.predicted * 1e6);
-        for v in [t.latency, t.issue, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch, t.launch] {
+        for v in
+            [t.latency, t.issue, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch, t.exposed, t.launch]
+        {
             let _ = write!(s, " {:.1} |", v * 1e6);
         }
         s.push('\n');
@@ -287,7 +290,8 @@ pub fn check(runs: &[CheckedRun], p: &GpuProfile) -> (Vec<KernelTime>, Vec<f64>)
 /// as a markdown table (`docs/simt.md`, "What the check can see").
 pub fn sensitivity(runs: &[CheckedRun], p: &GpuProfile) -> String {
     type Scale = fn(&mut GpuProfile, f64);
-    let values: [(&str, Scale); 8] = [
+    // The overlap shares are capped at 1 (none of the smaller bound hidden).
+    let values: [(&str, Scale); 10] = [
         ("HBM latency", |q, k| q.hbm_latency_s *= k),
         ("L2 latency", |q, k| q.l2_latency_s *= k),
         ("arithmetic latency", |q, k| q.alu_latency_cycles *= k),
@@ -296,6 +300,11 @@ pub fn sensitivity(runs: &[CheckedRun], p: &GpuProfile) -> String {
         ("L2 bandwidth", |q, k| q.l2_bytes_per_s *= k),
         ("scattered L2 bandwidth", |q, k| q.l2_scattered_bytes_per_s *= k),
         ("issue rate", |q, k| q.issue_per_cycle_per_sm *= k),
+        ("overlap share, free-running", |q, k| q.exposed_free = (q.exposed_free * k).min(1.0)),
+        ("overlap shares, phased", |q, k| {
+            q.exposed_one_block = (q.exposed_one_block * k).min(1.0);
+            q.exposed_many_blocks = (q.exposed_many_blocks * k).min(1.0);
+        }),
     ];
     let scales = [0.5, 0.95, 1.05, 2.0];
     let mut s = String::from("| planted | × 0.5 | × 0.95 | × 1.05 | × 2 |\n|---|---|---|---|---|\n");

@@ -53,11 +53,14 @@ fn runs() -> Vec<CheckedRun> {
     out
 }
 
-/// Whether the model meets the kernel bars on these runs: a mean absolute error
-/// ≤ 20 %, no kernel past 50 %. (The pipelines' bar, 15 %, is met by the three
-/// PDACRT traces; `the_pdacrt_traces_are_predicted_within_15_percent_look_back_and_all`.)
+/// Whether the model meets the bars on these runs: a mean absolute error ≤ 20 %
+/// over the kernels, no kernel past 50 %, and each whole pipeline timed (the three PDACRT
+/// traces) within 15 %.
 fn meets_bars(runs: &[CheckedRun], p: &GpuProfile) -> Result<(), String> {
-    let (rows, _) = check(runs, p);
+    let (rows, pipelines) = check(runs, p);
+    if let Some(e) = pipelines.iter().find(|e| e.abs() > 0.15) {
+        return Err(format!("a pipeline off by {:+.1} %", e * 100.0));
+    }
     let (mape, worst) = errors(&rows);
     let worst = worst.unwrap();
     if mape > 0.20 {
@@ -69,13 +72,28 @@ fn meets_bars(runs: &[CheckedRun], p: &GpuProfile) -> Result<(), String> {
     Ok(())
 }
 
+/// The shipped profile's probe runs, output and ncu's CSV of each: the full run, the
+/// later one of the atomic-latency and fence probes (with the fences after scattered
+/// stores), and the overlap probes (on an H100; no H200 came).
+fn calibration_runs() -> ([String; 3], [String; 3]) {
+    (
+        [
+            text("microbenchmark-probes.tsv"),
+            text("microbenchmark-probes-fences-scattered-stores.tsv"),
+            text("microbenchmark-probes-overlap-h100.tsv"),
+        ],
+        [
+            text("ncu-microbenchmarks.csv.gz"),
+            text("ncu-microbenchmarks-fences-scattered-stores.csv.gz"),
+            text("ncu-microbenchmarks-overlap-h100.csv.gz"),
+        ],
+    )
+}
+
 #[test]
 fn the_shipped_h200_profile_is_the_microbenchmarks_calibration_and_nothing_else() {
-    // The full run, then the later one of the atomic-latency and fence probes (with the
-    // fences after scattered stores).
-    let probes = [text("microbenchmark-probes.tsv"), text("microbenchmark-probes-fences-scattered-stores.tsv")];
-    let csvs = [text("ncu-microbenchmarks.csv.gz"), text("ncu-microbenchmarks-fences-scattered-stores.csv.gz")];
-    let c = calibrate(&[&probes[0], &probes[1]], &[&csvs[0], &csvs[1]]).unwrap();
+    let (probes, csvs) = calibration_runs();
+    let c = calibrate(&[&probes[0], &probes[1], &probes[2]], &[&csvs[0], &csvs[1], &csvs[2]]).unwrap();
     let shipped = GpuProfile::named("h200").unwrap();
     // The shipped file holds four significant digits of each value.
     let again = GpuProfile::parse(&c.to_text("")).unwrap();
@@ -121,9 +139,9 @@ fn the_chases_misses_are_the_hbm_sectors_they_read_not_the_lines_written_back() 
     // being written back: counted as misses too, they took the L2 latency from 141.9 to
     // 119.7 ns and the atomic latency from 196.4 to 177.5 ns. Here the writes grow
     // twentyfold and the calibration must not move; the reads grow and it must.
-    let probes = [text("microbenchmark-probes.tsv"), text("microbenchmark-probes-fences-scattered-stores.tsv")];
-    let csvs = [text("ncu-microbenchmarks.csv.gz"), text("ncu-microbenchmarks-fences-scattered-stores.csv.gz")];
-    let profile = |a: &str, b: &str| calibrate(&[&probes[0], &probes[1]], &[a, b]).unwrap().profile;
+    let (probes, csvs) = calibration_runs();
+    let profile =
+        |a: &str, b: &str| calibrate(&[&probes[0], &probes[1], &probes[2]], &[a, b, &csvs[2]]).unwrap().profile;
     let base = profile(&csvs[0], &csvs[1]);
     let [w0, w1] = [0, 1].map(|i| scaled(&csvs[i], "chase_", "dram__bytes_write.sum", 20.0));
     let written = profile(&w0, &w1);
@@ -180,10 +198,10 @@ fn bvh_runs() -> Vec<(CheckedRun, f64)> {
 #[test]
 fn the_pdacrt_traces_are_predicted_within_15_percent_look_back_and_all() {
     // Whole traces, every launch (CUB's scans and selections too) against ncu's total:
-    // −14.5 %, −11 % and −7 % (docs/simt.md), held to the 15 % (records without
-    // the blocks' slowest warps give the bunny −15.02 %). Their single-pass scans
-    // wait on the look-back's hops across the tiles; records read as if their
-    // launches ran out of order (no look-back term) miss by −24 %, −18 % and −20 %.
+    // −12.5 %, −9.9 % and −4.6 % (docs/simt.md), held to the 15 %. Their
+    // single-pass scans wait on the look-back's hops across the tiles; records read as
+    // if their launches ran out of order (no look-back term) miss by −23 %, −17 % and
+    // −18 %.
     let p = GpuProfile::named("h200").unwrap();
     let pdacrt = &runs()[..MODELS.len()];
     let (_, pipelines) = check(pdacrt, &p);
@@ -243,11 +261,10 @@ fn the_predicted_ratio_of_pdacrt_to_the_gpu_bvh_has_the_measured_sign_and_the_do
     // The decision the model is for here: PDACRT's trace against a BVH rebuilt and
     // traced for each batch. Every BVH kernel is matched launch for launch; the
     // predicted ratio of the two pipelines must say which is faster, as the H200 does,
-    // and by as much within 15 % (the bar): −1 %, −9 % and +13 % (bunny,
+    // and by as much within 15 % (the bar): −1 %, −8 % and +13 % (bunny,
     // conference room, dragon; docs/simt.md). Records without the blocks' slowest
-    // warps (the mean warp's chain in each wave) give the dragon +17 %, and the model
-    // without the bound of fences under load +22 %; the BVH records of a meter without
-    // rounds fail too (6.93 against 10.71).
+    // warps (the mean warp's chain in each wave) give the dragon +16 %; the BVH records
+    // of a meter without rounds fail (6.93 against 10.71 before the bounds' overlap).
     let p = GpuProfile::named("h200").unwrap();
     let pdacrt = runs();
     for (k, (bvh, pdacrt_measured)) in bvh_runs().into_iter().enumerate() {
@@ -260,6 +277,24 @@ fn the_predicted_ratio_of_pdacrt_to_the_gpu_bvh_has_the_measured_sign_and_the_do
         let measured = pdacrt_measured / bvh.every.unwrap();
         assert!(predicted > 1.0 && measured > 1.0, "{}: {predicted:.2} against {measured:.2}", MODELS[k]);
         assert!((predicted / measured - 1.0).abs() <= 0.15, "{}: {predicted:.2} against {measured:.2}", MODELS[k]);
+    }
+}
+
+#[test]
+fn the_gpu_bvh_build_and_trace_are_predicted_within_15_percent_with_the_bounds_overlap() {
+    // Whole pipelines, every launch (CUB's sort, reduction and scans too) against ncu's
+    // total: −10.7 %, −1.0 % and −14.9 % (docs/simt.md). The dragon's sort passes run one
+    // block a SM whose barriers hold its warps in one phase: with the bounds taken as
+    // their largest alone (a profile whose overlap shares are 0) the dragon's pipeline
+    // is −17.0 %, past the 15 %.
+    let p = GpuProfile::named("h200").unwrap();
+    let roofline = GpuProfile { exposed_free: 0.0, exposed_one_block: 0.0, exposed_many_blocks: 0.0, ..p.clone() };
+    for (k, (bvh, _)) in bvh_runs().into_iter().enumerate() {
+        let error = |q: &GpuProfile| predicted_total(&bvh.records, q) / bvh.every.unwrap() - 1.0;
+        assert!(error(&p).abs() <= 0.15, "{}: {:+.1} %", MODELS[k], error(&p) * 100.0);
+        if MODELS[k] == "dragon" {
+            assert!(error(&roofline) < -0.15, "{}: {:+.1} %", MODELS[k], error(&roofline) * 100.0);
+        }
     }
 }
 
@@ -283,7 +318,8 @@ fn planted_errors_in_the_terms_that_bind_are_caught_by_the_check() {
     let p = GpuProfile::named("h200").unwrap();
     // Each way for the HBM latency and the launch cost: an error that lengthens the
     // kernels is caught by the kernel it moves past 50 % (filter_triangles) or by the
-    // mean, one that shortens them by the mean.
+    // mean, one that shortens them by the mean or by a trace it moves past 15 % (the
+    // HBM latency × 0.8: the mean 19.96 %, the bunny's trace −17 %).
     let planted: [(&str, GpuProfile); 5] = [
         ("HBM latency x 1.25", GpuProfile { hbm_latency_s: p.hbm_latency_s * 1.25, ..p.clone() }),
         ("HBM latency x 0.8", GpuProfile { hbm_latency_s: p.hbm_latency_s * 0.8, ..p.clone() }),

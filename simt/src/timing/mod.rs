@@ -9,8 +9,9 @@
 //!
 //! [`predict`] turns one [`LaunchRecord`] into seconds: a fixed launch cost plus the
 //! largest of the throughput bounds and a latency bound (a roofline with a latency
-//! floor). `docs/simt.md` ("Predicted GPU time") states each term and what it leaves
-//! out.
+//! floor), or the larger of the memory and execution bounds plus the share of the
+//! smaller that the overlap probes find not hidden, if that is more. `docs/simt.md`
+//! ("Predicted GPU time") states each term and what it leaves out.
 
 use crate::limits::{SECTOR_BYTES, WARP_SIZE};
 use crate::stats::{LaunchRecord, WarpChain};
@@ -74,6 +75,17 @@ pub struct GpuProfile {
     pub block_dispatch_s: f64,
     /// Duration of an empty launch, seconds.
     pub launch_s: f64,
+    /// How much of the smaller of a launch's memory bound and its issue bound its warps
+    /// fail to hide under the larger when they run free of barriers (0: all of it
+    /// hidden, a roofline; 1: none, the two add).
+    pub exposed_free: f64,
+    /// How much of the smaller of a launch's memory and execution bounds is not hidden
+    /// where each SM holds one block whose barriers keep its warps in one phase, loads
+    /// or arithmetic, at a time.
+    pub exposed_one_block: f64,
+    /// The same with many such blocks a SM (R blocks: this plus the one block's excess
+    /// over it divided by R).
+    pub exposed_many_blocks: f64,
 }
 
 /// The profiles shipped with simt, by name.
@@ -106,7 +118,13 @@ const KEYS: &[&str] = &[
     "barriers_per_us_per_sm",
     "block_dispatch_ns",
     "launch_us",
+    "overlap_exposed_free",
+    "overlap_exposed_one_block",
+    "overlap_exposed_many_blocks",
 ];
+
+/// Keys whose values are shares, from 0 to 1 (every other key is a positive amount).
+const SHARES: &[&str] = &["overlap_exposed_free", "overlap_exposed_one_block", "overlap_exposed_many_blocks"];
 
 impl GpuProfile {
     /// A shipped profile by name (`h200`).
@@ -148,7 +166,11 @@ impl GpuProfile {
             let k =
                 KEYS.iter().position(|&k| k == key).ok_or_else(|| format!("line {}: unknown key '{key}'", i + 1))?;
             let v: f64 = value.parse().map_err(|_| format!("line {}: {key}: '{value}' is not a number", i + 1))?;
-            if !(v.is_finite() && v > 0.0) {
+            if SHARES.contains(&key) {
+                if !(0.0..=1.0).contains(&v) {
+                    return Err(format!("line {}: {key}: {v} must be a share from 0 to 1", i + 1));
+                }
+            } else if !(v.is_finite() && v > 0.0) {
                 return Err(format!("line {}: {key}: {v} must be finite and positive", i + 1));
             }
             if values[k].replace(v).is_some() {
@@ -185,6 +207,9 @@ impl GpuProfile {
             barriers_per_s_per_sm: get("barriers_per_us_per_sm")? * 1e6,
             block_dispatch_s: get("block_dispatch_ns")? * 1e-9,
             launch_s: get("launch_us")? * 1e-6,
+            exposed_free: get("overlap_exposed_free")?,
+            exposed_one_block: get("overlap_exposed_one_block")?,
+            exposed_many_blocks: get("overlap_exposed_many_blocks")?,
         })
     }
 
@@ -222,6 +247,9 @@ impl GpuProfile {
             self.barriers_per_s_per_sm / 1e6,
             self.block_dispatch_s * 1e9,
             self.launch_s * 1e6,
+            self.exposed_free,
+            self.exposed_one_block,
+            self.exposed_many_blocks,
         ];
         for (k, v) in KEYS.iter().zip(values) {
             let _ = writeln!(s, "{k} = {}  # {}", round4(v), source(k));
@@ -232,6 +260,9 @@ impl GpuProfile {
 
 /// Four significant digits, as plain text.
 fn round4(v: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
     let digits = (3 - v.abs().log10().floor() as i32).max(0) as usize;
     format!("{v:.digits$}")
 }
@@ -239,7 +270,8 @@ fn round4(v: f64) -> String {
 /// One launch's predicted time and the terms it came from, seconds.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Prediction {
-    /// The predicted duration: `launch + max(bounds)`.
+    /// The predicted duration: `launch` plus the largest bound, or the larger of memory
+    /// and execution plus `exposed` if that is more.
     pub seconds: f64,
     /// The fixed cost of a launch.
     pub launch: f64,
@@ -266,6 +298,11 @@ pub struct Prediction {
     /// chain if that is longer; for a single-pass kernel, plus its look-back's
     /// hops across the tiles.
     pub latency: f64,
+    /// What the warps fail to hide of the smaller of the memory bounds' largest (L1,
+    /// L2, HBM, atomics, fences) and the issue bound, or where blocks synchronise the
+    /// execution bounds' largest (issue, latency, barriers, dispatch), under the larger
+    /// (the profile's exposed shares).
+    pub exposed: f64,
 }
 
 impl Prediction {
@@ -282,6 +319,7 @@ impl Prediction {
         self.barriers += o.barriers;
         self.dispatch += o.dispatch;
         self.latency += o.latency;
+        self.exposed += o.exposed;
     }
 
     /// The name of the largest bound (what limits the launch).
@@ -410,10 +448,28 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
         barriers: r.barriers as f64 / (p.barriers_per_s_per_sm * sms),
         dispatch: grid / sms * p.block_dispatch_s,
         latency: (waves * average.max(per_block)).max(longest) + look_back,
+        exposed: 0.0,
         seconds: 0.0,
     };
+    // How the bounds combine (the overlap probes): a warp waiting on memory leaves the
+    // SM to other warps' work only as far as they are elsewhere in the kernel. Warps
+    // that run free hide most of the smaller of the memory and issue bounds under the
+    // larger (the probes measured these two; a chain-bound launch keeps the larger of
+    // its chain and memory). A block whose barriers hold its warps in one phase hides
+    // little of the smaller of memory and execution by itself; the more blocks an SM
+    // holds at once (up to its limit, as many as the grid gives it), the more.
+    let largest = |b: &[f64]| b.iter().cloned().fold(0.0, f64::max);
+    let memory = largest(&[t.l1, t.l2, t.hbm, t.atomics, t.fences]);
+    let (execution, exposed) = if r.barriers > 0 {
+        let held = (grid / p.sms).ceil().clamp(1.0, per_sm);
+        let e = p.exposed_many_blocks + (p.exposed_one_block - p.exposed_many_blocks) / held;
+        (largest(&[t.issue, t.latency, t.barriers, t.dispatch]), e)
+    } else {
+        (t.issue, p.exposed_free)
+    };
+    t.exposed = exposed * memory.min(execution);
     let bounds = [t.issue, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch, t.latency];
-    t.seconds = t.launch + bounds.iter().cloned().fold(0.0, f64::max);
+    t.seconds = t.launch + largest(&bounds).max(memory.max(execution) + t.exposed);
     Some(t)
 }
 

@@ -71,7 +71,8 @@ fn each_bound_is_the_quantity_over_its_rate() {
     let t = predict(&launch(p.sms as u32 * 64, 40, 4, sectors, sectors), &p).unwrap();
     assert_eq!(t.bound(), "hbm");
     let hbm = (1u64 << 30) as f64 / p.hbm_bytes_per_s;
-    assert!((t.seconds - p.launch_s - hbm).abs() < 1e-12 * hbm.max(1.0), "{t:?}");
+    // (plus the share of its issue bound the streaming warps do not hide)
+    assert!((t.seconds - p.launch_s - hbm - p.exposed_free * t.issue).abs() < 1e-12 * hbm.max(1.0), "{t:?}");
     // The same traffic again, resident in L2 (no first touches): L2-bound.
     let t = predict(&launch(p.sms as u32 * 64, 40, 4, sectors, 0), &p).unwrap();
     assert_eq!(t.bound(), "l2");
@@ -275,4 +276,46 @@ fn a_wave_lasts_as_long_as_its_blocks_slowest_warps() {
     // summed as none read as older files do).
     let short = LaunchRecord { block_chains: WarpChain { load_rounds: 1, ..WarpChain::default() }, ..even.clone() };
     assert_eq!(predict(&short, &p).unwrap().latency, a.latency);
+}
+
+/// How the bounds combine (the overlap probes): blocks whose barriers keep their warps
+/// in one phase add the share `exposed_one_block` of the smaller of memory and
+/// execution to the larger with one block a SM, falling towards `exposed_many_blocks`
+/// as one over the blocks an SM holds; warps that run free add `exposed_free` of the
+/// smaller of memory and issue, and a chain longer than both keeps the launch.
+#[test]
+fn the_bounds_overlap_as_the_probes_say() {
+    let p = GpuProfile { exposed_free: 0.25, exposed_one_block: 1.0, exposed_many_blocks: 0.5, ..profile() };
+    let sectors = (64u64 << 20) / 32;
+    // One block a SM, L2-bound, with a dependent chain of a quarter of it: the two add.
+    let phased = |grid: u32| {
+        let r = LaunchRecord { barriers: grid as u64 * 4, ..launch(grid, 2_000, 4, sectors, 0) };
+        let t = predict(&r, &p).unwrap();
+        let (memory, execution) = (t.l2, t.latency.max(t.issue));
+        assert!(memory > execution && execution > 0.1 * memory, "{t:?}");
+        (t, memory, execution)
+    };
+    let (t, memory, execution) = phased(p.sms as u32);
+    assert!((t.seconds - p.launch_s - memory - execution).abs() < 1e-9 * memory, "{t:?}");
+    // Four blocks a SM: half of it, and a quarter of the one block's other half.
+    let (t, memory, execution) = phased(4 * p.sms as u32);
+    let share = 0.5 + 0.5 / 4.0;
+    assert!((t.seconds - p.launch_s - memory - share * execution).abs() < 1e-9 * memory, "{t:?}");
+    // The same launch without barriers: a quarter of its issue bound, not of its chain.
+    let free = predict(&launch(4 * p.sms as u32, 2_000, 4, sectors, 0), &p).unwrap();
+    assert!((free.seconds - p.launch_s - free.l2 - 0.25 * free.issue).abs() < 1e-9 * free.l2, "{free:?}");
+    // A chain longer than memory and issue together sets the launch alone.
+    let chained = predict(&launch(1, 100_000, 100, 800, 0), &p).unwrap();
+    assert!(chained.latency > chained.l2 + chained.issue);
+    assert!((chained.seconds - p.launch_s - chained.latency).abs() < 1e-15, "{chained:?}");
+}
+
+#[test]
+fn the_overlap_shares_are_read_from_0_to_1() {
+    let text = profile().to_text("", |_| String::new());
+    let zero = text.replace("overlap_exposed_free = ", "overlap_exposed_free = 0 # ");
+    assert_eq!(GpuProfile::parse(&zero).unwrap().exposed_free, 0.0);
+    let over = text.replace("overlap_exposed_one_block = ", "overlap_exposed_one_block = 1.5 # ");
+    let e = GpuProfile::parse(&over).unwrap_err();
+    assert!(e.contains("overlap_exposed_one_block") && e.contains("from 0 to 1"), "{e}");
 }
