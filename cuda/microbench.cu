@@ -26,6 +26,7 @@
 //   target/cuda/microbench fencemix fences under load: by sectors waited for, and a fit's climb
 //   target/cuda/microbench slots    whether a block's slot waits for its slowest warp
 //   target/cuda/microbench overlap  how an L2 bound and an issue bound combine
+//   target/cuda/microbench inflight L2 bandwidth by the loads each warp keeps in flight
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
@@ -831,7 +832,10 @@ __global__ void __launch_bounds__(512, 4) overlap_free(const float4* __restrict_
     for (int p = 0; p < passes; ++p)
         for (size_t i = blockIdx.x * (size_t)blockDim.x + threadIdx.x; i < n; i += (size_t)gridDim.x * blockDim.x) {
             const float4 v = LOAD ? __ldcg(&a[i]) : make_float4(f[0], 1.f, f[1], f[2]);
-            s += v.x + v.w;
+            // Every word used, so that every form loads it as one 16-byte load (with
+            // `v.x + v.w` alone the loads-alone form loaded two words apart, twice the
+            // L1 sectors of the forms with arithmetic).
+            s += (v.x + v.y) + (v.z + v.w);
             overlap_rounds<ALU>(f, u, v.y);
         }
     for (int k = 0; k < 4; ++k) s += f[k] + (float)(u[k] & 1);
@@ -872,14 +876,20 @@ struct OverlapForm {
     int alu;
     bool load;
 };
+// The zeroed 8 MiB (`n` 16-byte words) a stream probe reads from L2, and the words that
+// keep its work alive.
+static int stream_buffers(float4** a, float** out, size_t n) {
+    CHECK(cudaMalloc(a, n * 16));
+    CHECK(cudaMalloc(out, 1 << 16));
+    CHECK(cudaMemset(*a, 0, n * 16));
+    return 0;
+}
 static int overlap_probes(int sms) {
     const size_t n = (8u << 20) / 16;
     const int passes = 64, iters = 256;
     float4* a;
     float* out;
-    CHECK(cudaMalloc(&a, n * 16));
-    CHECK(cudaMalloc(&out, 1 << 16));
-    CHECK(cudaMemset(a, 0, n * 16));
+    if (stream_buffers(&a, &out, n)) return 1;
     using Free = void (*)(const float4*, size_t, int, float*);
     using Phased = void (*)(const float2*, size_t, int, float*);
     const OverlapForm<Free> free_forms[] = {
@@ -922,6 +932,60 @@ static int overlap_probes(int sms) {
             printf("probe\t%s\tblocks_a_sm\t%d\n", name, b);
             printf("probe\t%s\talu_rounds_a_phase\t%d\n", name, f.alu);
             printf("probe\t%s\tl2_bytes\t%lld\n", name, f.load ? (long long)sms * b * 384 * 8 * 8 * iters : 0LL);
+        }
+    cudaFree(a);
+    cudaFree(out);
+    return 0;
+}
+
+// The in-flight probes (`microbench inflight`): L2's bandwidth by the loads a warp
+// keeps in flight. Every SM holds B blocks of 512 threads (16, 32 or 64 warps) that
+// stream 8 MiB from L2 (`ld.global.cg`) 64 times, each warp issuing U independent
+// 16-byte loads, then waiting for them, then the next U: no arithmetic between. The
+// overlap probes' free-running loads alone (U = 1, 64 warps) reached half of
+// `l2_read`'s bandwidth; these map where that starts.
+template <int U>
+__global__ void __launch_bounds__(512, 4) l2_inflight(const float4* __restrict__ a, size_t n, int passes, float* out) {
+    float s = 0;
+    const size_t stride = (size_t)gridDim.x * blockDim.x;
+    for (int p = 0; p < passes; ++p)
+        for (size_t i = blockIdx.x * (size_t)blockDim.x + threadIdx.x; i < n; i += U * stride) {
+            float4 v[U];
+#pragma unroll
+            for (int u = 0; u < U; ++u) {
+                const size_t j = i + u * stride;
+                v[u] = j < n ? __ldcg(&a[j]) : make_float4(0.f, 0.f, 0.f, 0.f);
+            }
+#pragma unroll
+            for (int u = 0; u < U; ++u) s += v[u].x + v[u].w;
+        }
+    if (s == 12345.0f) out[threadIdx.x] = s;  // keeps the work alive
+}
+static int inflight_probes(int sms) {
+    const size_t n = (8u << 20) / 16;
+    const int passes = 64;
+    float4* a;
+    float* out;
+    if (stream_buffers(&a, &out, n)) return 1;
+    using Kernel = void (*)(const float4*, size_t, int, float*);
+    const struct {
+        int loads;
+        Kernel kernel;
+    } forms[] = {{1, l2_inflight<1>}, {2, l2_inflight<2>}, {4, l2_inflight<4>}, {8, l2_inflight<8>}};
+    // `l2_read` on the same card first, the bandwidth the profile takes.
+    for (int r = 0; r < PROBE_LAUNCHES; ++r) micro::l2_read<<<sms * 16, 512>>>(a, n, 16, out);
+    CHECK(cudaDeviceSynchronize());
+    printf("probe\tl2_read_reference\tl2_bytes\t%lld\n", (long long)n * 16 * 16);
+    const int blocks_a_sm[] = {1, 2, 4};
+    for (int b : blocks_a_sm)
+        for (const auto& f : forms) {
+            char name[64];
+            snprintf(name, sizeof name, "l2_inflight_%d_loads_%d_blocks", f.loads, b);
+            for (int r = 0; r < PROBE_LAUNCHES; ++r) f.kernel<<<sms * b, 512>>>(a, n, passes, out);
+            CHECK(cudaDeviceSynchronize());
+            printf("probe\t%s\tblocks_a_sm\t%d\n", name, b);
+            printf("probe\t%s\tloads_in_flight_a_warp\t%d\n", name, f.loads);
+            printf("probe\t%s\tl2_bytes\t%lld\n", name, (long long)n * 16 * passes);
         }
     cudaFree(a);
     cudaFree(out);
@@ -1215,6 +1279,7 @@ int main(int argc, char** argv) {
         {"rounds", round_probes},
         {"slots", slot_probes},
         {"overlap", overlap_probes},
+        {"inflight", inflight_probes},
     };
     if (argc > 1) {
         for (const auto& m : modes) {

@@ -38,6 +38,9 @@
 # together, in warps that drift apart (every SM full) and in blocks whose barriers keep
 # their warps in one phase (1, 2 or 4 blocks a SM): how a memory and an arithmetic bound
 # combine (docs/simt.md, how the bounds combine).
+# MODE=inflight runs the in-flight probes alone: L2 streamed by 16, 32 or 64 warps a SM
+# each keeping 1 to 8 loads in flight, beside `l2_read` on the same card; not read by
+# `gpu_check calibrate`.
 #
 # ncu runs with --clock-control none (the GPU's own clocks, as in cuda/check.sh) and its
 # default --cache-control all (caches flushed before each kernel), as the checked

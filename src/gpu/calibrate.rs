@@ -314,7 +314,8 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
 /// The overlap probes (`microbench overlap`): each form's median launch time, by the
 /// probe output's names in order (ncu names every form of one template alike).
 struct Overlap {
-    seconds: Vec<(String, f64)>,
+    /// (probe, median seconds, load sectors of its median launch).
+    seconds: Vec<(String, f64, u64)>,
 }
 
 /// One overlap share: the form it was read from and the share of the smaller bound
@@ -347,16 +348,24 @@ impl Overlap {
             .iter()
             .zip(launches.chunks(per))
             .map(|(n, l)| {
-                let mut t: Vec<f64> = l.iter().map(|k| k.seconds).collect();
-                t.sort_by(f64::total_cmp);
-                (n.to_string(), t[t.len() / 2])
+                let mut t: Vec<(f64, u64)> = l.iter().map(|k| (k.seconds, k.loads.sectors)).collect();
+                t.sort_by(|a, b| a.0.total_cmp(&b.0));
+                (n.to_string(), t[t.len() / 2].0, t[t.len() / 2].1)
             })
             .collect();
         Ok(Overlap { seconds })
     }
 
+    fn get(&self, name: &str) -> Result<(f64, u64), String> {
+        self.seconds
+            .iter()
+            .find(|(n, _, _)| n == name)
+            .map(|x| (x.1, x.2))
+            .ok_or_else(|| format!("no overlap probe {name}"))
+    }
+
     fn time(&self, name: &str) -> Result<f64, String> {
-        self.seconds.iter().find(|(n, _)| n == name).map(|x| x.1).ok_or_else(|| format!("no overlap probe {name}"))
+        Ok(self.get(name)?.0)
     }
 
     /// The share of the smaller of the loads' and the arithmetic's times that adds to
@@ -365,11 +374,21 @@ impl Overlap {
     /// closest: where the bounds are equal, how they combine shows most.
     fn exposed(&self, stem: &str, rounds: &[u32]) -> Result<Exposed, String> {
         let none = self.time(&format!("{stem}_none"))?;
-        let load = self.time(&format!("{stem}_load"))? - none;
+        let (load, sectors) = self.get(&format!("{stem}_load"))?;
+        let load = load - none;
         let mut best: Option<(f64, Exposed)> = None;
         for k in rounds {
             let alu = self.time(&format!("{stem}_alu_{k}"))? - none;
-            let both = self.time(&format!("{stem}_load_alu_{k}"))? - none;
+            let (both, both_sectors) = self.get(&format!("{stem}_load_alu_{k}"))?;
+            let both = both - none;
+            // The loads alone must be the loads of the form with arithmetic: the same
+            // sectors (the compiler may load fewer words where fewer are used).
+            if sectors.abs_diff(both_sectors) > sectors / 100 {
+                return Err(format!(
+                    "overlap probes {stem}: the loads alone read {sectors} L1 sectors, with {k} rounds \
+                     {both_sectors}: not the same loads"
+                ));
+            }
             let (small, large) = (load.min(alu), load.max(alu));
             if small <= 0.0 {
                 return Err(format!("overlap probes {stem}: the loop alone takes as long as the work ({k} rounds)"));
