@@ -178,7 +178,14 @@ impl GpuProfile {
             }
         }
         let get = |k: &str| -> Result<f64, String> {
-            values[KEYS.iter().position(|&x| x == k).unwrap()].ok_or_else(|| format!("missing key '{k}'"))
+            values[KEYS.iter().position(|&x| x == k).unwrap()].ok_or_else(|| {
+                if SHARES.contains(&k) {
+                    // Profiles written before the overlap probes existed lack these.
+                    format!("missing key '{k}' (run MODE=overlap sh cuda/microbench.sh and calibrate again)")
+                } else {
+                    format!("missing key '{k}'")
+                }
+            })
         };
         Ok(GpuProfile {
             name: name.ok_or("missing key 'name'")?,

@@ -318,4 +318,10 @@ fn the_overlap_shares_are_read_from_0_to_1() {
     let over = text.replace("overlap_exposed_one_block = ", "overlap_exposed_one_block = 1.5 # ");
     let e = GpuProfile::parse(&over).unwrap_err();
     assert!(e.contains("overlap_exposed_one_block") && e.contains("from 0 to 1"), "{e}");
+    let nan = text.replace("overlap_exposed_free = ", "overlap_exposed_free = nan # ");
+    assert!(GpuProfile::parse(&nan).unwrap_err().contains("from 0 to 1"));
+    // A profile written before the overlap probes says what to run.
+    let older: String =
+        text.lines().filter(|l| !l.starts_with("overlap_exposed_many")).map(|l| format!("{l}\n")).collect();
+    assert!(GpuProfile::parse(&older).unwrap_err().contains("MODE=overlap"));
 }
