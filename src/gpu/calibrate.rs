@@ -158,6 +158,15 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
     let atomic_misses = (chase_atomic.dram_read_bytes / 32.0).min(amount("chase_atomic")? - 1.0);
     let atomic_latency =
         (busy(&chase_atomic) - atomic_misses * hbm_latency) / (amount("chase_atomic")? - atomic_misses);
+    // How the bounds combine: the overlap probes' shares of the smaller work that the
+    // larger does not hide, free-running and phased with 1 and 4 blocks a SM (with R
+    // blocks the model takes `many + (one - many) / R`, solved here through 1 and 4;
+    // 2 blocks a SM is a check).
+    let overlap = Overlap::read(&report, ncu_csvs)?;
+    let free = overlap.exposed("overlap_free", &[2, 4, 8, 16])?;
+    let one = overlap.exposed("overlap_phased_1", &[8, 16, 32])?;
+    let four = overlap.exposed("overlap_phased_4", &[8, 16, 32])?;
+    let two = overlap.exposed("overlap_phased_2", &[8, 16, 32])?;
     let profile = GpuProfile {
         name,
         sms,
@@ -185,22 +194,11 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         barriers_per_s_per_sm: amount("barrier")? / (busy(&barrier) * sms),
         block_dispatch_s: busy(&blocks) / (amount("empty_blocks")? / sms),
         launch_s: launch,
-        exposed_free: 0.0,
-        exposed_one_block: 0.0,
-        exposed_many_blocks: 0.0,
+        exposed_free: free.share.clamp(0.0, 1.0),
+        exposed_one_block: one.share.clamp(0.0, 1.0),
+        exposed_many_blocks: ((4.0 * four.share - one.share) / 3.0).clamp(0.0, 1.0),
     };
-    // How the bounds combine: the overlap probes' shares of the smaller work that the
-    // larger does not hide, free-running and phased with 1 and 4 blocks a SM (with R
-    // blocks the model takes `many + (one - many) / R`, solved here through 1 and 4;
-    // 2 blocks a SM is a check).
-    let mut profile = profile;
-    let overlap = Overlap::read(&report, ncu_csvs)?;
-    let free = overlap.exposed("overlap_free", &[2, 4, 8, 16])?;
-    let one = overlap.exposed("overlap_phased_1", &[8, 16, 32])?;
-    let four = overlap.exposed("overlap_phased_4", &[8, 16, 32])?;
-    profile.exposed_free = free.share.clamp(0.0, 1.0);
-    profile.exposed_one_block = one.share.clamp(0.0, 1.0);
-    profile.exposed_many_blocks = ((4.0 * four.share - one.share) / 3.0).clamp(0.0, 1.0);
+    let two_law = profile.exposed_many_blocks + (profile.exposed_one_block - profile.exposed_many_blocks) / 2.0;
     let probe_of = |p: &str, how: &str| format!("measured: {p} ({how})");
     // The overlap probes may come from another card of the family (their shares are
     // ratios of times); the provenance names it.
@@ -300,14 +298,11 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
             "fence_alone: {:.1} ns per __threadfence() with no store before it",
             busy(&fence_alone) / amount("fence_alone")? * 1e9
         ),
+        format!(
+            "{}: {:.2} of the smaller work exposed with 2 blocks a SM (the model's {two_law:.2})",
+            two.forms, two.share
+        ),
     ];
-    let mut notes = notes;
-    let two = overlap.exposed("overlap_phased_2", &[8, 16, 32])?;
-    let law = profile.exposed_many_blocks + (profile.exposed_one_block - profile.exposed_many_blocks) / 2.0;
-    notes.push(format!(
-        "{}: {:.2} of the smaller work exposed with 2 blocks a SM (the model's {law:.2})",
-        two.forms, two.share
-    ));
     Ok(Calibration { profile, sources, notes })
 }
 
@@ -315,7 +310,7 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
 /// probe output's names in order (ncu names every form of one template alike).
 struct Overlap {
     /// (probe, median seconds, load sectors of its median launch).
-    seconds: Vec<(String, f64, u64)>,
+    forms: Vec<(String, f64, u64)>,
 }
 
 /// One overlap share: the form it was read from and the share of the smaller bound
@@ -344,7 +339,7 @@ impl Overlap {
             return Err(format!("ncu CSV: {} overlap launches for {} overlap probes", launches.len(), names.len()));
         }
         let per = launches.len() / names.len();
-        let seconds = names
+        let forms = names
             .iter()
             .zip(launches.chunks(per))
             .map(|(n, l)| {
@@ -353,11 +348,11 @@ impl Overlap {
                 (n.to_string(), t[t.len() / 2].0, t[t.len() / 2].1)
             })
             .collect();
-        Ok(Overlap { seconds })
+        Ok(Overlap { forms })
     }
 
     fn get(&self, name: &str) -> Result<(f64, u64), String> {
-        self.seconds
+        self.forms
             .iter()
             .find(|(n, _, _)| n == name)
             .map(|x| (x.1, x.2))
