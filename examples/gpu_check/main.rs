@@ -345,7 +345,10 @@ fn time_run(
                 let mut table = None;
                 for f in [Some(c), all.get(i)].into_iter().flatten() {
                     let each = ncu::parse_launches(&read(f)?).map_err(|e| format!("{}: {e}", f.display()))?;
-                    table = table.or_else(|| time_check::launch_table(&recs, &each, &p, k));
+                    table = time_check::launch_table(&recs, &each, &p, k);
+                    if table.is_some() {
+                        break;
+                    }
                 }
                 match table {
                     Some(t) => println!("{k}, launch by launch:\n\n{t}"),

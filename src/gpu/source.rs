@@ -48,9 +48,14 @@ pub struct Instruction {
     pub sectors: f64,
 }
 
-fn number(s: &str) -> f64 {
+/// A count as Nsight writes it (`1,320`), or `None` if it is none.
+fn count(s: &str) -> Option<f64> {
     let plain: String = s.chars().filter(|&c| c != ',').collect();
-    plain.parse().unwrap_or(0.0)
+    plain.parse().ok()
+}
+
+fn number(s: &str) -> f64 {
+    count(s).unwrap_or(0.0)
 }
 
 fn ours(file: &str) -> bool {
@@ -172,8 +177,7 @@ pub fn executed_warp_instructions(text: &str) -> Result<f64, String> {
             continue;
         }
         let Some(v) = column.and_then(|i| row.get(i)) else { continue };
-        let plain: String = v.chars().filter(|&c| c != ',').collect();
-        total += plain.parse::<f64>().map_err(|_| format!("line {}: '{v}' is not an instruction count", n + 1))?;
+        total += count(v).ok_or_else(|| format!("line {}: '{v}' is not an instruction count", n + 1))?;
         rows += 1;
     }
     if rows == 0 {
