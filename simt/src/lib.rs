@@ -73,7 +73,9 @@ pub use memory::{DeviceBuffer, DeviceCopy, Global, GlobalMut, Readable, prefetch
 pub use meter::{Race, Traffic, WarpChain};
 pub use prims::queue::{QueuePusher, WorkQueue};
 pub use prims::scan::{exclusive_scan, inclusive_scan, reduce, transform_exclusive_scan, transform_reduce};
-pub use prims::select::{Flagged, copy_if, copy_if_stencil, fill, gather, reduce_by_key, scatter, sequence};
+pub use prims::select::{
+    Flagged, copy_flagged, copy_if, copy_if_stencil, fill, gather, reduce_by_key, scatter, sequence,
+};
 pub use prims::sort::{RadixKey, sort_by_key, sort_by_key_bits};
 pub use records::{records_from_tsv, records_to_tsv};
 pub use stats::{KernelSummary, LaunchRecord, RegionStats};

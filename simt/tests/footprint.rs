@@ -146,6 +146,32 @@ fn loads_issued_together_are_one_round_of_the_chain_and_the_same_traffic() {
 }
 
 #[test]
+fn a_flagged_selection_loads_its_flags_with_its_elements() {
+    // One tile of CUB's shape for 4-byte elements (384 threads x 15): a flag array is
+    // loaded as the elements are, all of a thread's at once (one round), where a
+    // predicate over stencil records loads and tests them one by one (15 rounds).
+    let dev = measured();
+    let n = 384 * 15;
+    let input = dev.alloc_from(&(0..n as u32).collect::<Vec<_>>());
+    let flags = dev.alloc_from(&(0..n as u32).map(|i| (i % 3 == 0) as u32).collect::<Vec<_>>());
+    let sweep = |f: &dyn Fn(&mut simt::DeviceBuffer<u32>) -> usize| {
+        let mut out = dev.alloc::<u32>(n);
+        let mark = dev.launch_mark();
+        let kept = f(&mut out);
+        let rec = dev.launches_since(mark).into_iter().find(|r| r.name == "simt::select_sweep").unwrap();
+        (out.as_slice()[..kept].to_vec(), rec)
+    };
+    let (flagged, a) = sweep(&|out| simt::copy_flagged(&dev, &input, &flags, out));
+    let (stencil, b) = sweep(&|out| simt::copy_if_stencil(&dev, &input, &flags, out, |f| f != 0));
+    assert_eq!(flagged, (0..n as u32).step_by(3).collect::<Vec<_>>());
+    assert_eq!(flagged, stencil);
+    // The same requests, sectors and instructions; 14 rounds a warp fewer.
+    assert_eq!((a.loads, a.ops.issued), (b.loads, b.ops.issued));
+    assert_eq!(b.waits.load_rounds - a.waits.load_rounds, 14 * 12);
+    assert_eq!(b.longest_warp.load_rounds - a.longest_warp.load_rounds, 14);
+}
+
+#[test]
 fn a_warp_waits_for_atomics_whose_value_it_uses_and_for_fences_not_for_reductions() {
     let dev = measured();
     let n = 1 << 12;

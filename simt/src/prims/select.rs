@@ -93,7 +93,53 @@ where
             super::native::copy_if_stencil(input.as_slice(), stencil.as_slice(), output.as_mut_slice(), pred)
         });
     }
-    select_tiles(dev, (input.view(), stencil.view(), output.view_mut()), pred)
+    select_tiles(dev, (input.view(), stencil.view(), output.view_mut()), pred, StencilLoads::OneByOne)
+}
+
+/// Copies the elements whose flag is non-zero, in order, to the front of `output`;
+/// returns how many (CUB's `DeviceSelect::Flagged` over an array of flags). The same
+/// selection as [`copy_if_stencil`] with the predicate `flag != 0`, but a thread loads
+/// its flags as it loads its elements, all together: CUB's direct blocked load of a
+/// plain array, whose loads nvcc issues back to back, where a predicate computed from
+/// each stencil record (a transform iterator over rays, as PDACRT's twin has it) is
+/// loaded and tested one element after another.
+///
+/// ```
+/// let dev = simt::Device::default();
+/// let input = dev.alloc_from(&[1u32, 4, 7, 8, 3]);
+/// let flags = dev.alloc_from(&[0u32, 1, 0, 2, 0]);
+/// let mut out = dev.alloc::<u32>(5);
+/// let n = simt::copy_flagged(&dev, &input, &flags, &mut out);
+/// assert_eq!(&out.as_slice()[..n], &[4, 8]);
+/// ```
+pub fn copy_flagged<T: DeviceCopy>(
+    dev: &Device,
+    input: &DeviceBuffer<T>,
+    flags: &DeviceBuffer<u32>,
+    output: &mut DeviceBuffer<T>,
+) -> usize {
+    let n = input.len();
+    assert_eq!(flags.len(), n, "copy_flagged: one flag per input");
+    assert!(output.len() >= n, "copy_flagged: output shorter than input");
+    if n == 0 {
+        return 0;
+    }
+    let keep = |f: u32| f != 0;
+    if !dev.measuring() {
+        return dev.host("simt::copy_if [cpu]", n, || {
+            super::native::copy_if_stencil(input.as_slice(), flags.as_slice(), output.as_mut_slice(), keep)
+        });
+    }
+    select_tiles(dev, (input.view(), flags.view(), output.view_mut()), keep, StencilLoads::Together)
+}
+
+/// How a selection's threads load their stencil values.
+#[derive(Clone, Copy, PartialEq)]
+enum StencilLoads {
+    /// All of a thread's at once, as its elements (a plain array of flags).
+    Together,
+    /// Each element's loaded and tested before the next (a predicate over records).
+    OneByOne,
 }
 
 /// Threads of a selection block and elements a thread selects: CUB's `DeviceSelect::Flagged`
@@ -119,6 +165,7 @@ fn select_tiles<T: DeviceCopy, S: DeviceCopy>(
     dev: &Device,
     (inp, st, out): (Global<'_, T>, Global<'_, S>, GlobalMut<'_, T>),
     pred: impl Fn(S) -> bool + Sync,
+    stencil_loads: StencilLoads,
 ) -> usize {
     let n = inp.len();
     let (select_threads, items) = select_shape::<T>();
@@ -142,9 +189,10 @@ fn select_tiles<T: DeviceCopy, S: DeviceCopy>(
         let r_kept = blk.local::<u32>(0);
         let r_before = blk.local::<u32>(0);
         // Each thread's consecutive elements, loaded together (CUB's direct blocked
-        // loads), then its stencil values one element at a time, each loaded and tested
-        // before the next (as the twin's SASS has it: the rays' words in dependent
-        // groups, ray after ray); `r_kept` marks the ones `pred` keeps.
+        // loads), then its stencil values: a plain array's together too, records one
+        // element at a time, each loaded and tested before the next (as PDACRT's twin's
+        // SASS has it: the rays' words in dependent groups, ray after ray); `r_kept`
+        // marks the ones `pred` keeps.
         blk.for_each_thread(|t| {
             let mine = (t.thread_idx() as usize * items).min(valid)..((t.thread_idx() as usize + 1) * items).min(valid);
             {
@@ -154,10 +202,12 @@ fn select_tiles<T: DeviceCopy, S: DeviceCopy>(
                 });
             }
             let mut kept = 0u32;
+            let all_at_once = (stencil_loads == StencilLoads::Together).then(|| t.loads_together());
             for (k, i) in mine.enumerate() {
-                let _together = t.loads_together();
+                let _one = all_at_once.is_none().then(|| t.loads_together());
                 kept |= (pred(t.load(&st, base + i)) as u32) << k;
             }
+            drop(all_at_once);
             t.set(r_kept, kept);
         });
         blk.sync_threads();

@@ -90,7 +90,7 @@ pub(crate) fn material_queues(
 }
 
 /// The active slots whose flag (the field `alive` picks) is non-zero when `keep`, zero
-/// otherwise, in active order (flags by `name`, then `copy_if`).
+/// otherwise, in active order (flags by `name`, then `copy_flagged`).
 pub(crate) fn survivors<S: DeviceCopy>(
     dev: &Device,
     name: &'static str,
@@ -109,7 +109,7 @@ pub(crate) fn survivors<S: DeviceCopy>(
         });
     }
     let mut kept = dev.alloc_pooled::<u32>(n);
-    let m = simt::copy_if_stencil(dev, active, &flags, &mut kept, |a: u32| a != 0);
+    let m = simt::copy_flagged(dev, active, &flags, &mut kept);
     kept.resize(m);
     kept
 }
