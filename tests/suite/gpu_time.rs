@@ -333,7 +333,7 @@ fn planted_errors_in_the_terms_that_bind_are_caught_by_the_check() {
     // Each way for the HBM latency and the launch cost: an error that lengthens the
     // kernels is caught by the kernel it moves past 50 % (filter_triangles) or by the
     // mean, one that shortens them by the mean or by a trace it moves past 15 % (the
-    // HBM latency × 0.8: the mean 20.0 %, the bunny's trace −17 %).
+    // HBM latency × 0.8: the bunny's trace −17.0 %).
     let planted: [(&str, GpuProfile); 5] = [
         ("HBM latency x 1.25", GpuProfile { hbm_latency_s: p.hbm_latency_s * 1.25, ..p.clone() }),
         ("HBM latency x 0.8", GpuProfile { hbm_latency_s: p.hbm_latency_s * 0.8, ..p.clone() }),

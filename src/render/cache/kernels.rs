@@ -116,9 +116,7 @@ pub fn splat_entries(
     let mut next = 0;
     if (share.0..share.1).contains(&number) {
         let mut verts = VertexList::default();
-        for k in 0..len as usize {
-            verts.push(t.load(vertices, start as usize + k));
-        }
+        load_vertices(t, vertices, start as usize..(start + len) as usize, &mut verts);
         let mut path = VertexList::default();
         light_splats(ctx, &verts, &[], counts, &mut path, &mut |ray, value, film| {
             let state = state_of(ray);
@@ -155,6 +153,28 @@ pub struct CacheRead<'a> {
     pub connections: Connections,
 }
 
+/// Appends vertices `range` of `from` to `into`: each vertex copied whole, its fifteen
+/// words loaded back to back and waited for once (one round of the time model's
+/// chain), as a copy of a record compiles when nothing of one word is needed to load
+/// the next. Each call site is a copy of its own, as nvcc inlines it.
+#[track_caller]
+pub(crate) fn load_vertices(
+    t: &Thread,
+    from: &impl Readable<Vertex>,
+    range: std::ops::Range<usize>,
+    into: &mut VertexList,
+) {
+    let _call_site = t.unroll(std::panic::Location::caller() as *const _ as usize);
+    // Not `#[track_caller]`: the loads and their group keep sites of their own.
+    fn copy(t: &Thread, from: &impl Readable<Vertex>, range: std::ops::Range<usize>, into: &mut VertexList) {
+        for k in range {
+            let _vertex = t.loads_together();
+            into.push(t.load(from, k));
+        }
+    }
+    copy(t, from, range, into)
+}
+
 impl CacheRead<'_> {
     /// Cache entry `e`'s light subpath up to its vertex, loaded into `light` (with
     /// `tail`, only its last two vertices); returns `s`.
@@ -162,9 +182,7 @@ impl CacheRead<'_> {
         let [start, s] = t.load(&self.entries, e);
         light.clear();
         let from = if tail { (s as usize).saturating_sub(2) } else { 0 };
-        for k in from..s as usize {
-            light.push(t.load(&self.vertices, start as usize + k));
-        }
+        load_vertices(t, &self.vertices, start as usize + from..(start + s) as usize, light);
         s as usize
     }
 

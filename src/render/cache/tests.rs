@@ -79,3 +79,28 @@ fn the_prefetched_entries_are_the_ones_the_connections_read() {
     }
     assert_eq!(checked, 80);
 }
+
+/// A copied vertex is one round of a warp's dependent chain (its fifteen words loaded
+/// together), its instructions as fifteen loads; each call site of the copy is an
+/// instruction stream of its own, as nvcc inlines it: lanes copying two or three
+/// vertices at the first site and three or two at the second issue three vertices'
+/// loads at each (six rounds a warp), not five matched across the sites.
+#[test]
+fn a_copied_vertex_is_one_round_of_fifteen_loads() {
+    use super::kernels::load_vertices;
+    let dev = simt::Device::new(simt::DeviceConfig { measure: true, ..Default::default() });
+    dev.set_gpu_profile(Some(simt::GpuProfile::named("h200").unwrap()));
+    let v = Vertex::new(VertexKind::Surface, Vec3::ONE, Vec3::Z, 0, Vec3::ONE, false, Vec3::ZERO);
+    let verts = dev.alloc_from(&vec![v; 64 * 5]);
+    let view = verts.view();
+    let rec = dev.for_each("copies", 64, |t, i| {
+        let (mut a, mut b) = (VertexList::default(), VertexList::default());
+        let first = 2 + i % 2;
+        load_vertices(t, &view, 5 * i..5 * i + first, &mut a);
+        load_vertices(t, &view, 5 * i + first..5 * i + 5, &mut b);
+        assert_eq!(a.len() + b.len(), 5);
+    });
+    assert_eq!(rec.longest_warp.load_rounds, 6);
+    assert_eq!(rec.waits.load_rounds, 2 * 6);
+    assert_eq!(rec.loads.requests, 2 * 6 * 15);
+}

@@ -5,7 +5,7 @@
 use crate::filter::{Filter, FilterMode};
 use crate::geometry::{Hit, Ray, barycentric_point, offset_ray_origin};
 use crate::render::bidir::{MAX_PATH, Pending, Vertex, VertexKind, VertexList};
-use crate::render::cache::kernels::{CacheRead, known_densities};
+use crate::render::cache::kernels::{CacheRead, known_densities, load_vertices};
 use crate::render::context::Context;
 use crate::render::walk::SHADE_REGION;
 use crate::sampling::{Frame, Rng};
@@ -206,9 +206,7 @@ fn shade_lane(t: &Thread, ctx: &Context, a: &ShadeArgs, j: usize) {
     let vbase = slot_id * MAX_CAMERA_VERTICES;
     let depth = slot.depth as usize;
     let mut cam = VertexList::default();
-    for k in 0..depth {
-        cam.push(t.load(&a.vertices, vbase + k));
-    }
+    load_vertices(t, &a.vertices, vbase..vbase + depth, &mut cam);
     cam.push(Vertex::new(VertexKind::Surface, p, n, hit.prim, slot.beta, false, scene.emission_of(hit.prim)));
     let t_len = depth + 1;
 
