@@ -116,7 +116,7 @@ pub fn splat_entries(
     let mut next = 0;
     if (share.0..share.1).contains(&number) {
         let mut verts = VertexList::default();
-        load_vertices(t, vertices, start as usize..(start + len) as usize, &mut verts);
+        load_vertices(t, vertices, start as usize..start as usize + len as usize, &mut verts);
         let mut path = VertexList::default();
         light_splats(ctx, &verts, &[], counts, &mut path, &mut |ray, value, film| {
             let state = state_of(ray);
@@ -182,7 +182,7 @@ impl CacheRead<'_> {
         let [start, s] = t.load(&self.entries, e);
         light.clear();
         let from = if tail { (s as usize).saturating_sub(2) } else { 0 };
-        load_vertices(t, &self.vertices, start as usize + from..(start + s) as usize, light);
+        load_vertices(t, &self.vertices, start as usize + from..start as usize + s as usize, light);
         s as usize
     }
 
