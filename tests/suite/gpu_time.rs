@@ -48,14 +48,17 @@ fn runs() -> Vec<CheckedRun> {
     out.push(CheckedRun {
         records: simt::records_from_tsv(&text("simt-records-cis-shading-compaction-3-scenes-128.tsv.gz")).unwrap(),
         kernels: parse_csv(&text("ncu-cis-shading-compaction-3-scenes-128.csv.gz")).unwrap(),
-        every: None,
+        every: Some(
+            parse_csv(&text("ncu-time-every-kernel-cis-3-scenes-128.csv.gz")).unwrap().iter().map(|k| k.seconds).sum(),
+        ),
     });
     out
 }
 
 /// Whether the model meets the bars on these runs: a mean absolute error ≤ 20 %
 /// over the kernels, no kernel past 50 %, and each whole pipeline timed (the three PDACRT
-/// traces) within 15 %.
+/// traces, CIS's shading and compaction: +2.6 %, +15.2 % with each copied vertex's
+/// fifteen loads a round each) within 15 %.
 fn meets_bars(runs: &[CheckedRun], p: &GpuProfile) -> Result<(), String> {
     let (rows, pipelines) = check(runs, p);
     if let Some(e) = pipelines.iter().find(|e| e.abs() > 0.15) {
