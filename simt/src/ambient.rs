@@ -14,7 +14,7 @@
 //! times the lane entered it: the lanes' k-th entries are one copy, in which trips are
 //! matched again from the first.
 
-use crate::exec::{Thread, access_width, leave_copy, meter_of, note_global, note_work, site};
+use crate::exec::{Thread, access_width, enter_scope, leave_copy, note_global, note_work, site};
 use crate::meter::Kind;
 use crate::meter::Meter;
 use std::cell::{Cell, RefCell};
@@ -228,12 +228,6 @@ pub fn scope() -> Scope {
         }
         None => Scope { meter: std::ptr::null(), outer: 0 },
     }
-}
-
-#[cold]
-#[inline(never)]
-fn enter_scope(m: &RefCell<Meter>, lane: u32, site: usize) -> usize {
-    meter_of(m, lane).enter_scope(site)
 }
 
 /// A scope of the ambient lane, from [`scope`] until it drops.

@@ -525,6 +525,14 @@ fn begin_together(m: &RefCell<Meter>, lane: u32, site: usize) -> u32 {
     meter_of(m, lane).begin_together(site)
 }
 
+/// Enters the copy of code that call site `site` inlines, for `lane`'s next entry
+/// there ([`Thread::inlined`], [`crate::scope`]); returns the copy it was in.
+#[cold]
+#[inline(never)]
+pub(crate) fn enter_scope(m: &RefCell<Meter>, lane: u32, site: usize) -> usize {
+    meter_of(m, lane).enter_scope(site)
+}
+
 /// Enters copy `copy` of unrolled code; returns the copy it was in.
 #[cold]
 #[inline(never)]
@@ -959,6 +967,21 @@ impl Thread<'_> {
     pub fn unroll(&self, copy: usize) -> Unrolled<'_> {
         match self.meter {
             Some(m) => Unrolled { meter: Some(m), outer: enter_copy(m, copy) },
+            None => Unrolled { meter: None, outer: 0 },
+        }
+    }
+
+    /// Marks the rest of the enclosing scope as the caller's inlined copy of a device
+    /// function, until the guard drops: [`crate::scope`] for a `#[track_caller]` helper
+    /// that holds the thread. nvcc compiles each call site to code of its own, and the
+    /// lanes' k-th calls from one site are matched with each other, their trips from
+    /// the first.
+    #[inline(always)]
+    #[track_caller]
+    #[must_use = "the copy ends when the guard drops: bind it with `let _call = ..`"]
+    pub fn inlined(&self) -> Unrolled<'_> {
+        match self.meter {
+            Some(m) => Unrolled { meter: Some(m), outer: enter_scope(m, self.thread_idx, site()) },
             None => Unrolled { meter: None, outer: 0 },
         }
     }

@@ -156,7 +156,7 @@ pub struct CacheRead<'a> {
 /// Appends vertices `range` of `from` to `into`: each vertex copied whole, its fifteen
 /// words loaded back to back and waited for once (one round of the time model's
 /// chain), as a copy of a record compiles when nothing of one word is needed to load
-/// the next. Each call site is a copy of its own, as nvcc inlines it.
+/// the next. Each call site is a copy of its own, as nvcc inlines it ([`Thread::inlined`]).
 #[track_caller]
 pub(crate) fn load_vertices(
     t: &Thread,
@@ -164,7 +164,7 @@ pub(crate) fn load_vertices(
     range: std::ops::Range<usize>,
     into: &mut VertexList,
 ) {
-    let _call_site = t.unroll(std::panic::Location::caller() as *const _ as usize);
+    let _call = t.inlined();
     // Not `#[track_caller]`: the loads and their group keep sites of their own.
     fn copy(t: &Thread, from: &impl Readable<Vertex>, range: std::ops::Range<usize>, into: &mut VertexList) {
         for k in range {
