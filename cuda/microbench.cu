@@ -1160,7 +1160,7 @@ static int icache_probes(int sms) {
             icache_row<64>(sms, out, cycles, warps))
             return 1;
     }
-    for (int warps : {1, 4, 12, 16}) {
+    for (int warps : {1, 4, 8, 12, 16, 24, 32}) {
         if (icache_jump_row<16>(sms, out, cycles, warps) || icache_jump_row<64>(sms, out, cycles, warps) ||
             icache_jump_row<256>(sms, out, cycles, warps) || icache_jump_row<1024>(sms, out, cycles, warps) ||
             icache_jump_row<2048>(sms, out, cycles, warps))

@@ -22,13 +22,17 @@ pub struct LaunchConfig {
     /// `launch__registers_per_thread`; the emulator cannot know them), which bound how
     /// many blocks an SM holds; 0 when not known (no bound).
     pub registers: u32,
+    /// Bytes of the twin's compiled code (`cuobjdump -sass`; the emulator cannot know
+    /// them), which tell whether its warps fetch their instructions from beyond the SM's
+    /// instruction cache; 0 when not known (taken as fitting).
+    pub code_bytes: u32,
 }
 
 impl LaunchConfig {
     /// Enough blocks of `block` threads to cover `n` threads.
     pub fn linear(n: usize, block: u32) -> LaunchConfig {
         let grid = n.div_ceil(block.max(1) as usize).min(u32::MAX as usize) as u32;
-        LaunchConfig { grid, block, shared_bytes: 0, regions: &[], registers: 0 }
+        LaunchConfig { grid, block, shared_bytes: 0, regions: &[], registers: 0, code_bytes: 0 }
     }
 
     /// This configuration with `bytes` of shared memory per block.
@@ -40,6 +44,12 @@ impl LaunchConfig {
     /// This configuration with the registers per thread its GPU twin uses.
     pub fn with_registers(mut self, registers: u32) -> LaunchConfig {
         self.registers = registers;
+        self
+    }
+
+    /// This configuration with the bytes of its GPU twin's compiled code.
+    pub fn with_code_bytes(mut self, bytes: u32) -> LaunchConfig {
+        self.code_bytes = bytes;
         self
     }
 

@@ -7,16 +7,17 @@ use crate::stats::{LaunchRecord, RegionStats};
 use std::fmt::Write;
 
 /// The columns of [`records_to_tsv`].
-const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors\tround_repeats\tloaded_footprint\tin_order\tlongest_fenced_lines\tfenced_lines\tblock_issued\tblock_load_rounds\tblock_atomic_rounds\tblock_fences\tblock_fenced_sectors\tblock_fenced_lines";
+const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors\tround_repeats\tloaded_footprint\tin_order\tlongest_fenced_lines\tfenced_lines\tblock_issued\tblock_load_rounds\tblock_atomic_rounds\tblock_fences\tblock_fenced_sectors\tblock_fenced_lines\tcode_bytes";
 
 /// Columns of [`RECORD_HEADER`] that files written before them lack, newest first:
-/// the blocks' slowest warps' chains (read as none: the model then takes the mean
+/// the bytes of the twin's code (read as not known), the blocks' slowest warps' chains (read as none: the model then takes the mean
 /// warp's), the lines fences waited for (read as none), whether the blocks ran in order (read as not), the loaded footprint (read as the
 /// whole footprint), the sectors repeated within rounds
 /// of loads, the sectors fences waited for, the atomics
 /// and fences waited for (all read as none), and load rounds (read as one per load
 /// request).
 const LATER_COLUMNS: &[&str] = &[
+    "\tcode_bytes",
     "\tblock_issued\tblock_load_rounds\tblock_atomic_rounds\tblock_fences\tblock_fenced_sectors\tblock_fenced_lines",
     "\tlongest_fenced_lines\tfenced_lines",
     "\tin_order",
@@ -38,7 +39,7 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
         let t = |x: &Traffic| format!("{}\t{}\t{}", x.requests, x.sectors, x.lanes);
         let _ = writeln!(
             s,
-            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
             r.name,
             r.grid,
             r.block,
@@ -75,7 +76,8 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
             r.block_chains.atomic_rounds,
             r.block_chains.fences,
             r.block_chains.fenced_sectors,
-            r.block_chains.fenced_lines
+            r.block_chains.fenced_lines,
+            r.code_bytes
         );
     }
     s
@@ -164,6 +166,7 @@ pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
                 WarpChain::default()
             },
             in_order: columns.len() > 34 && n(34)? != 0,
+            code_bytes: if columns.len() > 43 { n(43)? as u32 } else { 0 },
         });
     }
     Ok(out)
@@ -197,6 +200,7 @@ mod tests {
             block: 64,
             shared_bytes: 128,
             registers: 0,
+            code_bytes: 685_056,
             seconds: 0.25,
             measured: true,
             threads: 192,
@@ -248,7 +252,9 @@ mod tests {
         assert_eq!(back.block_chains, record().block_chains);
         assert_eq!((back.loads, back.atomics, back.block_sectors), (record().loads, record().atomics, 8));
         assert_eq!((back.footprint_sectors, back.loaded_footprint_sectors, back.in_order), (9, 7, true));
-        // Cut the later columns off, newest first: the blocks' chains are then none,
+        assert_eq!(back.code_bytes, 685_056);
+        // Cut the later columns off, newest first: the code's bytes are then not known,
+        // the blocks' chains are then none,
         // fenced lines are then none, the launch is then not in order, the loaded
         // footprint is then the whole footprint, round repeats are none, then
         // fenced sectors, then atomics and fences, and then load rounds are one per load
@@ -257,6 +263,8 @@ mod tests {
             text.lines().map(|l| l.split('\t').take(columns).collect::<Vec<_>>().join("\t") + "\n").collect()
         };
         let unlined = |w: WarpChain| WarpChain { fenced_lines: 0, ..w };
+        let before_code = &records_from_tsv(&cut(&text, 43)).unwrap()[0];
+        assert_eq!((before_code.code_bytes, before_code.block_chains), (0, record().block_chains));
         let before_blocks = &records_from_tsv(&cut(&text, 37)).unwrap()[0];
         assert_eq!((before_blocks.block_chains, before_blocks.waits), (WarpChain::default(), record().waits));
         let before_lines = &records_from_tsv(&cut(&text, 35)).unwrap()[0];
@@ -278,7 +286,7 @@ mod tests {
         let before_rounds = &records_from_tsv(&cut(&text, 25)).unwrap()[0];
         assert_eq!(before_rounds.waits.load_rounds, 5);
         // Any other header is refused.
-        for columns in [24, 27, 31, 36] {
+        for columns in [24, 27, 31, 36, 42] {
             assert!(records_from_tsv(&cut(&text, columns)).unwrap_err().contains("header differs"));
         }
     }

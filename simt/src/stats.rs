@@ -49,6 +49,9 @@ pub struct LaunchRecord {
     /// Registers per thread of the kernel's GPU twin, 0 when not known
     /// ([`crate::LaunchConfig::registers`]; not kept in the record files, which read back 0).
     pub registers: u32,
+    /// Bytes of the compiled code of the kernel's GPU twin, 0 when not known
+    /// ([`crate::LaunchConfig::code_bytes`]).
+    pub code_bytes: u32,
     /// Wall time of the launch, seconds.
     pub seconds: f64,
     /// Whether SIMD efficiency and memory traffic were measured.

@@ -76,7 +76,7 @@ fn a_table_every_block_reads_is_one_footprint_and_one_l2_read_per_block() {
     let table = dev.alloc_from(&vec![2u32; n]);
     let mut sum = dev.alloc::<u32>(64 * 256);
     let (tv, sv) = (table.view(), sum.view_mut());
-    let cfg = LaunchConfig { grid: 64, block: 256, shared_bytes: 0, regions: &[], registers: 0 };
+    let cfg = LaunchConfig { grid: 64, block: 256, shared_bytes: 0, regions: &[], registers: 0, code_bytes: 0 };
     let rec = dev
         .launch("table", cfg, |blk| {
             blk.for_each_thread(|t| {

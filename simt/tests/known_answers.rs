@@ -30,7 +30,7 @@ fn shared_memory_over_capacity_is_a_launch_error() {
 fn bad_block_sizes_are_launch_errors() {
     let dev = Device::default();
     for block in [0, 1025, 4096] {
-        let cfg = LaunchConfig { grid: 1, block, shared_bytes: 0, regions: &[], registers: 0 };
+        let cfg = LaunchConfig { grid: 1, block, shared_bytes: 0, regions: &[], registers: 0, code_bytes: 0 };
         assert!(matches!(dev.launch("k", cfg, |_| {}), Err(LaunchError::BlockSize { .. })));
     }
 }
@@ -80,7 +80,7 @@ fn half_warp_branch_of_equal_length_runs_at_half_efficiency() {
     // of 8 lanes, each lane doing one load.
     let data = dev.alloc::<u32>(40);
     let v = data.view();
-    let cfg = LaunchConfig { grid: 3, block: 40, shared_bytes: 0, regions: &[], registers: 0 };
+    let cfg = LaunchConfig { grid: 3, block: 40, shared_bytes: 0, regions: &[], registers: 0, code_bytes: 0 };
     let rec = dev
         .launch("partial", cfg, |blk| {
             blk.for_each_thread(|t| {
@@ -154,7 +154,7 @@ fn lanes_outside_the_launch_are_inactive() {
 #[test]
 fn warp_intrinsics_and_shared_accesses_are_instructions() {
     let dev = measured();
-    let cfg = LaunchConfig { grid: 1, block: 64, shared_bytes: 64 * 4, regions: &[], registers: 0 };
+    let cfg = LaunchConfig { grid: 1, block: 64, shared_bytes: 64 * 4, regions: &[], registers: 0, code_bytes: 0 };
     let rec = dev
         .launch("intrinsic_count", cfg, |blk| {
             let s = blk.shared::<u32>(64);
@@ -216,7 +216,7 @@ fn a_uniform_load_is_one_request_per_warp_on_one_element() {
     let wide = dev.alloc_from(&[[1u32; 8]; 4]);
     let (v, w) = (data.view(), wide.view());
     // Three blocks of 80 threads: warps of 32, 32 and 16 lanes.
-    let cfg = || LaunchConfig { grid: 3, block: 80, shared_bytes: 0, regions: &[], registers: 0 };
+    let cfg = || LaunchConfig { grid: 3, block: 80, shared_bytes: 0, regions: &[], registers: 0, code_bytes: 0 };
     let rec = dev
         .launch("uniform", cfg(), |blk| {
             let x = blk.load_uniform(&v, blk.block_idx() as usize);
@@ -241,7 +241,8 @@ fn a_uniform_load_is_one_request_per_warp_on_one_element() {
 fn uniform_work_counts_every_lane_of_every_warp() {
     let dev = measured();
     // Two blocks of 80 threads (warps of 32, 32 and 16 lanes); region 0 named.
-    let cfg = || LaunchConfig { grid: 2, block: 80, shared_bytes: 0, regions: &["search"], registers: 0 };
+    let cfg =
+        || LaunchConfig { grid: 2, block: 80, shared_bytes: 0, regions: &["search"], registers: 0, code_bytes: 0 };
     let rec = dev
         .launch("uniform_work", cfg(), |blk| {
             for _ in 0..3 {
@@ -341,7 +342,7 @@ fn a_field_load_is_the_load_of_that_field_alone() {
     });
     assert_eq!((rec.loads.requests, rec.loads.sectors), (1, 2));
     // A uniform field load: one request and one sector per warp.
-    let cfg = LaunchConfig { grid: 2, block: 64, shared_bytes: 0, regions: &[], registers: 0 };
+    let cfg = LaunchConfig { grid: 2, block: 64, shared_bytes: 0, regions: &[], registers: 0, code_bytes: 0 };
     let rec = dev
         .launch("uniform_field", cfg, |blk| assert_eq!(blk.load_uniform_field(&v, 5, |n: &Node| &n.count), 5))
         .unwrap();
@@ -534,31 +535,35 @@ fn warp_intrinsics_have_cuda_meaning() {
     let dev = Device::default();
     let mut out = dev.alloc::<u32>(8);
     let o = out.view_mut();
-    dev.launch("intrinsics", LaunchConfig { grid: 1, block: 40, shared_bytes: 0, regions: &[], registers: 0 }, |blk| {
-        blk.for_each_warp(|w| {
-            let lanes: [u32; 32] = w.lanes(|l| l);
-            let even: [bool; 32] = std::array::from_fn(|l| l % 2 == 0);
-            if w.warp_idx() == 0 {
-                w.for_each_lane(|t| {
-                    if t.lane_id() == 0 {
-                        t.store(&o, 0, w_ballot(&even));
-                    }
-                });
-                o.write(1, w.shfl_down(&lanes, 4)[3]); // lane 3 reads lane 7
-                o.write(2, w.shfl_down(&lanes, 4)[30]); // beyond the warp: keeps its own
-                o.write(3, w.shfl_xor(&lanes, 1)[6]); // butterfly partner of 6 is 7
-                o.write(4, w.shfl_up(&lanes, 2)[1]); // below lane 0: keeps its own
-                o.write(5, w.all(&[true; 32]) as u32);
-            } else {
-                // The second warp has 8 active lanes.
-                o.write(6, w.ballot(&[true; 32]));
-                o.write(7, w.all(&std::array::from_fn(|l| l < 8)) as u32);
-            }
-            fn w_ballot(p: &[bool; 32]) -> u32 {
-                p.iter().enumerate().fold(0, |m, (i, &b)| m | (b as u32) << i)
-            }
-        });
-    })
+    dev.launch(
+        "intrinsics",
+        LaunchConfig { grid: 1, block: 40, shared_bytes: 0, regions: &[], registers: 0, code_bytes: 0 },
+        |blk| {
+            blk.for_each_warp(|w| {
+                let lanes: [u32; 32] = w.lanes(|l| l);
+                let even: [bool; 32] = std::array::from_fn(|l| l % 2 == 0);
+                if w.warp_idx() == 0 {
+                    w.for_each_lane(|t| {
+                        if t.lane_id() == 0 {
+                            t.store(&o, 0, w_ballot(&even));
+                        }
+                    });
+                    o.write(1, w.shfl_down(&lanes, 4)[3]); // lane 3 reads lane 7
+                    o.write(2, w.shfl_down(&lanes, 4)[30]); // beyond the warp: keeps its own
+                    o.write(3, w.shfl_xor(&lanes, 1)[6]); // butterfly partner of 6 is 7
+                    o.write(4, w.shfl_up(&lanes, 2)[1]); // below lane 0: keeps its own
+                    o.write(5, w.all(&[true; 32]) as u32);
+                } else {
+                    // The second warp has 8 active lanes.
+                    o.write(6, w.ballot(&[true; 32]));
+                    o.write(7, w.all(&std::array::from_fn(|l| l < 8)) as u32);
+                }
+                fn w_ballot(p: &[bool; 32]) -> u32 {
+                    p.iter().enumerate().fold(0, |m, (i, &b)| m | (b as u32) << i)
+                }
+            });
+        },
+    )
     .unwrap();
     assert_eq!(out.as_slice(), &[0x5555_5555, 7, 30, 7, 1, 1, 0xff, 1]);
 }
@@ -625,7 +630,7 @@ fn a_missing_barrier_is_an_error_naming_the_kernel() {
 #[test]
 fn races_within_a_phase_and_warp_synchronous_exchanges() {
     let dev = measured();
-    let cfg = || LaunchConfig { grid: 1, block: 64, shared_bytes: 64 * 4, regions: &[], registers: 0 };
+    let cfg = || LaunchConfig { grid: 1, block: 64, shared_bytes: 64 * 4, regions: &[], registers: 0, code_bytes: 0 };
     // Lane 1 reads what lane 0 wrote in the same phase: a race.
     let r = dev.launch("same_phase", cfg(), |blk| {
         let s = blk.shared::<u32>(64);
@@ -679,15 +684,19 @@ fn shared_memory_starts_zeroed_in_every_block() {
     let dev = Device::default();
     let mut out = dev.alloc::<u32>(64);
     let o = out.view_mut();
-    dev.launch("dirty", LaunchConfig { grid: 64, block: 32, shared_bytes: 4, regions: &[], registers: 0 }, |blk| {
-        let s = blk.shared::<u32>(1);
-        blk.for_each_thread(|t| {
-            if t.thread_idx() == 0 {
-                t.store(&o, t.block_idx() as usize, t.load_shared(s, 0));
-                t.store_shared(s, 0, 99);
-            }
-        });
-    })
+    dev.launch(
+        "dirty",
+        LaunchConfig { grid: 64, block: 32, shared_bytes: 4, regions: &[], registers: 0, code_bytes: 0 },
+        |blk| {
+            let s = blk.shared::<u32>(1);
+            blk.for_each_thread(|t| {
+                if t.thread_idx() == 0 {
+                    t.store(&o, t.block_idx() as usize, t.load_shared(s, 0));
+                    t.store_shared(s, 0, 99);
+                }
+            });
+        },
+    )
     .unwrap();
     assert!(out.as_slice().iter().all(|&v| v == 0));
 }
@@ -819,9 +828,13 @@ fn every_warp_intrinsic_counts_and_answers_for_a_partial_warp() {
         let mut out = dev.alloc::<u32>(2);
         let o = out.view_mut();
         let rec = dev
-            .launch(name, LaunchConfig { grid: 1, block: 40, shared_bytes: 0, regions: &[], registers: 0 }, |blk| {
-                blk.for_each_warp(|w| o.write(w.warp_idx() as usize, probe(w)));
-            })
+            .launch(
+                name,
+                LaunchConfig { grid: 1, block: 40, shared_bytes: 0, regions: &[], registers: 0, code_bytes: 0 },
+                |blk| {
+                    blk.for_each_warp(|w| o.write(w.warp_idx() as usize, probe(w)));
+                },
+            )
             .unwrap();
         assert_eq!(out.as_slice(), &[full[k], partial[k]], "{name}: values (full warp, partial warp)");
         assert_eq!((rec.ops.issued, rec.ops.active), (2, 40), "{name}: issued and active lanes");

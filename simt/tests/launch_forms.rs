@@ -149,7 +149,7 @@ fn shared_u64_atomics_carry_and_count_once_per_warp() {
     for dev in [Device::default(), measured()] {
         let mut out = dev.alloc::<u64>(1);
         let ov = out.view_mut();
-        let cfg = LaunchConfig { grid: 1, block: 64, shared_bytes: 8, regions: &[], registers: 0 };
+        let cfg = LaunchConfig { grid: 1, block: 64, shared_bytes: 8, regions: &[], registers: 0, code_bytes: 0 };
         let rec = dev
             .launch("sum_u64", cfg, |blk| {
                 let sum = blk.shared::<u64>(1);
@@ -182,7 +182,7 @@ fn shared_u64_atomics_carry_and_count_once_per_warp() {
 #[test]
 fn shared_u64_atomics_retry_per_word_and_per_call_site() {
     let dev = measured();
-    let cfg = || LaunchConfig { grid: 1, block: 32, shared_bytes: 16, regions: &[], registers: 0 };
+    let cfg = || LaunchConfig { grid: 1, block: 32, shared_bytes: 16, regions: &[], registers: 0, code_bytes: 0 };
     let rec = dev
         .launch("two_words", cfg(), |blk| {
             let sum = blk.shared::<u64>(2);

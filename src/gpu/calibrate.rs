@@ -18,15 +18,39 @@ pub struct Calibration {
     pub notes: Vec<String>,
 }
 
-/// The probe program's report: `device` lines (name, value) and `probe` lines (probe,
-/// quantity, amount).
+/// The probe program's report: `device` lines (name, value), `probe` lines (probe,
+/// quantity, amount) and the instruction-fetch probes' `timed` rows (`microbench
+/// icache`). Other `timed` rows are read by no one here.
 struct Report {
     device: Vec<(String, String)>,
     probes: Vec<(String, f64)>,
+    straight: Vec<Straight>,
+    jumps: Vec<Jump>,
+}
+
+/// One row of the straight-line instruction-fetch probe: warps a SM running passes
+/// over `code_kib` of multiply-adds, each warp at its own place.
+#[derive(Clone, Copy, Debug)]
+struct Straight {
+    code_kib: f64,
+    warps: u32,
+    cycles_per_fma: f64,
+}
+
+/// One row of the jumping instruction-fetch probe: warps a SM each running pieces of
+/// code in its own order.
+#[derive(Clone, Copy, Debug)]
+struct Jump {
+    pieces: u32,
+    warps: u32,
+    cycles_per_piece: f64,
 }
 
 fn read_report(text: &str) -> Result<Report, String> {
-    let mut r = Report { device: Vec::new(), probes: Vec::new() };
+    let mut r = Report { device: Vec::new(), probes: Vec::new(), straight: Vec::new(), jumps: Vec::new() };
+    let number = |i: usize, what: &str, v: &str| -> Result<f64, String> {
+        v.parse().map_err(|_| format!("line {}: {what}: '{v}' is not a number", i + 1))
+    };
     for (i, line) in text.lines().enumerate() {
         if line.trim().is_empty() {
             continue;
@@ -39,7 +63,18 @@ fn read_report(text: &str) -> Result<Report, String> {
                     amount.parse().map_err(|_| format!("line {}: probe {name}: '{amount}' is not a number", i + 1))?;
                 r.probes.push((name.to_string(), a));
             }
-            _ => return Err(format!("line {}: expected 'device' or 'probe' fields", i + 1)),
+            ["timed", "icache", "code_kib", k, "warps_per_sm", w, "cycles_per_fma", c] => r.straight.push(Straight {
+                code_kib: number(i, "code_kib", k)?,
+                warps: number(i, "warps_per_sm", w)? as u32,
+                cycles_per_fma: number(i, "cycles_per_fma", c)?,
+            }),
+            ["timed", "icache_jump", "pieces", k, "warps_per_sm", w, "cycles_per_piece", c] => r.jumps.push(Jump {
+                pieces: number(i, "pieces", k)? as u32,
+                warps: number(i, "warps_per_sm", w)? as u32,
+                cycles_per_piece: number(i, "cycles_per_piece", c)?,
+            }),
+            ["timed", ..] => {}
+            _ => return Err(format!("line {}: expected 'device', 'probe' or 'timed' fields", i + 1)),
         }
     }
     Ok(r)
@@ -163,6 +198,7 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
     // blocks the model takes `many + (one - many) / R`, solved here through 1 and 4;
     // 2 blocks a SM is a check).
     let overlap = Overlap::read(&report, ncu_csvs)?;
+    let fetch = Fetch::read(&report, ncu_csvs, sms)?;
     let free = overlap.exposed("overlap_free", &[2, 4, 8, 16])?;
     let one = overlap.exposed("overlap_phased_1", &[8, 16, 32])?;
     let four = overlap.exposed("overlap_phased_4", &[8, 16, 32])?;
@@ -177,6 +213,8 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         registers_per_sm: dev("registers_per_sm").unwrap_or(REGISTERS_PER_SM),
         l2_bytes: dev("l2_bytes")?,
         issue_per_cycle_per_sm: alu.inst / (busy(&alu) * clock * sms),
+        fetch_thrash_code_bytes: fetch.code_kib * 1024.0,
+        fetch_issue_per_cycle_per_sm: fetch.issue_per_cycle_per_sm,
         alu_latency_cycles: busy(&chain) * clock / amount("alu_chain")?,
         l1_sectors_per_cycle_per_sm: l1.loads.sectors as f64 / (busy(&l1) * clock * sms),
         l2_bytes_per_s: l2.loads.sectors as f64 * 32.0 / busy(&l2),
@@ -209,6 +247,13 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         .filter(|g| *g != profile.name)
         .map_or(String::new(), |g| format!(", on an {g}"));
     let overlap_of = |p: &str, how: &str| format!("measured: {p} ({how}{overlap_gpu})");
+    // Likewise the instruction-fetch probe (its rates are per SM cycle).
+    let jump_gpu = probes
+        .iter()
+        .find(|t| t.contains("\ticache_jump\t") || t.contains("\ticache\t"))
+        .and_then(|t| t.lines().find_map(|l| l.strip_prefix("device\tname\t")))
+        .filter(|g| *g != profile.name)
+        .map_or(String::new(), |g| format!(", on an {g}"));
     let sources = vec![
         ("sms", "device query".to_string()),
         ("clock_ghz", probe_of("alu_mix", "sm__cycles_elapsed.avg.per_second")),
@@ -225,6 +270,20 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         ),
         ("l2_bytes", "device query".into()),
         ("issue_per_cycle_per_sm", probe_of("alu_mix", "warp instructions / SM cycles")),
+        (
+            "fetch_thrash_code_kib",
+            format!(
+                "measured: icache (the smallest straight-line code on which a multiply-add took over 1.5 times as long as on the smallest, {} warps a SM{jump_gpu})",
+                fetch.straight_warps
+            ),
+        ),
+        (
+            "fetch_issue_per_cycle_per_sm",
+            format!(
+                "measured: icache_jump ({} pieces, the fewest a piece took over twice as long on; {} warps a SM, the most of any warps: warp instructions / SM cycles{jump_gpu})",
+                fetch.pieces, fetch.warps
+            ),
+        ),
         ("alu_latency_cycles", probe_of("alu_chain", "cycles per dependent FMA, one warp")),
         ("l1_sectors_per_cycle_per_sm", probe_of("l1_read", "L1-hit load sectors / SM cycles")),
         ("l2_gb_per_s", probe_of("l2_read", "ld.global.cg sectors x 32 B / time")),
@@ -304,6 +363,89 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         ),
     ];
     Ok(Calibration { profile, sources, notes })
+}
+
+/// Pieces each warp of the jumping instruction-fetch probe runs (`icache_jump_row` in
+/// `cuda/microbench.cu`).
+const JUMP_PIECES_PER_WARP: f64 = 16384.0;
+
+/// The instruction-fetch probes read: the smallest code the SM's instruction cache
+/// does not hold, and the most warp instructions an SM issues from code its warps
+/// jump about that it does not hold.
+struct Fetch {
+    code_kib: f64,
+    straight_warps: u32,
+    pieces: u32,
+    warps: u32,
+    issue_per_cycle_per_sm: f64,
+}
+
+impl Fetch {
+    /// Code the cache does not hold: the straight-line probe's smallest code on which,
+    /// with the most warps a SM it ran, a multiply-add takes over 1.5 times what it
+    /// takes on its smallest code (the probe states its code's size). Fetch-bound
+    /// jumping: the jumping probe's fewest pieces on which, with its most warps a SM,
+    /// a piece takes over twice what it takes on its fewest. A jumping row's issue rate
+    /// is Nsight's warp instructions of its timed launch (each row launches twice, a
+    /// warm-up first) per SM over the probe's own cycles for its pieces, or, where the
+    /// CSV has no instruction counts, its warps a SM over Nsight's cycles a warp took
+    /// per instruction it issued; the rate is the most of any warps a SM.
+    fn read(report: &Report, ncu_csvs: &[&str], sms: f64) -> Result<Fetch, String> {
+        let again = "(run MODE=icache sh cuda/microbench.sh and give its probe and ncu files)";
+        if report.straight.is_empty() || report.jumps.is_empty() {
+            return Err(format!("probe output: no icache and icache_jump rows {again}"));
+        }
+        let most = report.straight.iter().map(|r| r.warps).max().unwrap_or(0);
+        let mut rows: Vec<Straight> = report.straight.iter().copied().filter(|r| r.warps == most).collect();
+        rows.sort_by(|a, b| a.code_kib.total_cmp(&b.code_kib));
+        let code_kib = rows
+            .iter()
+            .find(|r| r.cycles_per_fma > 1.5 * rows[0].cycles_per_fma)
+            .map(|r| r.code_kib)
+            .ok_or("icache: no code size slowed the straight-line probe (never 1.5 times its smallest code's)")?;
+        let mut launches = Vec::new();
+        for csv in ncu_csvs {
+            launches.extend(parse_launches(csv)?.into_iter().filter(|k| k.name.ends_with("icache_jump")));
+        }
+        if launches.len() != 2 * report.jumps.len() {
+            return Err(format!(
+                "ncu CSV: {} launches of icache_jump for {} probe rows (two a row) {again}",
+                launches.len(),
+                report.jumps.len()
+            ));
+        }
+        let jump_most = report.jumps.iter().map(|j| j.warps).max().unwrap_or(0);
+        let at = |pieces: u32| report.jumps.iter().find(|j| j.pieces == pieces && j.warps == jump_most);
+        let mut sizes: Vec<u32> = report.jumps.iter().map(|j| j.pieces).collect();
+        sizes.sort_unstable();
+        sizes.dedup();
+        let base =
+            at(sizes[0]).ok_or(format!("icache_jump: no row of {} pieces at {jump_most} warps a SM", sizes[0]))?;
+        let pieces = sizes
+            .iter()
+            .copied()
+            .find(|&k| at(k).is_some_and(|j| j.cycles_per_piece > 2.0 * base.cycles_per_piece))
+            .ok_or("icache_jump: no code was fetch-bound (a piece never took twice as long as on the fewest pieces)")?;
+        let mut best = (0, 0.0);
+        for (j, l) in report.jumps.iter().zip(launches.chunks(2).map(|pair| &pair[1])) {
+            if j.pieces != pieces {
+                continue;
+            }
+            let rate = if l.inst > 0.0 {
+                l.inst / sms / (j.cycles_per_piece * JUMP_PIECES_PER_WARP)
+            } else if l.warp_cycles_per_issue_sum > 0.0 {
+                j.warps as f64 / l.warp_cycles_per_issue_sum
+            } else {
+                return Err(format!(
+                    "ncu CSV: icache_jump has neither smsp__inst_executed.sum nor smsp__average_warp_latency_per_inst_issued.ratio {again}"
+                ));
+            };
+            if rate > best.1 {
+                best = (j.warps, rate);
+            }
+        }
+        Ok(Fetch { code_kib, straight_warps: most, pieces, warps: best.0, issue_per_cycle_per_sm: best.1 })
+    }
 }
 
 /// The overlap probes (`microbench overlap`): each form's median launch time, by the

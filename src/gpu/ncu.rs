@@ -57,6 +57,10 @@ pub struct GpuKernel {
     /// SM clock (cycles per second), summed over launches: [`GpuKernel::clock_hz`] is
     /// the mean.
     pub clock_hz_sum: f64,
+    /// Cycles a warp took per instruction it issued
+    /// (`smsp__average_warp_latency_per_inst_issued.ratio`, where the CSV has it; 0
+    /// where not), summed over launches (a launch's own where `launches` is 1).
+    pub warp_cycles_per_issue_sum: f64,
 }
 
 impl GpuKernel {
@@ -86,6 +90,7 @@ impl GpuKernel {
         self.l2_sectors += o.l2_sectors;
         self.registers = self.registers.max(o.registers);
         self.clock_hz_sum += o.clock_hz_sum;
+        self.warp_cycles_per_issue_sum += o.warp_cycles_per_issue_sum;
     }
 
     /// The SM clock, cycles per second, over this kernel's launches (`None` if not
@@ -240,6 +245,7 @@ pub fn parse_launches(text: &str) -> Result<Vec<GpuKernel>, String> {
             l2_sectors: get("lts__t_sectors.sum")?,
             registers: get("launch__registers_per_thread")? as u64,
             clock_hz_sum: get("sm__cycles_elapsed.avg.per_second")?,
+            warp_cycles_per_issue_sum: get("smsp__average_warp_latency_per_inst_issued.ratio")?,
         };
         launches.push(launch);
     }

@@ -200,14 +200,15 @@ pub fn primitives_table(rows: &[PrimitiveTime]) -> String {
 /// bounds' overlap added (`exposed`).
 pub fn terms_table(rows: &[KernelTime]) -> String {
     let mut s = String::from(
-        "| kernel | measured µs | predicted | latency | issue | L1 | L2 | HBM | atomics | fences | barriers | dispatch | exposed | launch |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| kernel | measured µs | predicted | latency | issue | fetch | L1 | L2 | HBM | atomics | fences | barriers | dispatch | exposed | launch |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         let t = &r.terms;
         let _ = write!(s, "| {} | {:.1} | {:.1} |", r.name, r.measured * 1e6, r.predicted * 1e6);
-        for v in
-            [t.latency, t.issue, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch, t.exposed, t.launch]
-        {
+        for v in [
+            t.latency, t.issue, t.fetch, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch, t.exposed,
+            t.launch,
+        ] {
             let _ = write!(s, " {:.1} |", v * 1e6);
         }
         s.push('\n');

@@ -78,17 +78,19 @@ fn meets_bars(runs: &[CheckedRun], p: &GpuProfile) -> Result<(), String> {
 /// The shipped profile's probe runs, output and ncu's CSV of each: the full run, the
 /// later one of the atomic-latency and fence probes (with the fences after scattered
 /// stores), and the overlap probes (on an H100; no H200 came).
-fn calibration_runs() -> ([String; 3], [String; 3]) {
+fn calibration_runs() -> ([String; 4], [String; 4]) {
     (
         [
             text("microbenchmark-probes.tsv"),
             text("microbenchmark-probes-fences-scattered-stores.tsv"),
             text("microbenchmark-probes-overlap-h100.tsv"),
+            text("../icache-probes-h100-straight-and-branchy-code.tsv"),
         ],
         [
             text("ncu-microbenchmarks.csv.gz"),
             text("ncu-microbenchmarks-fences-scattered-stores.csv.gz"),
             text("ncu-microbenchmarks-overlap-h100.csv.gz"),
+            text("../ncu-icache-jump-probes-warp-states-h100.csv.gz"),
         ],
     )
 }
@@ -101,7 +103,9 @@ fn an_overlap_run_whose_loads_alone_are_other_loads_is_refused() {
     let (mut probes, mut csvs) = calibration_runs();
     probes[2] = text("microbenchmark-probes-overlap-h100-free-loads-of-two-words.tsv");
     csvs[2] = text("ncu-microbenchmarks-overlap-h100-free-loads-of-two-words.csv.gz");
-    let Err(e) = calibrate(&[&probes[0], &probes[1], &probes[2]], &[&csvs[0], &csvs[1], &csvs[2]]) else {
+    let Err(e) =
+        calibrate(&[&probes[0], &probes[1], &probes[2], &probes[3]], &[&csvs[0], &csvs[1], &csvs[2], &csvs[3]])
+    else {
         panic!("the two-word loads calibrated")
     };
     assert!(e.contains("overlap_free") && e.contains("not the same loads"), "{e}");
@@ -110,11 +114,31 @@ fn an_overlap_run_whose_loads_alone_are_other_loads_is_refused() {
 #[test]
 fn the_shipped_h200_profile_is_the_microbenchmarks_calibration_and_nothing_else() {
     let (probes, csvs) = calibration_runs();
-    let c = calibrate(&[&probes[0], &probes[1], &probes[2]], &[&csvs[0], &csvs[1], &csvs[2]]).unwrap();
+    let c = calibrate(&[&probes[0], &probes[1], &probes[2], &probes[3]], &[&csvs[0], &csvs[1], &csvs[2], &csvs[3]])
+        .unwrap();
     let shipped = GpuProfile::named("h200").unwrap();
     // The shipped file holds four significant digits of each value.
     let again = GpuProfile::parse(&c.to_text("")).unwrap();
     assert_eq!(again, shipped, "simt/profiles/h200.toml is not what the stored microbenchmarks give");
+}
+
+#[test]
+fn the_fetch_keys_come_from_the_icache_probes_or_calibration_says_which_run_is_missing() {
+    // Without the instruction-fetch run there is no fetch-bound rate to write: the error
+    // names the run. With it, the two keys are the probes' (64 KiB, the straight code's
+    // knee; 0.395 warp instructions a cycle, the jumping probe's most at 16 warps a SM).
+    let (probes, csvs) = calibration_runs();
+    let Err(e) = calibrate(&[&probes[0], &probes[1], &probes[2]], &[&csvs[0], &csvs[1], &csvs[2]]) else {
+        panic!("calibrated without the icache probes")
+    };
+    assert!(e.contains("icache") && e.contains("MODE=icache"), "{e}");
+    let c = calibrate(&[&probes[0], &probes[1], &probes[2], &probes[3]], &[&csvs[0], &csvs[1], &csvs[2], &csvs[3]])
+        .unwrap();
+    assert_eq!(c.profile.fetch_thrash_code_bytes, 64.0 * 1024.0);
+    let rate = c.profile.fetch_issue_per_cycle_per_sm;
+    assert!((rate - 16.0 / 40.43).abs() < 0.002, "{rate}");
+    let source = c.sources.iter().find(|(k, _)| *k == "fetch_issue_per_cycle_per_sm").unwrap();
+    assert!(source.1.contains("16 warps") && source.1.contains("H100"), "{}", source.1);
 }
 
 #[test]
@@ -157,8 +181,9 @@ fn the_chases_misses_are_the_hbm_sectors_they_read_not_the_lines_written_back() 
     // 119.7 ns and the atomic latency from 196.4 to 177.5 ns. Here the writes grow
     // twentyfold and the calibration must not move; the reads grow and it must.
     let (probes, csvs) = calibration_runs();
-    let profile =
-        |a: &str, b: &str| calibrate(&[&probes[0], &probes[1], &probes[2]], &[a, b, &csvs[2]]).unwrap().profile;
+    let profile = |a: &str, b: &str| {
+        calibrate(&[&probes[0], &probes[1], &probes[2], &probes[3]], &[a, b, &csvs[2], &csvs[3]]).unwrap().profile
+    };
     let base = profile(&csvs[0], &csvs[1]);
     let [w0, w1] = [0, 1].map(|i| scaled(&csvs[i], "chase_", "dram__bytes_write.sum", 20.0));
     let written = profile(&w0, &w1);
@@ -474,7 +499,7 @@ fn the_terms_table_shows_what_each_prediction_is_made_of() {
     let table = warpray::gpu::time_check::terms_table(&rows);
     for r in &rows {
         let t = &r.terms;
-        let bounds = [t.latency, t.issue, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch];
+        let bounds = [t.latency, t.issue, t.fetch, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch];
         let largest = bounds.iter().cloned().fold(0.0, f64::max);
         // Each launch adds its own largest bound: the sum lies between the largest summed
         // bound and the sum of all of them.

@@ -84,7 +84,14 @@ fn scan_tiles<I, T, M, F>(
     let mut status = TileStatus::new(dev, blocks, 1, identity, Some("simt::scan_init"));
     let (inp, out, status) = (input.view(), output.view_mut(), status.views());
     let shared = (tile_len + threads as usize + 32 + 1) * std::mem::size_of::<T>();
-    let cfg = LaunchConfig { grid: blocks as u32, block: threads, shared_bytes: shared, regions: &[], registers: 0 };
+    let cfg = LaunchConfig {
+        grid: blocks as u32,
+        block: threads,
+        shared_bytes: shared,
+        regions: &[],
+        registers: 0,
+        code_bytes: 0,
+    };
     dev.launch_in_order("simt::scan_tiles", cfg, |blk| {
         let b = blk.block_idx() as usize;
         let base = b * tile_len;
@@ -314,6 +321,7 @@ where
         shared_bytes: 32 * std::mem::size_of::<T>(),
         regions: &[],
         registers: 0,
+        code_bytes: 0,
     };
     dev.launch("simt::reduce_tiles", cfg, |blk| {
         let base = blk.block_idx() as usize * TILE;

@@ -177,8 +177,14 @@ fn select_tiles<T: DeviceCopy, S: DeviceCopy>(
     let total = count.view_mut();
     let warps = threads / 32;
     let shared = tile_len * std::mem::size_of::<T>() + (warps + 1) * 4;
-    let cfg =
-        LaunchConfig { grid: tiles as u32, block: select_threads, shared_bytes: shared, regions: &[], registers: 0 };
+    let cfg = LaunchConfig {
+        grid: tiles as u32,
+        block: select_threads,
+        shared_bytes: shared,
+        regions: &[],
+        registers: 0,
+        code_bytes: 0,
+    };
     dev.launch_in_order("simt::select_sweep", cfg, |blk| {
         let b = blk.block_idx() as usize;
         let base = b * tile_len;

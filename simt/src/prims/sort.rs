@@ -99,6 +99,7 @@ fn digit_offsets<K: RadixKey>(dev: &Device, keys: &DeviceBuffer<K>, passes: &[(u
             shared_bytes: shared,
             regions: &[],
             registers: 0,
+            code_bytes: 0,
         };
         dev.launch("simt::radix_histogram", cfg, |blk| {
             let base = blk.block_idx() as usize * TILE;
@@ -144,6 +145,7 @@ fn digit_offsets<K: RadixKey>(dev: &Device, keys: &DeviceBuffer<K>, passes: &[(u
         shared_bytes: 32 * 4,
         regions: &[],
         registers: 0,
+        code_bytes: 0,
     };
     dev.launch("simt::radix_exclusive_sum", cfg, |blk| {
         let p = blk.block_idx() as usize;
@@ -192,6 +194,7 @@ fn onesweep_pass<K: RadixKey, V: DeviceCopy>(
         shared_bytes: shared,
         regions: &["rank"],
         registers: 0,
+        code_bytes: 0,
     };
     dev.launch_in_order("simt::radix_onesweep", cfg, |blk| {
         let b = blk.block_idx() as usize;

@@ -38,6 +38,12 @@ pub struct GpuProfile {
     pub l2_bytes: f64,
     /// Warp instructions one SM issues per cycle with every scheduler busy.
     pub issue_per_cycle_per_sm: f64,
+    /// Code, in bytes, that warps jumping about it no longer find in the SM's
+    /// instruction cache: the smallest code the instruction-fetch probe found fetch-bound.
+    pub fetch_thrash_code_bytes: f64,
+    /// Warp instructions one SM issues per cycle at most from code of
+    /// `fetch_thrash_code_bytes` that its warps jump about, whatever their number.
+    pub fetch_issue_per_cycle_per_sm: f64,
     /// Cycles between two dependent arithmetic instructions of one warp.
     pub alu_latency_cycles: f64,
     /// Global-memory sectors one SM's L1 serves per cycle.
@@ -101,6 +107,8 @@ const KEYS: &[&str] = &[
     "registers_per_sm",
     "l2_bytes",
     "issue_per_cycle_per_sm",
+    "fetch_thrash_code_kib",
+    "fetch_issue_per_cycle_per_sm",
     "alu_latency_cycles",
     "l1_sectors_per_cycle_per_sm",
     "l2_gb_per_s",
@@ -182,6 +190,8 @@ impl GpuProfile {
                 if SHARES.contains(&k) {
                     // Profiles written before the overlap probes existed lack these.
                     format!("missing key '{k}' (run MODE=overlap sh cuda/microbench.sh and calibrate again)")
+                } else if k.starts_with("fetch_") {
+                    format!("missing key '{k}' (run MODE=icache sh cuda/microbench.sh and calibrate again)")
                 } else {
                     format!("missing key '{k}'")
                 }
@@ -197,6 +207,8 @@ impl GpuProfile {
             registers_per_sm: get("registers_per_sm")?,
             l2_bytes: get("l2_bytes")?,
             issue_per_cycle_per_sm: get("issue_per_cycle_per_sm")?,
+            fetch_thrash_code_bytes: get("fetch_thrash_code_kib")? * 1024.0,
+            fetch_issue_per_cycle_per_sm: get("fetch_issue_per_cycle_per_sm")?,
             alu_latency_cycles: get("alu_latency_cycles")?,
             l1_sectors_per_cycle_per_sm: get("l1_sectors_per_cycle_per_sm")?,
             l2_bytes_per_s: get("l2_gb_per_s")? * 1e9,
@@ -237,6 +249,8 @@ impl GpuProfile {
             self.registers_per_sm,
             self.l2_bytes,
             self.issue_per_cycle_per_sm,
+            self.fetch_thrash_code_bytes / 1024.0,
+            self.fetch_issue_per_cycle_per_sm,
             self.alu_latency_cycles,
             self.l1_sectors_per_cycle_per_sm,
             self.l2_bytes_per_s / 1e9,
@@ -284,6 +298,10 @@ pub struct Prediction {
     pub launch: f64,
     /// Warp instructions over the SMs' issue rate.
     pub issue: f64,
+    /// Warp instructions over the SMs' rate of issue from code their instruction caches
+    /// do not hold (a launch whose twin's code is at least the profile's
+    /// `fetch_thrash_code_bytes`; else 0).
+    pub fetch: f64,
     /// Sectors over the L1s' rate.
     pub l1: f64,
     /// Bytes of each block's distinct loaded sectors and of every written sector over
@@ -318,6 +336,7 @@ impl Prediction {
         self.seconds += o.seconds;
         self.launch += o.launch;
         self.issue += o.issue;
+        self.fetch += o.fetch;
         self.l1 += o.l1;
         self.l2 += o.l2;
         self.hbm += o.hbm;
@@ -333,6 +352,7 @@ impl Prediction {
     pub fn bound(&self) -> &'static str {
         let terms = [
             ("issue", self.issue),
+            ("fetch", self.fetch),
             ("l1", self.l1),
             ("l2", self.l2),
             ("hbm", self.hbm),
@@ -447,6 +467,11 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
     let mut t = Prediction {
         launch: p.launch_s,
         issue: issued / (p.issue_per_cycle_per_sm * sms) * cycle,
+        fetch: if r.code_bytes > 0 && r.code_bytes as f64 >= p.fetch_thrash_code_bytes {
+            issued / (p.fetch_issue_per_cycle_per_sm * sms) * cycle
+        } else {
+            0.0
+        },
         l1: sectors / (p.l1_sectors_per_cycle_per_sm * sms) * cycle,
         l2: l2_sectors * SECTOR_BYTES as f64 / l2_rate(r, sectors, p),
         hbm: footprint * SECTOR_BYTES as f64 / p.hbm_bytes_per_s,
@@ -470,12 +495,12 @@ pub fn predict(r: &LaunchRecord, p: &GpuProfile) -> Option<Prediction> {
     let (execution, exposed) = if r.barriers > 0 {
         let held = (grid / p.sms).ceil().clamp(1.0, per_sm);
         let e = p.exposed_many_blocks + (p.exposed_one_block - p.exposed_many_blocks) / held;
-        (largest(&[t.issue, t.latency, t.barriers, t.dispatch]), e)
+        (largest(&[t.issue, t.fetch, t.latency, t.barriers, t.dispatch]), e)
     } else {
-        (t.issue, p.exposed_free)
+        (t.issue.max(t.fetch), p.exposed_free)
     };
     t.exposed = exposed * memory.min(execution);
-    let bounds = [t.issue, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch, t.latency];
+    let bounds = [t.issue, t.fetch, t.l1, t.l2, t.hbm, t.atomics, t.fences, t.barriers, t.dispatch, t.latency];
     t.seconds = t.launch + largest(&bounds).max(memory.max(execution) + t.exposed);
     Some(t)
 }

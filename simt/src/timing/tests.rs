@@ -18,6 +18,7 @@ fn launch(grid: u32, issued: u64, loads: u64, sectors: u64, footprint: u64) -> L
         block: 256,
         shared_bytes: 0,
         registers: 0,
+        code_bytes: 0,
         seconds: 0.0,
         measured: true,
         threads: warps * 32,
@@ -87,6 +88,33 @@ fn each_bound_is_the_quantity_over_its_rate() {
     assert_eq!(t.bound(), "latency");
     // Unmeasured launches have no prediction.
     assert!(predict(&LaunchRecord { measured: false, ..launch(1, 1, 1, 1, 1) }, &p).is_none());
+}
+
+#[test]
+fn code_past_the_instruction_cache_bounds_issue_at_the_fetch_rate() {
+    let p = profile();
+    // Arithmetic only, a full machine: from code that fits, the issue rate bounds it.
+    let fits = launch(p.sms as u32 * 64, 100_000, 0, 0, 0);
+    let big = LaunchRecord { code_bytes: p.fetch_thrash_code_bytes as u32, ..fits.clone() };
+    let small = LaunchRecord { code_bytes: p.fetch_thrash_code_bytes as u32 - 16, ..fits.clone() };
+    for r in [&fits, &small] {
+        let t = predict(r, &p).unwrap();
+        assert_eq!((t.bound(), t.fetch), ("issue", 0.0));
+    }
+    // From code of the fetch probe's size and more, the fetch rate does: the same
+    // instructions over it.
+    let t = predict(&big, &p).unwrap();
+    let fetch = big.ops.issued as f64 / (p.fetch_issue_per_cycle_per_sm * p.sms * p.clock_hz);
+    assert_eq!(t.bound(), "fetch");
+    assert!((t.fetch - fetch).abs() < 1e-9 * fetch && (t.seconds - p.launch_s - fetch).abs() < 1e-9 * fetch);
+    // A planted 5 % error in the fetch rate moves the prediction by as much.
+    let planted = GpuProfile { fetch_issue_per_cycle_per_sm: p.fetch_issue_per_cycle_per_sm * 1.05, ..p.clone() };
+    let moved = predict(&big, &planted).unwrap().seconds - p.launch_s;
+    assert!((moved * 1.05 - fetch).abs() < 1e-9 * fetch, "{moved} against {fetch}");
+    // One block's instructions are issued by one SM.
+    let one = LaunchRecord { code_bytes: u32::MAX, ..launch(1, 1000, 10, 80, 80) };
+    let t = predict(&one, &p).unwrap();
+    assert!((t.fetch * p.fetch_issue_per_cycle_per_sm * p.clock_hz - 8000.0).abs() < 1e-6, "{t:?}");
 }
 
 #[test]

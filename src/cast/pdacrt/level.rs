@@ -229,8 +229,14 @@ impl Pdacrt {
             tests: ws.tests.view_mut(),
             any_hit,
         };
-        let cfg =
-            LaunchConfig { grid, block, shared_bytes: BRUTE_FORCE_SHARED_BYTES, regions: &["tests"], registers: 0 };
+        let cfg = LaunchConfig {
+            grid,
+            block,
+            shared_bytes: BRUTE_FORCE_SHARED_BYTES,
+            regions: &["tests"],
+            registers: 0,
+            code_bytes: 0,
+        };
         dev.launch("pdacrt::brute_force", cfg, |blk| brute_force(blk, &args))
             .expect("brute-force launch shape is valid");
     }

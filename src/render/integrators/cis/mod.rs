@@ -272,8 +272,12 @@ impl<'d> CameraPool<'d> {
             cache: CacheRead { vertices: cache.vertices.view(), entries: cache.entries.view(), counts, connections },
         };
         // 240 registers per thread in the GPU twin (`shade_sorted`, Nsight Compute on the
-        // H200: docs/measured/h200-time-model/ncu-cis-shading-compaction-3-scenes-128.csv.gz).
-        let cfg = simt::LaunchConfig::linear(n, 128).with_regions(kernels::SHADE_REGIONS).with_registers(240);
+        // H200: docs/measured/h200-time-model/ncu-cis-shading-compaction-3-scenes-128.csv.gz)
+        // and 639,488 bytes of SASS (docs/measured/cuda-kernel-code-bytes-sm90.tsv).
+        let cfg = simt::LaunchConfig::linear(n, 128)
+            .with_regions(kernels::SHADE_REGIONS)
+            .with_registers(240)
+            .with_code_bytes(639_488);
         self.dev
             .launch("cis::shade", cfg, |blk| {
                 blk.for_each_thread(|t| {

@@ -75,24 +75,31 @@ impl LvcMegakernel {
 /// Threads per block of the megakernel launches.
 const BLOCK: u32 = 128;
 
-/// Registers per thread of each megakernel's GPU twin (`cuda/render.cu`'s
-/// `mk_light_path`, `mk_splat`, `mk_camera_path`, as Nsight Compute reported them on the
-/// H200: `docs/measured/gpu-render-kernels-h200-bedroom-512.md`), which bound the blocks
-/// an SM holds in the time model.
-const LIGHT_PATH_REGISTERS: u32 = 160;
-const SPLAT_REGISTERS: u32 = 128;
-const CAMERA_PATH_REGISTERS: u32 = 167;
+/// What the time model needs of a megakernel's GPU twin (`cuda/render.cu`'s
+/// `mk_light_path`, `mk_splat`, `mk_camera_path`): its registers per thread, as Nsight
+/// Compute reported them on the H200 (`docs/measured/gpu-render-kernels-h200-bedroom-512.md`),
+/// which bound the blocks an SM holds, and the bytes of its SASS
+/// (`docs/measured/cuda-kernel-code-bytes-sm90.tsv`), which say whether its warps fetch
+/// their instructions from beyond the SM's instruction cache.
+struct Twin {
+    name: &'static str,
+    registers: u32,
+    code_bytes: u32,
+}
+
+const LIGHT_PATH: Twin = Twin { name: "lvc::light_path", registers: 160, code_bytes: 229_888 };
+const SPLAT: Twin = Twin { name: "lvc::splat", registers: 128, code_bytes: 137_216 };
+const CAMERA_PATH: Twin = Twin { name: "lvc::camera_path", registers: 167, code_bytes: 685_056 };
 
 /// Launches `kernel(thread, i)` for `i` in `0..n` in blocks of [`BLOCK`], with the
-/// shading, arithmetic and `trace` regions named and the twin's `registers` per thread.
-fn launch_per_item(
-    dev: &Device,
-    (name, registers): (&'static str, u32),
-    n: usize,
-    kernel: impl Fn(&simt::Thread, usize) + Sync,
-) {
-    let cfg = LaunchConfig::linear(n, BLOCK).with_regions(&REGIONS).with_registers(registers);
-    dev.launch(name, cfg, |blk| {
+/// shading, arithmetic and `trace` regions named and what the time model needs of the
+/// `twin`.
+fn launch_per_item(dev: &Device, twin: &Twin, n: usize, kernel: impl Fn(&simt::Thread, usize) + Sync) {
+    let cfg = LaunchConfig::linear(n, BLOCK)
+        .with_regions(&REGIONS)
+        .with_registers(twin.registers)
+        .with_code_bytes(twin.code_bytes);
+    dev.launch(twin.name, cfg, |blk| {
         blk.for_each_thread(|t| {
             let i = t.global_idx();
             if i < n {
@@ -125,9 +132,7 @@ fn render_pass(
         let (first, m) = ((share.0 + wave.start) as usize, wave.len());
         let mut entries = dev.alloc_pooled::<SplatData>(m * stride);
         let (pv, vv, sv) = (cache.paths.slice(first, m), cache.vertices.view(), entries.view_mut());
-        launch_per_item(dev, ("lvc::splat", SPLAT_REGISTERS), m, |t, p| {
-            splat(t, ctx, p, (&pv, &vv), (counts, share), stride, &sv)
-        });
+        launch_per_item(dev, &SPLAT, m, |t, p| splat(t, ctx, p, (&pv, &vv), (counts, share), stride, &sv));
         splats.extend(visible_splats(dev, &entries));
     }
     film.add_splats(splats);
@@ -138,9 +143,7 @@ fn render_pass(
         let connections = Connections::Uniform { n: n_c };
         let read = CacheRead { vertices: cache.vertices.view(), entries: cache.entries.view(), counts, connections };
         let ev = estimates.view_mut();
-        launch_per_item(dev, ("lvc::camera_path", CAMERA_PATH_REGISTERS), pixels, |t, i| {
-            camera_path(t, ctx, i as u32, pass, &read, &ev)
-        });
+        launch_per_item(dev, &CAMERA_PATH, pixels, |t, i| camera_path(t, ctx, i as u32, pass, &read, &ev));
     }
     let est: Vec<glam::Vec3> = estimates.as_slice().iter().map(|&e| glam::Vec3::from_array(e)).collect();
     film.add_pass(pass, &est);
@@ -157,9 +160,7 @@ fn light_paths(dev: &Device, ctx: &Context, number: u32, n_light: u32, stride: u
         let mut done = dev.alloc_pooled::<[u32; 3]>(m);
         {
             let (sv, dv) = (staging.view_mut(), done.view_mut());
-            launch_per_item(dev, ("lvc::light_path", LIGHT_PATH_REGISTERS), m, |t, i| {
-                light_path(t, ctx, i, (wave.start, number), stride, &sv, &dv)
-            });
+            launch_per_item(dev, &LIGHT_PATH, m, |t, i| light_path(t, ctx, i, (wave.start, number), stride, &sv, &dv));
         }
         append_paths(dev, ctx, &done, &staging, stride, &mut cache);
     }

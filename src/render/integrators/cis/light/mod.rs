@@ -78,8 +78,9 @@ pub(crate) fn light_pass(
             stride,
         };
         // 120 registers per thread in the GPU twin (`light_shade`, Nsight Compute on the
-        // H200: docs/measured/gpu-render-kernels-h200-bedroom-512.md).
-        let cfg = LaunchConfig::linear(n, 128).with_regions(&["shade"]).with_registers(120);
+        // H200: docs/measured/gpu-render-kernels-h200-bedroom-512.md) and 202,880 bytes
+        // of SASS (docs/measured/cuda-kernel-code-bytes-sm90.tsv).
+        let cfg = LaunchConfig::linear(n, 128).with_regions(&["shade"]).with_registers(120).with_code_bytes(202_880);
         dev.launch("cis::light_shade", cfg, |blk| {
             blk.for_each_thread(|t| {
                 let j = t.global_idx();
