@@ -166,7 +166,11 @@ pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
                 WarpChain::default()
             },
             in_order: columns.len() > 34 && n(34)? != 0,
-            code_bytes: if columns.len() > 43 { n(43)? as u32 } else { 0 },
+            code_bytes: if columns.len() > 43 {
+                u32::try_from(n(43)?).map_err(|_| format!("line {}: code_bytes: '{}' is past 4 GiB", i + 1, f[43]))?
+            } else {
+                0
+            },
         });
     }
     Ok(out)
@@ -289,5 +293,9 @@ mod tests {
         for columns in [24, 27, 31, 36, 42] {
             assert!(records_from_tsv(&cut(&text, columns)).unwrap_err().contains("header differs"));
         }
+        // A code size past what a launch states is an error naming the line and field.
+        let huge = text.replace("\t685056\n", "\t4294967296\n");
+        let e = records_from_tsv(&huge).unwrap_err();
+        assert!(e.starts_with("line 2: code_bytes"), "{e}");
     }
 }

@@ -182,14 +182,19 @@ fn value(text: &str, unit: &str, line: usize, column: &str) -> Result<f64, Strin
 /// Per-kernel sums from `ncu --csv --page raw` output (other lines, such as the
 /// profiler's `==PROF==` notes, are skipped). Errors name the line and column.
 pub fn parse_csv(text: &str) -> Result<Vec<GpuKernel>, String> {
+    Ok(by_kernel(&parse_launches(text)?))
+}
+
+/// Launches summed per kernel, in the order of each kernel's first launch.
+pub fn by_kernel(launches: &[GpuKernel]) -> Vec<GpuKernel> {
     let mut kernels: Vec<GpuKernel> = Vec::new();
-    for launch in parse_launches(text)? {
+    for launch in launches {
         match kernels.iter_mut().find(|k| k.name == launch.name) {
-            Some(k) => k.add(&launch),
-            None => kernels.push(launch),
+            Some(k) => k.add(launch),
+            None => kernels.push(launch.clone()),
         }
     }
-    Ok(kernels)
+    kernels
 }
 
 /// Every launch of an ncu CSV export, in the export's order (one [`GpuKernel`] with

@@ -101,7 +101,7 @@ fn code_past_the_instruction_cache_bounds_issue_at_the_fetch_rate() {
         let t = predict(r, &p).unwrap();
         assert_eq!((t.bound(), t.fetch), ("issue", 0.0));
     }
-    // From code of the fetch probe's size and more, the fetch rate does: the same
+    // From code of the profile's threshold and more, the fetch rate does: the same
     // instructions over it.
     let t = predict(&big, &p).unwrap();
     let fetch = big.ops.issued as f64 / (p.fetch_issue_per_cycle_per_sm * p.sms * p.clock_hz);

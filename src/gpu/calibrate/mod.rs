@@ -7,7 +7,7 @@
 
 mod probes;
 
-use super::ncu::{GpuKernel, base_name, parse_csv, parse_launches};
+use super::ncu::{GpuKernel, base_name, by_kernel, parse_launches};
 use probes::{Fetch, Report, read_report};
 use simt::GpuProfile;
 
@@ -37,9 +37,13 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
         ));
     }
     let report = read_report(&probes.join("\n"))?;
-    let mut kernels = Vec::new();
+    // Every launch of every run, read once; summed per kernel within each run (a probe
+    // two runs have is two entries, the first one's found first).
+    let (mut launches, mut kernels) = (Vec::new(), Vec::new());
     for csv in ncu_csvs {
-        kernels.extend(parse_csv(csv)?);
+        let run = parse_launches(csv)?;
+        kernels.extend(by_kernel(&run));
+        launches.extend(run);
     }
     let dev = |k: &str| -> Result<f64, String> {
         let v = report.device.iter().find(|(n, _)| n == k).ok_or_else(|| format!("probe output: no device {k}"))?;
@@ -138,8 +142,8 @@ pub fn calibrate(probes: &[&str], ncu_csvs: &[&str]) -> Result<Calibration, Stri
     // larger does not hide, free-running and phased with 1 and 4 blocks a SM (with R
     // blocks the model takes `many + (one - many) / R`, solved here through 1 and 4;
     // 2 blocks a SM is a check).
-    let overlap = Overlap::read(&report, ncu_csvs)?;
-    let fetch = Fetch::read(&report, ncu_csvs, sms)?;
+    let overlap = Overlap::read(&report, &launches)?;
+    let fetch = Fetch::read(&report, &launches, sms)?;
     let free = overlap.exposed("overlap_free", &[2, 4, 8, 16])?;
     let one = overlap.exposed("overlap_phased_1", &[8, 16, 32])?;
     let four = overlap.exposed("overlap_phased_4", &[8, 16, 32])?;
@@ -321,21 +325,19 @@ struct Exposed {
 }
 
 impl Overlap {
-    fn read(report: &Report, ncu_csvs: &[&str]) -> Result<Overlap, String> {
+    fn read(report: &Report, launches: &[GpuKernel]) -> Result<Overlap, String> {
         let mut names: Vec<&str> = Vec::new();
         for (n, _) in &report.probes {
             if n.starts_with("overlap_") && names.last() != Some(&n.as_str()) {
                 names.push(n);
             }
         }
-        let mut launches = Vec::new();
-        for csv in ncu_csvs {
-            launches.extend(parse_launches(csv)?.into_iter().filter(|k| base_name(&k.name).starts_with("overlap_")));
-        }
+        let launches: Vec<&GpuKernel> =
+            launches.iter().filter(|k| base_name(&k.name).starts_with("overlap_")).collect();
         if names.is_empty() {
             return Err("probe output: no overlap probes (run MODE=overlap sh cuda/microbench.sh)".into());
         }
-        if launches.len() % names.len() != 0 {
+        if !launches.len().is_multiple_of(names.len()) {
             return Err(format!("ncu CSV: {} overlap launches for {} overlap probes", launches.len(), names.len()));
         }
         let per = launches.len() / names.len();

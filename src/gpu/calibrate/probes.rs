@@ -2,7 +2,7 @@
 //! the instruction-fetch probes' timed rows) and what calibration reads from the
 //! instruction-fetch probes with Nsight's counters of them.
 
-use crate::gpu::ncu::parse_launches;
+use crate::gpu::ncu::GpuKernel;
 
 /// The probe program's report: `device` lines (name, value), `probe` lines (probe,
 /// quantity, amount) and the instruction-fetch probes' `timed` rows (`microbench
@@ -91,7 +91,7 @@ impl Fetch {
     /// warm-up first) per SM over the probe's own cycles for its pieces, or, where the
     /// CSV has no instruction counts, its warps a SM over Nsight's cycles a warp took
     /// per instruction it issued; the rate is the most of any warps a SM.
-    pub(super) fn read(report: &Report, ncu_csvs: &[&str], sms: f64) -> Result<Fetch, String> {
+    pub(super) fn read(report: &Report, launches: &[GpuKernel], sms: f64) -> Result<Fetch, String> {
         let again = "(run MODE=icache sh cuda/microbench.sh and give its probe and ncu files)";
         if report.straight.is_empty() || report.jumps.is_empty() {
             return Err(format!("probe output: no icache and icache_jump rows {again}"));
@@ -104,10 +104,7 @@ impl Fetch {
             .find(|r| r.cycles_per_fma > 1.5 * rows[0].cycles_per_fma)
             .map(|r| r.code_kib)
             .ok_or("icache: no code size slowed the straight-line probe (never 1.5 times its smallest code's)")?;
-        let mut launches = Vec::new();
-        for csv in ncu_csvs {
-            launches.extend(parse_launches(csv)?.into_iter().filter(|k| k.name.ends_with("icache_jump")));
-        }
+        let launches: Vec<&GpuKernel> = launches.iter().filter(|k| k.name.ends_with("icache_jump")).collect();
         if launches.len() != 2 * report.jumps.len() {
             return Err(format!(
                 "ncu CSV: {} launches of icache_jump for {} probe rows (two a row) {again}",
