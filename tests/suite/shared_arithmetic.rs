@@ -128,6 +128,42 @@ fn outside_a_kernel_the_declarations_do_nothing() {
     assert_eq!((rec.all_regions().issued, rec.all_regions().active), (0, 0));
 }
 
+/// Every CIS-LBDPT kernel that runs code it shares with the CPU integrators (a camera
+/// sample, starting a light subpath, shading a light vertex, splatting light vertices,
+/// shading a camera vertex) counts that code's declared arithmetic as its lanes' own, as
+/// the GPU twins execute it; a launch whose lanes are not ambient would count none.
+#[cfg(feature = "model-arithmetic")]
+#[test]
+fn every_cis_kernel_that_runs_shared_code_counts_its_arithmetic() {
+    use warpray::render::{Budget, IntegratorKind, RenderOptions, Renderer};
+    let scene = warpray::scene::cornell_box();
+    let caster = warpray::cast::BvhCaster::new(&scene);
+    let mut opts = RenderOptions {
+        width: 16,
+        height: 16,
+        budget: Budget::Samples(1),
+        integrator: IntegratorKind::Cis,
+        max_depth: 4,
+        ..Default::default()
+    };
+    opts.cis.measure = true;
+    let mut r = Renderer::new(&scene, &caster, &opts).unwrap();
+    let mut film = r.film().unwrap();
+    r.passes(0, 1, &mut film);
+    let log = r.device().unwrap().launch_log();
+    for name in ["cis::generate", "cis::light_generate", "cis::light_shade", "cis::light_splat", "cis::shade"] {
+        let launches = log.iter().filter(|l| l.name == name).count();
+        let arithmetic: u64 = log
+            .iter()
+            .filter(|l| l.name == name)
+            .flat_map(|l| l.regions.iter())
+            .filter(|g| g.name.starts_with("arithmetic"))
+            .map(|g| g.issued)
+            .sum();
+        assert!(launches > 0 && arithmetic > 0, "{name}: {launches} launches, {arithmetic} arithmetic instructions");
+    }
+}
+
 #[cfg(not(feature = "model-arithmetic"))]
 #[test]
 fn without_the_feature_nothing_is_declared() {

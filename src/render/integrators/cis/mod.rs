@@ -38,7 +38,7 @@ use crate::render::cache::kernels::CacheRead;
 use crate::render::context::{Context, Passes};
 use crate::render::options::CisParams;
 use kernels::*;
-use pool::{append_active, extend, indices_where, material_queues, survivors};
+use pool::{append_active, extend, for_each_shading, indices_where, material_queues, survivors};
 use simt::{Device, DeviceBuffer, DeviceConfig};
 
 /// What one bounce of one iteration did: the inspector's queue panel.
@@ -244,7 +244,7 @@ impl<'d> CameraPool<'d> {
         }
         let (fv, sv, vv) = (free.view(), self.slots.view_mut(), self.vertices.view_mut());
         let (o, cam, proj) = (ctx.opts, ctx.scene.camera, ctx.projection);
-        dev.for_each("cis::generate", k, |t, i| {
+        for_each_shading(dev, "cis::generate", k, |t, i| {
             generate(t, i, &fv, first, pass, o.seed, (&cam, o.filter, o.filter_mode), &proj, &sv, &vv)
         });
         self.active = append_active(dev, "cis::append_active", &self.active, &free, k);

@@ -1,11 +1,13 @@
 //! Pool bookkeeping that both CIS passes share: free slots and regeneration into them,
 //! the active list and its compaction, each bounce's batch of rays, and the implicit
-//! material queues. Host stages: each is a few launches and primitives.
+//! material queues, and the launch of a kernel that runs shared shading code. Host
+//! stages: each is a few launches and primitives.
 
 use super::kernels::material_key;
 use crate::geometry::{Hit, Ray};
 use crate::render::context::Context;
-use simt::{Device, DeviceBuffer, DeviceCopy};
+use crate::render::walk::{ARITHMETIC_REGION, SHADE_REGIONS};
+use simt::{Device, DeviceBuffer, DeviceCopy, LaunchRecord, Thread};
 
 /// The indices of the elements of `items` that `pred` accepts, in order (`copy_if`):
 /// a pool's free slots, a list's waiting entries.
@@ -135,4 +137,15 @@ fn queue_lengths(dev: &Device, keys: &DeviceBuffer<u32>, sorted: bool) -> Vec<(u
         });
     }
     out
+}
+
+/// [`Device::for_each`] for a kernel that runs the code it shares with the CPU
+/// integrators (a camera sample, starting a light subpath, shading a light vertex,
+/// splatting light vertices onto the film): the shading regions named and that code's declared
+/// arithmetic counted as each lane's, as `cis::shade` and the megakernels count theirs.
+pub(crate) fn for_each_shading<F>(dev: &Device, name: &'static str, n: usize, f: F) -> LaunchRecord
+where
+    F: Fn(&Thread, usize) + Sync,
+{
+    dev.for_each_in(name, SHADE_REGIONS, n, |t, i| t.ambient(ARITHMETIC_REGION, || f(t, i)))
 }

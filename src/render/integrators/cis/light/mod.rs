@@ -20,13 +20,14 @@
 
 pub(crate) mod kernels;
 
-use super::pool::{append_active, extend, indices_where, material_queues, survivors};
+use super::pool::{append_active, extend, for_each_shading, indices_where, material_queues, survivors};
 use crate::geometry::Ray;
 use crate::render::bidir::Vertex;
 use crate::render::cache::device::{DeviceCache, append_paths, visible_splats};
 use crate::render::cache::host::StrategyCounts;
 use crate::render::cache::kernels::{SplatData, light_splat};
 use crate::render::context::Context;
+use crate::render::walk::{ARITHMETIC_REGION, SHADE_REGIONS};
 use glam::{Vec2, Vec3};
 use kernels::*;
 use simt::{Device, LaunchConfig};
@@ -56,7 +57,7 @@ pub(crate) fn light_pass(
             let free = indices_where(dev, &slots, |s: LightSlot| s.alive == 0);
             let k = free.len().min((n_light - next) as usize);
             let (fv, sv, gv) = (free.view(), slots.view_mut(), staging.view_mut());
-            dev.for_each("cis::light_generate", k, |t, i| {
+            for_each_shading(dev, "cis::light_generate", k, |t, i| {
                 light_generate(t, ctx, i, &fv, (next, number), stride, &sv, &gv)
             });
             active = append_active(dev, "cis::light_append_active", &active, &free, k);
@@ -80,12 +81,12 @@ pub(crate) fn light_pass(
         // 120 registers per thread in the GPU twin (`light_shade`, Nsight Compute on the
         // H200: docs/measured/gpu-render-kernels-h200-bedroom-512.md) and 202,880 bytes
         // of SASS (docs/measured/cuda-kernel-code-bytes-sm90.tsv).
-        let cfg = LaunchConfig::linear(n, 128).with_regions(&["shade"]).with_registers(120).with_code_bytes(202_880);
+        let cfg = LaunchConfig::linear(n, 128).with_regions(SHADE_REGIONS).with_registers(120).with_code_bytes(202_880);
         dev.launch("cis::light_shade", cfg, |blk| {
             blk.for_each_thread(|t| {
                 let j = t.global_idx();
                 if j < n {
-                    light_shade(t, ctx, &args, j)
+                    t.ambient(ARITHMETIC_REGION, || light_shade(t, ctx, &args, j))
                 }
             })
         })
@@ -123,7 +124,7 @@ pub(crate) fn splat_stream(
         let mut splats = dev.alloc_pooled::<SplatData>(m * stride);
         {
             let (pv, vv, sv) = (cache.paths.slice(first, m), cache.vertices.view(), splats.view_mut());
-            dev.for_each("cis::light_splat", m, |t, p| {
+            for_each_shading(dev, "cis::light_splat", m, |t, p| {
                 light_splat(t, ctx, p, (&pv, &vv), (counts, share), stride, &sv)
             });
         }
