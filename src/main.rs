@@ -234,6 +234,11 @@ struct RenderArgs {
     /// the render, and prints the kernel table with a predicted GPU ms column.
     #[arg(long, value_parser = simt::GpuProfile::load)]
     gpu_profile: Option<simt::GpuProfile>,
+    /// With --gpu-profile: write the emulated kernels' launch records to FILE (.tsv), one
+    /// row a launch (grid, block, the meter's instructions, requests, sectors and
+    /// chains), the records `gpu_check time --records` predicts from (docs/gpu-check.md).
+    #[arg(long, value_name = "FILE", requires = "gpu_profile")]
+    launch_records: Option<PathBuf>,
     /// Render on an NVIDIA GPU (cargo feature `cuda`, the library of `sh cuda/build.sh`):
     /// CIS-LBDPT (`--integrator cis` and its ablations) or the LVC-BDPT megakernels
     /// (`lvc-mk`), whole passes on the device over its own BVH (docs/gpu-check.md).
@@ -394,6 +399,9 @@ fn render_on_gpu(
 
 fn run_render(args: RenderArgs) -> Result<bool> {
     check_outputs(&args.output, &["png", "exr"])?;
+    if let Some(f) = &args.launch_records {
+        check_outputs(std::slice::from_ref(f), &["tsv"])?;
+    }
     let is_exr = |p: &PathBuf| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
     if !args.aov.is_empty() && !args.output.iter().any(is_exr) {
         return Err(Error::BadSetting("--aov adds channels to an EXR: give an -o FILE.exr output".into()));
@@ -556,11 +564,30 @@ fn run_render(args: RenderArgs) -> Result<bool> {
                 );
             }
         }
+        if let Some(path) = &args.launch_records {
+            write_launch_records(path, &stats.launches)?;
+        }
         if film.rejected > 0 {
             eprintln!("warning: {} sample estimates were NaN, infinite or negative and were dropped", film.rejected);
         }
         Ok(interrupted)
     })
+}
+
+/// `--launch-records`: the device's launch log as the TSV `gpu_check time --records`
+/// reads, written whole or not at all; says so when the log no longer holds the first.
+fn write_launch_records(path: &std::path::Path, (log, made): &(Vec<simt::LaunchRecord>, u64)) -> Result<()> {
+    if (log.len() as u64) < *made {
+        eprintln!(
+            "warning: the render made {made} kernel launches; the device's log keeps the last {}, which {} holds",
+            log.len(),
+            path.display()
+        );
+    }
+    let text = simt::records_to_tsv(log);
+    warpray::film::atomic_write(path, |tmp| std::fs::write(tmp, &text).map_err(|e| e.to_string()))?;
+    println!("wrote {} launch records to {}", log.len(), path.display());
+    Ok(())
 }
 
 /// `--stats`: what the render did, as a few aligned lines and the kernel table.

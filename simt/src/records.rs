@@ -7,16 +7,18 @@ use crate::stats::{LaunchRecord, RegionStats};
 use std::fmt::Write;
 
 /// The columns of [`records_to_tsv`].
-const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors\tround_repeats\tloaded_footprint\tin_order\tlongest_fenced_lines\tfenced_lines\tblock_issued\tblock_load_rounds\tblock_atomic_rounds\tblock_fences\tblock_fenced_sectors\tblock_fenced_lines\tcode_bytes";
+const RECORD_HEADER: &str = "name\tgrid\tblock\tshared\tseconds\tmeasured\tthreads\tops_issued\tops_active\twork_issued\twork_active\tld_req\tld_sec\tld_lanes\tst_req\tst_sec\tst_lanes\tat_req\tat_sec\tat_lanes\tbarriers\tfootprint\tblock_sectors\tlongest_issued\tlongest_loads\tload_rounds\tlongest_atomics\tlongest_fences\tatomic_rounds\tfences\tlongest_fenced_sectors\tfenced_sectors\tround_repeats\tloaded_footprint\tin_order\tlongest_fenced_lines\tfenced_lines\tblock_issued\tblock_load_rounds\tblock_atomic_rounds\tblock_fences\tblock_fenced_sectors\tblock_fenced_lines\tcode_bytes\tregisters";
 
 /// Columns of [`RECORD_HEADER`] that files written before them lack, newest first:
-/// the bytes of the twin's code (read as not known), the blocks' slowest warps' chains (read as none: the model then takes the mean
+/// the registers a thread the launch stated and the bytes of the twin's code (both read
+/// as not known), the blocks' slowest warps' chains (read as none: the model then takes the mean
 /// warp's), the lines fences waited for (read as none), whether the blocks ran in order (read as not), the loaded footprint (read as the
 /// whole footprint), the sectors repeated within rounds
 /// of loads, the sectors fences waited for, the atomics
 /// and fences waited for (all read as none), and load rounds (read as one per load
 /// request).
 const LATER_COLUMNS: &[&str] = &[
+    "\tregisters",
     "\tcode_bytes",
     "\tblock_issued\tblock_load_rounds\tblock_atomic_rounds\tblock_fences\tblock_fenced_sectors\tblock_fenced_lines",
     "\tlongest_fenced_lines\tfenced_lines",
@@ -39,7 +41,7 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
         let t = |x: &Traffic| format!("{}\t{}\t{}", x.requests, x.sectors, x.lanes);
         let _ = writeln!(
             s,
-            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
+            "{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}\t{}",
             r.name,
             r.grid,
             r.block,
@@ -77,7 +79,8 @@ pub fn records_to_tsv(records: &[LaunchRecord]) -> String {
             r.block_chains.fences,
             r.block_chains.fenced_sectors,
             r.block_chains.fenced_lines,
-            r.code_bytes
+            r.code_bytes,
+            r.registers
         );
     }
     s
@@ -121,7 +124,11 @@ pub fn records_from_tsv(text: &str) -> Result<Vec<LaunchRecord>, String> {
             grid: n(1)? as u32,
             block: n(2)? as u32,
             shared_bytes: n(3)? as usize,
-            registers: 0,
+            registers: if columns.len() > 44 {
+                u32::try_from(n(44)?).map_err(|_| format!("line {}: registers: '{}' is past 4 G", i + 1, f[44]))?
+            } else {
+                0
+            },
             seconds,
             measured: n(5)? != 0,
             threads: n(6)?,
@@ -203,7 +210,7 @@ mod tests {
             grid: 3,
             block: 64,
             shared_bytes: 128,
-            registers: 0,
+            registers: 167,
             code_bytes: 685_056,
             seconds: 0.25,
             measured: true,
@@ -256,8 +263,9 @@ mod tests {
         assert_eq!(back.block_chains, record().block_chains);
         assert_eq!((back.loads, back.atomics, back.block_sectors), (record().loads, record().atomics, 8));
         assert_eq!((back.footprint_sectors, back.loaded_footprint_sectors, back.in_order), (9, 7, true));
-        assert_eq!(back.code_bytes, 685_056);
-        // Cut the later columns off, newest first: the code's bytes are then not known,
+        assert_eq!((back.code_bytes, back.registers), (685_056, 167));
+        // Cut the later columns off, newest first: the registers and then the code's
+        // bytes are then not known,
         // the blocks' chains are then none,
         // fenced lines are then none, the launch is then not in order, the loaded
         // footprint is then the whole footprint, round repeats are none, then
@@ -267,6 +275,8 @@ mod tests {
             text.lines().map(|l| l.split('\t').take(columns).collect::<Vec<_>>().join("\t") + "\n").collect()
         };
         let unlined = |w: WarpChain| WarpChain { fenced_lines: 0, ..w };
+        let before_registers = &records_from_tsv(&cut(&text, 44)).unwrap()[0];
+        assert_eq!((before_registers.registers, before_registers.code_bytes), (0, 685_056));
         let before_code = &records_from_tsv(&cut(&text, 43)).unwrap()[0];
         assert_eq!((before_code.code_bytes, before_code.block_chains), (0, record().block_chains));
         let before_blocks = &records_from_tsv(&cut(&text, 37)).unwrap()[0];
@@ -294,7 +304,7 @@ mod tests {
             assert!(records_from_tsv(&cut(&text, columns)).unwrap_err().contains("header differs"));
         }
         // A code size past what a launch states is an error naming the line and field.
-        let huge = text.replace("\t685056\n", "\t4294967296\n");
+        let huge = text.replace("\t685056\t167\n", "\t4294967296\t167\n");
         let e = records_from_tsv(&huge).unwrap_err();
         assert!(e.starts_with("line 2: code_bytes"), "{e}");
     }

@@ -47,7 +47,8 @@ pub struct LaunchRecord {
     /// Shared memory per block, bytes.
     pub shared_bytes: usize,
     /// Registers per thread of the kernel's GPU twin, 0 when not known
-    /// ([`crate::LaunchConfig::registers`]; not kept in the record files, which read back 0).
+    /// ([`crate::LaunchConfig::registers`]; record files older than their `registers` column
+    /// read back 0).
     pub registers: u32,
     /// Bytes of the compiled code of the kernel's GPU twin, 0 when not known
     /// ([`crate::LaunchConfig::code_bytes`]).

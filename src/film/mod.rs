@@ -464,7 +464,7 @@ pub fn encode_srgb8(linear: f32) -> u8 {
 
 /// Writes through `write` to a temporary file beside `path`, then renames it into place.
 /// On failure the temporary file is removed and `path` is untouched.
-pub(crate) fn atomic_write(path: &Path, write: impl FnOnce(&Path) -> std::result::Result<(), String>) -> Result<()> {
+pub fn atomic_write(path: &Path, write: impl FnOnce(&Path) -> std::result::Result<(), String>) -> Result<()> {
     let name = path.file_name().ok_or_else(|| Error::Output { path: path.into(), msg: "not a file name".into() })?;
     let ext = path.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
     // Keep the extension last: the encoders pick their format from it.

@@ -223,6 +223,10 @@ pub struct RenderStats {
     /// The emulated device's kernel table when the render ran anything on one
     /// (PDACRT casting, CIS-LBDPT), with its peak device memory in bytes.
     pub device: Option<(Vec<simt::KernelSummary>, usize)>,
+    /// The device's launches, oldest first, as far as its log holds them (the last
+    /// [`simt::stats::LOG_CAPACITY`]), and how many launches the render made: the
+    /// records `gpu_check time --records` reads (`warpray render --launch-records`).
+    pub launches: (Vec<simt::LaunchRecord>, u64),
 }
 
 impl RenderStats {

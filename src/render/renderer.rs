@@ -262,5 +262,6 @@ pub fn render(
     (stats.shadow_rays, stats.cast_calls, stats.single_rays) = renderer.ray_counts();
     stats.cast_overlapped = renderer.casts_overlapped();
     stats.device = renderer.device().map(|d| (d.kernel_stats(), d.memory().peak));
+    stats.launches = renderer.device().map(|d| (d.launch_log(), d.launch_mark())).unwrap_or_default();
     Ok((film, stats))
 }

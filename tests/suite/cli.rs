@@ -629,9 +629,12 @@ fn converge_reuses_its_reference_for_the_same_scene_and_settings() {
 fn a_gpu_profile_adds_predicted_gpu_time_to_the_kernel_table() {
     let dir = scratch("gpu-profile");
     let png = dir.join("cis.png");
+    let records = dir.join("cis-launches.tsv");
     let out = warpray()
         .args(["render", "--integrator", "cis", "--size", "24x24", "--spp", "1", "--threads", "1", "-q"])
-        .args(["--gpu-profile", "h200", "-o"])
+        .args(["--gpu-profile", "h200", "--launch-records"])
+        .arg(&records)
+        .arg("-o")
         .arg(&png)
         .output()
         .unwrap();
@@ -641,6 +644,27 @@ fn a_gpu_profile_adds_predicted_gpu_time_to_the_kernel_table() {
     let line = stdout.lines().find(|l| l.contains("GPU time predicted on NVIDIA H200")).expect("a total line");
     let ms: f64 = line.split(": ").nth(1).and_then(|r| r.split(' ').next()).and_then(|v| v.parse().ok()).unwrap();
     assert!(ms > 0.0 && ms.is_finite(), "{line}");
+    // The launch records are the render's launches: predicted one by one on the same
+    // profile, they sum to the table's total.
+    let launches = simt::records_from_tsv(&std::fs::read_to_string(&records).unwrap()).unwrap();
+    assert!(launches.iter().any(|r| r.name == "cis::shade"), "{launches:?}");
+    let h200 = simt::GpuProfile::named("h200").unwrap();
+    let sum: f64 = launches.iter().filter_map(|r| simt::timing::predict(r, &h200)).map(|t| t.seconds * 1e3).sum();
+    assert!((sum - ms).abs() <= 1e-3 * ms.max(1.0), "records {sum} ms against the table's {ms} ms");
+    // Records need the measurement (--gpu-profile) and a .tsv name.
+    for (args, says) in [
+        (vec!["--launch-records", "r.tsv"], "--gpu-profile"),
+        (vec!["--gpu-profile", "h200", "--launch-records", "r.txt"], ".tsv"),
+    ] {
+        let out = warpray()
+            .args(["render", "--integrator", "cis", "--size", "8x8", "--spp", "1", "-q", "-o"])
+            .arg(dir.join("r.png"))
+            .args(&args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.contains(says), "{args:?}: {stderr}");
+    }
     // An unknown profile, and a render that launches no emulated kernel: refused, nothing written.
     for (args, says) in [
         (vec!["--integrator", "cis", "--gpu-profile", "h100x"], "known: h200"),
