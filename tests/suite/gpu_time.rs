@@ -84,13 +84,13 @@ fn calibration_runs() -> ([String; 4], [String; 4]) {
             text("microbenchmark-probes.tsv"),
             text("microbenchmark-probes-fences-scattered-stores.tsv"),
             text("microbenchmark-probes-overlap-h100.tsv"),
-            text("../icache-probes-h100-straight-and-branchy-code.tsv"),
+            text("../icache-probes-h100-straight-and-jumping-code-1-to-32-warps.tsv"),
         ],
         [
             text("ncu-microbenchmarks.csv.gz"),
             text("ncu-microbenchmarks-fences-scattered-stores.csv.gz"),
             text("ncu-microbenchmarks-overlap-h100.csv.gz"),
-            text("../ncu-icache-jump-probes-warp-states-h100.csv.gz"),
+            text("../ncu-icache-probes-h100-1-to-32-warps.csv.gz"),
         ],
     )
 }
@@ -126,7 +126,8 @@ fn the_shipped_h200_profile_is_the_microbenchmarks_calibration_and_nothing_else(
 fn the_fetch_keys_come_from_the_icache_probes_or_calibration_says_which_run_is_missing() {
     // Without the instruction-fetch run there is no fetch-bound rate to write: the error
     // names the run. With it, the two keys are the probes' (64 KiB, the straight code's
-    // knee; 0.395 warp instructions a cycle, the jumping probe's most at 16 warps a SM).
+    // knee; 0.489 warp instructions a cycle, the jumping probe's most, at 32 warps a SM:
+    // 4.082e9 warp instructions over 132 SMs in 3,862.15 cycles a piece, 16,384 pieces).
     let (probes, csvs) = calibration_runs();
     let Err(e) = calibrate(&[&probes[0], &probes[1], &probes[2]], &[&csvs[0], &csvs[1], &csvs[2]]) else {
         panic!("calibrated without the icache probes")
@@ -136,9 +137,9 @@ fn the_fetch_keys_come_from_the_icache_probes_or_calibration_says_which_run_is_m
         .unwrap();
     assert_eq!(c.profile.fetch_thrash_code_bytes, 64.0 * 1024.0);
     let rate = c.profile.fetch_issue_per_cycle_per_sm;
-    assert!((rate - 16.0 / 40.43).abs() < 0.002, "{rate}");
+    assert!((rate - 4.082171196e9 / 132.0 / (3862.154 * 16384.0)).abs() < 0.0005, "{rate}");
     let source = c.sources.iter().find(|(k, _)| *k == "fetch_issue_per_cycle_per_sm").unwrap();
-    assert!(source.1.contains("16 warps") && source.1.contains("H100"), "{}", source.1);
+    assert!(source.1.contains("32 warps") && source.1.contains("H100"), "{}", source.1);
 }
 
 #[test]
