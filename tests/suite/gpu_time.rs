@@ -592,3 +592,69 @@ fn the_emulated_onesweep_pass_issues_what_cubs_issues_a_warp() {
         assert!((per_warp / cub - 1.0).abs() < 0.03, "{per_warp:.0} warp instructions a warp against CUB's {cub:.0}");
     }
 }
+
+/// CIS-LBDPT's camera pass casts the shadow rays of its active samples' waiting
+/// connections, as the GPU twin does (`pending_waiting_flags` over the active list): the
+/// emulated pass's `cis::scatter_blocked` threads against the twin's `pending_shadow`
+/// threads in Nsight's counters of the whole renders at 128² (`cuda/render_counts.sh`,
+/// an H100; a warm-up and a timed pass, halved), within what rounding each launch up to
+/// whole blocks allows (256 threads a launch here, 128 there) and 1 % for the passes'
+/// own draws. Read over the whole pool, as the pass first did, samples that had left the
+/// list cast their last bounce's connections again every bounce: 228,352 threads in
+/// the Cornell box and 278,272 in the bedroom.
+#[test]
+fn the_emulated_cis_pass_casts_the_shadow_rays_its_gpu_twin_casts() {
+    let csv = text("../ncu-gpu-render-kernels-3-scenes-128-512-h100.csv.gz");
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| h.trim_matches('"') == name).unwrap();
+    let (scene_col, size_col, grid_col, block_col) =
+        (col("scene"), col("size"), col("launch__grid_size"), col("launch__block_size"));
+    let rows: Vec<Vec<String>> = lines.map(|l| parse_row(l)).collect();
+    for name in ["cornell", "bedroom"] {
+        let gpu: f64 = rows
+            .iter()
+            .filter(|r| r[scene_col] == name && r[size_col] == "128" && r[3].contains("pending_shadow"))
+            .map(|r| r[grid_col].parse::<f64>().unwrap() * r[block_col].parse::<f64>().unwrap())
+            .sum::<f64>()
+            / 2.0;
+        let scene = if name == "cornell" {
+            warpray::scene::cornell_box()
+        } else {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/bedroom.toml");
+            warpray::scene::load_scene(&path).unwrap().scene
+        };
+        let caster = warpray::cast::BvhCaster::new(&scene);
+        let opts = warpray::render::RenderOptions {
+            width: 128,
+            height: 128,
+            budget: warpray::render::Budget::Samples(1),
+            integrator: warpray::render::IntegratorKind::Cis,
+            max_depth: 8,
+            ..Default::default()
+        };
+        let mut r = warpray::render::Renderer::new(&scene, &caster, &opts).unwrap();
+        let mut film = r.film().unwrap();
+        r.passes(0, 1, &mut film);
+        let log: Vec<LaunchRecord> =
+            r.device().unwrap().launch_log().into_iter().filter(|l| l.name == "cis::scatter_blocked").collect();
+        let mine: f64 = log.iter().map(|l| l.threads as f64).sum();
+        let allowed = 256.0 * log.len() as f64 + 0.01 * gpu;
+        eprintln!("{name}: {mine} shadow-ray threads a pass, the GPU twin {gpu}");
+        assert!((mine - gpu).abs() <= allowed, "{name}: {mine} against the twin's {gpu} (allowed {allowed})");
+    }
+}
+
+/// One line of a CSV whose fields may be quoted (a kernel's name holds commas).
+fn parse_row(line: &str) -> Vec<String> {
+    let (mut out, mut field, mut quoted) = (Vec::new(), String::new(), false);
+    for c in line.chars() {
+        match c {
+            '"' => quoted = !quoted,
+            ',' if !quoted => out.push(std::mem::take(&mut field)),
+            _ => field.push(c),
+        }
+    }
+    out.push(field);
+    out
+}

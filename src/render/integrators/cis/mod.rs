@@ -12,8 +12,8 @@
 //! 4. `cis::shade` walks the sorted order: every strategy at the new vertex (emitter,
 //!    light sample, cache connections) goes to pending entries, and the BSDF picks the
 //!    next ray;
-//! 5. *connect*: the pending shadow rays are compacted (`copy_if`), cast as one batch,
-//!    and `cis::accumulate` adds the visible contributions;
+//! 5. *connect*: the active samples' pending shadow rays are compacted (`copy_if`),
+//!    cast as one batch, and `cis::accumulate` adds the visible contributions;
 //! 6. `cis::retire` writes finished samples to their pixels; dead samples are compacted
 //!    out of the active list (`copy_if`) and their slots regenerated.
 //!
@@ -290,26 +290,42 @@ impl<'d> CameraPool<'d> {
             .expect("shade launch shape is valid")
     }
 
-    /// Connect: the pending shadow rays compacted, cast as one batch, and the visible
-    /// contributions accumulated (`cis::accumulate`); returns the rays cast.
+    /// Connect: the active samples' pending shadow rays compacted, cast as one batch,
+    /// and the visible contributions accumulated (`cis::accumulate`); returns the rays
+    /// cast. Only the active samples' entries are read: a sample that left the list
+    /// keeps its last bounce's entries until its slot is regenerated.
     fn connect(&mut self, ctx: &Context) -> usize {
         let dev = self.dev;
+        let (n, per) = (self.active.len(), PENDING_PER_SLOT);
         let mut blocked = dev.alloc::<u32>(self.pending.len());
-        let waiting = indices_where(dev, &self.pending, |q: PendingData| q.state == 1);
+        let mut waiting_flags = dev.alloc_pooled::<u32>(n * per);
+        {
+            let (av, pv, fv) = (self.active.view(), self.pending.view(), waiting_flags.view_mut());
+            dev.for_each("cis::pending_waiting_flags", n * per, |t, j| {
+                let entry = t.load(&av, j / per) as usize * per + j % per;
+                t.store(&fv, j, u32::from(t.load(&pv, entry).state == 1))
+            });
+        }
+        let waiting = indices_where(dev, &waiting_flags, |f: u32| f != 0);
         let m = waiting.len();
         let mut shadow = dev.alloc_pooled::<Ray>(m);
+        let mut entries = dev.alloc_pooled::<u32>(m);
         {
-            let (iv, pv, sv) = (waiting.view(), self.pending.view(), shadow.view_mut());
+            let (iv, av, pv) = (waiting.view(), self.active.view(), self.pending.view());
+            let (sv, ev) = (shadow.view_mut(), entries.view_mut());
             dev.for_each("cis::gather_shadow_rays", m, |t, i| {
-                t.store(&sv, i, t.load(&pv, t.load(&iv, i) as usize).ray)
+                let j = t.load(&iv, i) as usize;
+                let entry = t.load(&av, j / per) as usize * per + j % per;
+                t.store(&ev, i, entry as u32);
+                t.store(&sv, i, t.load(&pv, entry).ray)
             });
         }
         let mut occluded = vec![false; m];
         ctx.caster.occluded(shadow.as_slice(), &mut occluded);
         let flags = dev.alloc_vec(occluded.into_iter().map(u32::from).collect::<Vec<u32>>());
         {
-            let (iv, fv, bv) = (waiting.view(), flags.view(), blocked.view_mut());
-            dev.for_each("cis::scatter_blocked", m, |t, i| t.store(&bv, t.load(&iv, i) as usize, t.load(&fv, i)));
+            let (ev, fv, bv) = (entries.view(), flags.view(), blocked.view_mut());
+            dev.for_each("cis::scatter_blocked", m, |t, i| t.store(&bv, t.load(&ev, i) as usize, t.load(&fv, i)));
         }
         let (av, pv, bv, sv) = (self.active.view(), self.pending.view(), blocked.view(), self.slots.view_mut());
         dev.for_each("cis::accumulate", self.active.len(), |t, i| accumulate(t, i, &av, &pv, &bv, &sv));
