@@ -195,6 +195,11 @@ struct RenderArgs {
     /// CIS-LBDPT paper renders 4–8) [default: 1].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     spp_per_iteration: Option<u32>,
+    /// CIS-LBDPT (cis and its ablations): samples in flight, the camera pass's pool and
+    /// the light pass's batch [default: 65536]. A pool of the image's pixels or more
+    /// holds every pixel at once, as the GPU renders that docs/simt.md measures do.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    cis_pool: Option<u32>,
     /// Ray caster: `bvh4`, warpray's own BVH, by default (docs/bvh.md).
     #[arg(long, value_enum, default_value = "bvh4")]
     caster: CasterKind,
@@ -466,6 +471,15 @@ fn run_render(args: RenderArgs) -> Result<bool> {
             ));
         }
         opts.set_samples_per_iteration(k);
+    }
+    if let Some(n) = args.cis_pool {
+        if opts.integrator != IntegratorKind::Cis {
+            return Err(Error::BadSetting(format!(
+                "--cis-pool sets CIS-LBDPT's samples in flight; {} has no pool (it applies to cis and its ablations)",
+                variant.label
+            )));
+        }
+        opts.cis.pool = n;
     }
     warpray::film::check_size(width, height)?;
     desc.scene.check_renderable()?;

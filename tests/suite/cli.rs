@@ -683,3 +683,44 @@ fn a_gpu_profile_adds_predicted_gpu_time_to_the_kernel_table() {
         assert!(!bad.exists(), "{args:?} wrote {}", bad.display());
     }
 }
+
+#[test]
+fn the_cis_pool_is_cis_lbdpts_and_any_pool_holding_every_pixel_renders_the_same_image() {
+    let dir = scratch("cis-pool");
+    let render = |pool: &str, integrator: &str, out: &str| {
+        warpray()
+            .args(["render", "--integrator", integrator, "--size", "16x16", "--spp", "1", "-q", "--cis-pool", pool])
+            .arg("-o")
+            .arg(dir.join(out))
+            .output()
+            .unwrap()
+    };
+    // 256 pixels: a pool of 256 and one of a million both hold every pixel at once.
+    for (pool, out) in [("256", "a.exr"), ("1000000", "b.exr")] {
+        let o = render(pool, "cis", out);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let diff = warpray().arg("diff").arg(dir.join("a.exr")).arg(dir.join("b.exr")).output().unwrap();
+    let report = String::from_utf8_lossy(&diff.stdout);
+    assert!(report.lines().any(|l| l.starts_with("RMSE") && l.ends_with(" 0.000000e0")), "{report}");
+    // A smaller pool streams the pixels through in more bounces: more caster calls.
+    let calls = |pool: &str| -> u64 {
+        let o = warpray()
+            .args(["render", "--integrator", "cis", "--size", "16x16", "--spp", "1", "--stats", "--cis-pool", pool])
+            .arg("-o")
+            .arg(dir.join("c.exr"))
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+        let line = stdout.lines().find(|l| l.trim_start().starts_with("rays")).unwrap_or_else(|| panic!("{stdout}"));
+        line.split(" in ").nth(1).and_then(|r| r.split(' ').next()).and_then(|n| n.parse().ok()).unwrap()
+    };
+    assert!(calls("64") > calls("256"), "a pool of 64 against one of 256");
+    // Other integrators have no pool, and a pool of none is refused; nothing is written.
+    for (pool, integrator, says) in [("64", "path", "has no pool"), ("0", "cis", "0 is not in 1..")] {
+        let o = render(pool, integrator, "bad.exr");
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && stderr.contains(says), "{pool} {integrator}: {stderr}");
+        assert!(!dir.join("bad.exr").exists());
+    }
+}
