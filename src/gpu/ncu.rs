@@ -139,7 +139,7 @@ fn field(s: &str) -> String {
 }
 
 /// Splits one CSV line (quoted fields, commas inside quotes kept).
-pub(crate) fn split_csv(line: &str) -> Vec<String> {
+pub fn split_csv(line: &str) -> Vec<String> {
     let mut out = Vec::new();
     let (mut cur, mut quoted) = (String::new(), false);
     for c in line.chars() {

@@ -606,11 +606,11 @@ fn the_emulated_onesweep_pass_issues_what_cubs_issues_a_warp() {
 fn the_emulated_cis_pass_casts_the_shadow_rays_its_gpu_twin_casts() {
     let csv = text("../ncu-gpu-render-kernels-3-scenes-128-512-h100.csv.gz");
     let mut lines = csv.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = |name: &str| header.iter().position(|h| h.trim_matches('"') == name).unwrap();
+    let header = warpray::gpu::ncu::split_csv(lines.next().unwrap());
+    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
     let (scene_col, size_col, grid_col, block_col) =
         (col("scene"), col("size"), col("launch__grid_size"), col("launch__block_size"));
-    let rows: Vec<Vec<String>> = lines.map(|l| parse_row(l)).collect();
+    let rows: Vec<Vec<String>> = lines.map(warpray::gpu::ncu::split_csv).collect();
     for name in ["cornell", "bedroom"] {
         let gpu: f64 = rows
             .iter()
@@ -643,18 +643,4 @@ fn the_emulated_cis_pass_casts_the_shadow_rays_its_gpu_twin_casts() {
         eprintln!("{name}: {mine} shadow-ray threads a pass, the GPU twin {gpu}");
         assert!((mine - gpu).abs() <= allowed, "{name}: {mine} against the twin's {gpu} (allowed {allowed})");
     }
-}
-
-/// One line of a CSV whose fields may be quoted (a kernel's name holds commas).
-fn parse_row(line: &str) -> Vec<String> {
-    let (mut out, mut field, mut quoted) = (Vec::new(), String::new(), false);
-    for c in line.chars() {
-        match c {
-            '"' => quoted = !quoted,
-            ',' if !quoted => out.push(std::mem::take(&mut field)),
-            _ => field.push(c),
-        }
-    }
-    out.push(field);
-    out
 }
