@@ -93,7 +93,7 @@ impl Material {
                 reads!(self, 1);
                 roughness < SMOOTH
             }
-            Material::Layered(l) => l.is_delta(),
+            Material::Layered(ref l) => l.is_delta(),
             Material::Diffuse { .. } | Material::Glossy { .. } | Material::Plastic(_) => false,
         }
     }
@@ -152,7 +152,7 @@ impl Material {
                     fresnel_conductor(wo.dot(wm), eta, k) * v
                 })
             }
-            Material::Layered(l) => l.f(wo, wi),
+            Material::Layered(ref l) => l.f(wo, wi),
             Material::Plastic(p) => p.f(wo, wi),
             _ => Vec3::ZERO,
         }
@@ -194,7 +194,7 @@ impl Material {
                 reads!(self, 1);
                 Ggx { alpha: roughness }.reflection(wo, wi).map_or(0.0, |(_, p, _)| p)
             }
-            Material::Layered(l) => l.pdf(wo, wi),
+            Material::Layered(ref l) => l.pdf(wo, wi),
             Material::Plastic(p) => p.pdf(wo, wi),
             _ => 0.0,
         }
@@ -263,7 +263,7 @@ impl Material {
                 let wi = to_side(wi_up);
                 continuous(wi, self.f(wo, wi, mode), self.pdf(wo, wi))
             }
-            Material::Layered(l) => {
+            Material::Layered(ref l) => {
                 let s = l.sample(wo_up, u_lobe, u, mode)?;
                 declare!(1);
                 Some(BsdfSample { wi: to_side(s.wi), ..s })

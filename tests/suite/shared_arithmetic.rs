@@ -164,6 +164,51 @@ fn every_cis_kernel_that_runs_shared_code_counts_its_arithmetic() {
     }
 }
 
+/// Runs `f` below `depth` extra stack frames of 256 bytes: a value copied onto the stack
+/// inside `f` lies at another address for each depth.
+#[inline(never)]
+fn at_depth(depth: usize, f: &dyn Fn()) {
+    if depth == 0 {
+        return f();
+    }
+    let pad = std::hint::black_box([0u8; 256]);
+    at_depth(depth - 1, f);
+    std::hint::black_box(pad);
+}
+
+/// A layered material's BSDF reads its coats and base where the scene holds them, as
+/// the GPU twin reads them from global memory: 32 lanes evaluating one material at 32
+/// stack depths touch the sectors 32 lanes at one depth touch. (Matched by value, the
+/// material was copied onto each worker's stack and its reads counted there: the
+/// footprint then grew with the stack addresses the lanes ran at, and changed from run
+/// to run with the threads.)
+#[cfg(feature = "model-arithmetic")]
+#[test]
+fn a_layered_bsdf_reads_the_scenes_material_not_a_copy() {
+    let coat = warpray::scene::Coat { ior: 1.5, roughness: 0.2, absorption: Vec3::new(0.1, 0.2, 0.3) };
+    let base = warpray::scene::LayerBase::Diffuse { albedo: Vec3::splat(0.6) };
+    let scene_materials =
+        [Material::Layered(warpray::scene::Layered { coats: [coat; 2], coat_count: 2, base }), diffuse()];
+    let footprint = |spread: bool| {
+        let dev = Device::new(DeviceConfig { measure: true, ..Default::default() });
+        dev.set_gpu_profile(Some(simt::GpuProfile::named("h200").unwrap()));
+        let (wo, wi) = (Vec3::new(0.3, 0.1, 0.9).normalize(), Vec3::new(-0.2, 0.4, 0.8).normalize());
+        let m = &scene_materials[0];
+        dev.for_each_in("bsdf::layered", PARTS, 32, |t, i| {
+            t.ambient(0, || {
+                at_depth(if spread { i } else { 0 }, &|| {
+                    std::hint::black_box(m.f(wo, wi, TransportMode::Radiance));
+                    std::hint::black_box(m.sample_f(wo, 0.7, glam::Vec2::new(0.3, 0.6), TransportMode::Radiance));
+                })
+            })
+        })
+        .footprint_sectors
+    };
+    let (one, spread) = (footprint(false), footprint(true));
+    assert!(one > 0);
+    assert_eq!(spread, one, "32 stack depths touch {spread} sectors, one depth {one}");
+}
+
 #[cfg(not(feature = "model-arithmetic"))]
 #[test]
 fn without_the_feature_nothing_is_declared() {
