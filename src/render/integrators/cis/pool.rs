@@ -7,7 +7,7 @@ use super::kernels::material_key;
 use crate::geometry::{Hit, Ray};
 use crate::render::context::Context;
 use crate::render::walk::{ARITHMETIC_REGION, SHADE_REGIONS};
-use simt::{Device, DeviceBuffer, DeviceCopy, LaunchRecord, Thread};
+use simt::{Device, DeviceBuffer, DeviceCopy, LaunchConfig, LaunchRecord, Thread};
 
 /// The indices of the elements of `items` that `pred` accepts, in order (`copy_if`):
 /// a pool's free slots, a list's waiting entries.
@@ -148,4 +148,23 @@ where
     F: Fn(&Thread, usize) + Sync,
 {
     dev.for_each_in(name, SHADE_REGIONS, n, |t, i| t.ambient(ARITHMETIC_REGION, || f(t, i)))
+}
+
+/// [`for_each_shading`] for a kernel whose GPU twin the time model needs to know: `n`
+/// lanes in blocks of 128 threads, as the twin launches them, stating the twin's
+/// registers a thread and the bytes of its code (`twin`).
+pub(crate) fn launch_shading<F>(dev: &Device, name: &'static str, n: usize, twin: (u32, u32), f: F) -> LaunchRecord
+where
+    F: Fn(&Thread, usize) + Sync,
+{
+    let cfg = LaunchConfig::linear(n, 128).with_regions(SHADE_REGIONS).with_registers(twin.0).with_code_bytes(twin.1);
+    dev.launch(name, cfg, |blk| {
+        blk.for_each_thread(|t| {
+            let j = t.global_idx();
+            if j < n {
+                t.ambient(ARITHMETIC_REGION, || f(t, j))
+            }
+        })
+    })
+    .expect("a linear launch of 128-thread blocks is valid")
 }

@@ -20,17 +20,16 @@
 
 pub(crate) mod kernels;
 
-use super::pool::{append_active, extend, for_each_shading, indices_where, material_queues, survivors};
+use super::pool::{append_active, extend, for_each_shading, indices_where, launch_shading, material_queues, survivors};
 use crate::geometry::Ray;
 use crate::render::bidir::Vertex;
 use crate::render::cache::device::{DeviceCache, append_paths, visible_splats};
 use crate::render::cache::host::StrategyCounts;
 use crate::render::cache::kernels::{SplatData, light_splat};
 use crate::render::context::Context;
-use crate::render::walk::{ARITHMETIC_REGION, SHADE_REGIONS};
 use glam::{Vec2, Vec3};
 use kernels::*;
-use simt::{Device, LaunchConfig};
+use simt::Device;
 
 /// Iteration `number`'s `n_light` light subpaths streamed through a pool of `pool`
 /// slots (sorted by material when `sort`): the cache, and the rays cast.
@@ -81,16 +80,7 @@ pub(crate) fn light_pass(
         // 120 registers per thread in the GPU twin (`light_shade`, Nsight Compute on the
         // H200: docs/measured/gpu-render-kernels-h200-bedroom-512.md) and 202,880 bytes
         // of SASS (docs/measured/cuda-kernel-code-bytes-sm90.tsv).
-        let cfg = LaunchConfig::linear(n, 128).with_regions(SHADE_REGIONS).with_registers(120).with_code_bytes(202_880);
-        dev.launch("cis::light_shade", cfg, |blk| {
-            blk.for_each_thread(|t| {
-                let j = t.global_idx();
-                if j < n {
-                    t.ambient(ARITHMETIC_REGION, || light_shade(t, ctx, &args, j))
-                }
-            })
-        })
-        .expect("light shade launch shape is valid");
+        launch_shading(dev, "cis::light_shade", n, (120, 202_880), |t, j| light_shade(t, ctx, &args, j));
         drop((hits, order));
         // Store the ended subpaths, then compact them out.
         let ended = survivors(dev, "cis::light_ended_flags", &active, &slots, |s: &LightSlot| &s.alive, false);
@@ -124,7 +114,10 @@ pub(crate) fn splat_stream(
         let mut splats = dev.alloc_pooled::<SplatData>(m * stride);
         {
             let (pv, vv, sv) = (cache.paths.slice(first, m), cache.vertices.view(), splats.view_mut());
-            for_each_shading(dev, "cis::light_splat", m, |t, p| {
+            // 122 registers per thread in the GPU twin (`light_splat`, Nsight Compute on an
+            // H100: docs/measured/ncu-gpu-render-kernels-3-scenes-128-512-h100.csv.gz) and
+            // 129,792 bytes of SASS (docs/measured/cuda-kernel-code-bytes-sm90.tsv).
+            launch_shading(dev, "cis::light_splat", m, (122, 129_792), |t, p| {
                 light_splat(t, ctx, p, (&pv, &vv), (counts, share), stride, &sv)
             });
         }
