@@ -420,20 +420,7 @@ mod heavy {
         let caster = warpray::cast::BvhCaster::new(&scene);
         for sorted in [true, false] {
             let name = if sorted { "shade_sorted" } else { "shade_unsorted" };
-            let mut opts = warpray::render::RenderOptions {
-                width: 128,
-                height: 128,
-                budget: warpray::render::Budget::Samples(1),
-                integrator: warpray::render::IntegratorKind::Cis,
-                max_depth: 8,
-                ..Default::default()
-            };
-            (opts.cis.sort, opts.cis.measure) = (sorted, true);
-            let mut r = warpray::render::Renderer::new(&scene, &caster, &opts).unwrap();
-            let mut film = r.film().unwrap();
-            r.passes(0, 1, &mut film);
-            let mine: Vec<simt::LaunchRecord> =
-                r.device().unwrap().launch_log().into_iter().filter(|l| l.name == "cis::shade").collect();
+            let mine = super::cis_pass_128(&scene, &caster, sorted, true, "cis::shade");
             let theirs: Vec<&GpuKernel> = launches.iter().filter(|k| k.name.ends_with(name)).take(mine.len()).collect();
             assert_eq!(mine.len(), 9, "bounces of the emulated pass");
             assert_eq!(theirs.len(), mine.len(), "{name}: launches in the stored Nsight run");
@@ -608,13 +595,13 @@ fn the_emulated_cis_pass_casts_the_shadow_rays_its_gpu_twin_casts() {
     let mut lines = csv.lines();
     let header = warpray::gpu::ncu::split_csv(lines.next().unwrap());
     let col = |name: &str| header.iter().position(|h| h == name).unwrap();
-    let (scene_col, size_col, grid_col, block_col) =
-        (col("scene"), col("size"), col("launch__grid_size"), col("launch__block_size"));
+    let (scene_col, size_col, kernel_col, grid_col, block_col) =
+        (col("scene"), col("size"), col("Kernel Name"), col("launch__grid_size"), col("launch__block_size"));
     let rows: Vec<Vec<String>> = lines.map(warpray::gpu::ncu::split_csv).collect();
     for name in ["cornell", "bedroom"] {
         let gpu: f64 = rows
             .iter()
-            .filter(|r| r[scene_col] == name && r[size_col] == "128" && r[3].contains("pending_shadow"))
+            .filter(|r| r[scene_col] == name && r[size_col] == "128" && r[kernel_col].contains("pending_shadow"))
             .map(|r| r[grid_col].parse::<f64>().unwrap() * r[block_col].parse::<f64>().unwrap())
             .sum::<f64>()
             / 2.0;
@@ -625,22 +612,34 @@ fn the_emulated_cis_pass_casts_the_shadow_rays_its_gpu_twin_casts() {
             warpray::scene::load_scene(&path).unwrap().scene
         };
         let caster = warpray::cast::BvhCaster::new(&scene);
-        let opts = warpray::render::RenderOptions {
-            width: 128,
-            height: 128,
-            budget: warpray::render::Budget::Samples(1),
-            integrator: warpray::render::IntegratorKind::Cis,
-            max_depth: 8,
-            ..Default::default()
-        };
-        let mut r = warpray::render::Renderer::new(&scene, &caster, &opts).unwrap();
-        let mut film = r.film().unwrap();
-        r.passes(0, 1, &mut film);
-        let log: Vec<LaunchRecord> =
-            r.device().unwrap().launch_log().into_iter().filter(|l| l.name == "cis::scatter_blocked").collect();
+        let log = cis_pass_128(&scene, &caster, true, false, "cis::scatter_blocked");
         let mine: f64 = log.iter().map(|l| l.threads as f64).sum();
         let allowed = 256.0 * log.len() as f64 + 0.01 * gpu;
         eprintln!("{name}: {mine} shadow-ray threads a pass, the GPU twin {gpu}");
         assert!((mine - gpu).abs() <= allowed, "{name}: {mine} against the twin's {gpu} (allowed {allowed})");
     }
+}
+
+/// The launches named `kernel` of one CIS-LBDPT pass at 128² (max depth 8, the default
+/// pool, which holds every pixel), sorted by material or not, measured or not.
+fn cis_pass_128(
+    scene: &warpray::scene::Scene,
+    caster: &warpray::cast::BvhCaster,
+    sorted: bool,
+    measure: bool,
+    kernel: &str,
+) -> Vec<LaunchRecord> {
+    let mut opts = warpray::render::RenderOptions {
+        width: 128,
+        height: 128,
+        budget: warpray::render::Budget::Samples(1),
+        integrator: warpray::render::IntegratorKind::Cis,
+        max_depth: 8,
+        ..Default::default()
+    };
+    (opts.cis.sort, opts.cis.measure) = (sorted, measure);
+    let mut r = warpray::render::Renderer::new(scene, caster, &opts).unwrap();
+    let mut film = r.film().unwrap();
+    r.passes(0, 1, &mut film);
+    r.device().unwrap().launch_log().into_iter().filter(|l| l.name == kernel).collect()
 }
